@@ -1,0 +1,9 @@
+//! Fogsmith: an editor and baking pipeline for volumetric fog made of gaussian particles.
+//!
+//! - [`scene`]: the project model and its RON files (no GPU, no UI).
+//! - [`gpu`]: the one module that talks to wgpu: injection, opacity propagation, ray march,
+//!   readback, timings.
+//! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
+//! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
+
+pub mod scene;

@@ -1,0 +1,233 @@
+//! Loading and saving projects as RON.
+//!
+//! Loading reports syntax errors and invalid values with the file, line and column.
+//! Saving is atomic: the text goes to a temporary file in the same directory, is flushed
+//! to disk, the previous file is kept as `<name>.bak`, and only then is the temporary file
+//! renamed over the destination, so a crash never leaves a half-written project.
+
+use super::{validate::ValidationError, Project, MAX_RESOLUTION_DEFAULT, PROJECT_VERSION};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Why a project could not be loaded or saved.
+#[derive(Debug, thiserror::Error)]
+pub enum ProjectError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}:{line}:{col}: {message}")]
+    Syntax { path: PathBuf, line: usize, col: usize, message: String },
+    #[error("{path}:{line}:{col}: {error}")]
+    Invalid { path: PathBuf, line: usize, col: usize, error: ValidationError },
+    #[error("could not serialise the project: {0}")]
+    Serialize(String),
+}
+
+/// Reads, parses and validates a project file.
+pub fn load_project(path: &Path) -> Result<Project, ProjectError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Io { path: path.to_owned(), source })?;
+    parse_project(&text, path)
+}
+
+/// Parses and validates project text; `origin` names the source in error messages.
+pub fn parse_project(text: &str, origin: &Path) -> Result<Project, ProjectError> {
+    let options = ron::Options::default();
+    let project: Project = options.from_str(text).map_err(|e| ProjectError::Syntax {
+        path: origin.to_owned(),
+        line: e.position.line,
+        col: e.position.col,
+        message: e.code.to_string(),
+    })?;
+    let project = migrate(project);
+    project.validate(MAX_RESOLUTION_DEFAULT).map_err(|error| {
+        let (line, col) = locate_field(text, &error.field).unwrap_or((1, 1));
+        ProjectError::Invalid { path: origin.to_owned(), line, col, error }
+    })?;
+    Ok(project)
+}
+
+/// Brings an older project up to [`PROJECT_VERSION`]. Version 1 is the first format.
+fn migrate(project: Project) -> Project {
+    project
+}
+
+/// The project as RON text, in the shape of the documented example.
+pub fn to_ron_string(project: &Project) -> Result<String, ProjectError> {
+    let config = ron::ser::PrettyConfig::new().struct_names(false).indentor("    ").separate_tuple_members(false);
+    let body = ron::ser::to_string_pretty(project, config).map_err(|e| ProjectError::Serialize(e.to_string()))?;
+    Ok(format!("Project{body}\n"))
+}
+
+/// Saves atomically, keeping the previous version as `<path>.bak`.
+pub fn save_project(path: &Path, project: &Project) -> Result<(), ProjectError> {
+    debug_assert_eq!(project.version, PROJECT_VERSION);
+    let text = to_ron_string(project)?;
+    write_atomic(path, text.as_bytes(), true).map_err(|source| ProjectError::Io { path: path.to_owned(), source })
+}
+
+/// Writes `bytes` to `path` through a temporary sibling file and a rename; with `backup`,
+/// an existing file is first preserved as `<path>.bak`.
+pub fn write_atomic(path: &Path, bytes: &[u8], backup: bool) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "the path names no file"))?;
+    let tmp = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        drop(f);
+        if backup && path.exists() {
+            let mut bak = path.as_os_str().to_owned();
+            bak.push(".bak");
+            std::fs::copy(path, PathBuf::from(bak))?;
+        }
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Finds the line and column of a field path such as `particles[3].radius` in RON text,
+/// falling back to the nearest enclosing field that exists in the text.
+pub fn locate_field(text: &str, field: &str) -> Option<(usize, usize)> {
+    let positions = field_positions(text);
+    let mut path = field.to_string();
+    loop {
+        if let Some(pos) = positions.iter().find(|(p, _)| *p == path) {
+            return Some(pos.1);
+        }
+        let cut = path.rfind(['.', '['])?;
+        path.truncate(cut);
+    }
+}
+
+/// Every `key:` and list element of a RON document with its path and (line, column).
+fn field_positions(text: &str) -> Vec<(String, (usize, usize))> {
+    enum Frame {
+        Record { prefix: String, key: Option<String> },
+        List { prefix: String, index: usize, started: bool },
+    }
+    fn path_of(stack: &[Frame]) -> String {
+        match stack.last() {
+            Some(Frame::Record { prefix, key: Some(k) }) => {
+                if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                }
+            }
+            Some(Frame::Record { prefix, key: None }) => prefix.clone(),
+            Some(Frame::List { prefix, index, .. }) => format!("{prefix}[{index}]"),
+            None => String::new(),
+        }
+    }
+    let mut out = Vec::new();
+    let mut stack: Vec<Frame> = Vec::new();
+    let chars: Vec<char> = text.chars().collect();
+    let (mut line, mut col) = (1usize, 1usize);
+    let mut i = 0;
+    let advance = |c: char, line: &mut usize, col: &mut usize| {
+        if c == '\n' {
+            *line += 1;
+            *col = 1;
+        } else {
+            *col += 1;
+        }
+    };
+    while i < chars.len() {
+        let c = chars[i];
+        if let Some(Frame::List { index, started, prefix }) = stack.last_mut() {
+            if !*started && !c.is_whitespace() && c != ']' {
+                *started = true;
+                out.push((format!("{prefix}[{index}]"), (line, col)));
+            }
+        }
+        match c {
+            '/' if chars.get(i + 1) == Some(&'/') => {
+                while i < chars.len() && chars[i] != '\n' {
+                    i += 1;
+                }
+                continue;
+            }
+            '"' => {
+                advance(c, &mut line, &mut col);
+                i += 1;
+                while i < chars.len() && chars[i] != '"' {
+                    if chars[i] == '\\' {
+                        advance(chars[i], &mut line, &mut col);
+                        i += 1;
+                    }
+                    if i < chars.len() {
+                        advance(chars[i], &mut line, &mut col);
+                        i += 1;
+                    }
+                }
+            }
+            '(' | '{' => {
+                let prefix = path_of(&stack);
+                stack.push(Frame::Record { prefix, key: None });
+            }
+            '[' => {
+                let prefix = path_of(&stack);
+                stack.push(Frame::List { prefix, index: 0, started: false });
+            }
+            ')' | '}' | ']' => {
+                stack.pop();
+            }
+            ',' => {
+                if let Some(Frame::List { index, started, .. }) = stack.last_mut() {
+                    *index += 1;
+                    *started = false;
+                }
+            }
+            c if c.is_alphabetic() || c == '_' => {
+                let start = (line, col);
+                let mut j = i;
+                while j < chars.len() && (chars[j].is_alphanumeric() || chars[j] == '_') {
+                    j += 1;
+                }
+                let ident: String = chars[i..j].iter().collect();
+                let mut k = j;
+                while k < chars.len() && chars[k].is_whitespace() {
+                    k += 1;
+                }
+                if chars.get(k) == Some(&':') {
+                    if let Some(Frame::Record { key, .. }) = stack.last_mut() {
+                        *key = Some(ident);
+                        out.push((path_of(&stack), start));
+                    }
+                }
+                for &ch in &chars[i..j] {
+                    advance(ch, &mut line, &mut col);
+                }
+                i = j;
+                continue;
+            }
+            _ => {}
+        }
+        if i < chars.len() {
+            advance(chars[i], &mut line, &mut col);
+        }
+        i += 1;
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn locates_nested_fields() {
+        let text = "Project(\n  particles: [\n    (center: (0.0, 1.0, 0.0), radius: 1.0, density: 1.0),\n    (center: (0.0, 1.0, 0.0), radius: -1.0, density: 1.0),\n  ],\n)";
+        assert_eq!(locate_field(text, "particles[1].radius"), Some((4, 31)));
+        assert_eq!(locate_field(text, "particles[0].center"), Some((3, 6)));
+        assert_eq!(locate_field(text, "grid.min"), None);
+    }
+}

@@ -1,0 +1,264 @@
+//! The scene model: what an artist authors, independent of GPUs and of the editor.
+//!
+//! A [`Project`] holds the medium (a homogeneous base fog plus gaussian particles),
+//! point lights, the grid the medium is baked on, the camera and render settings.
+//! Units follow `physics.md`: metres, extinction in 1/m, radiant intensity in W/sr.
+//! Every optional field has a default documented on its type, so a project file only
+//! needs what differs from the defaults. [`io`] loads and saves projects as RON.
+
+pub mod io;
+mod validate;
+mod volume;
+
+pub use io::{load_project, parse_project, save_project, ProjectError};
+pub use validate::{ValidationError, MAX_RESOLUTION_DEFAULT};
+pub use volume::Volume;
+
+use glam::{UVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// The project format version this build writes. Older versions are migrated on load.
+pub const PROJECT_VERSION: u32 = 1;
+
+/// A whole fog scene, as saved in a `.ron` project file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Project {
+    /// File format version; see [`PROJECT_VERSION`].
+    pub version: u32,
+    pub grid: GridSpec,
+    pub medium: Medium,
+    pub particles: Vec<Particle>,
+    pub lights: Vec<Light>,
+    pub camera: Camera,
+    pub render: RenderSettings,
+    pub propagation: PropagationSettings,
+}
+
+impl Default for Project {
+    fn default() -> Self {
+        Self {
+            version: PROJECT_VERSION,
+            grid: GridSpec::default(),
+            medium: Medium::default(),
+            particles: Vec::new(),
+            lights: Vec::new(),
+            camera: Camera::default(),
+            render: RenderSettings::default(),
+            propagation: PropagationSettings::default(),
+        }
+    }
+}
+
+/// The axis-aligned box the medium is baked on. Cell `(i, j, k)` is centred at
+/// `min + (index + 0.5) * cell_size()`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GridSpec {
+    pub min: Vec3,
+    pub max: Vec3,
+    /// Cells along x, y, z. Default 64³.
+    pub resolution: UVec3,
+}
+
+impl Default for GridSpec {
+    fn default() -> Self {
+        Self { min: Vec3::new(-2.0, 0.0, -2.0), max: Vec3::new(2.0, 4.0, 2.0), resolution: UVec3::splat(64) }
+    }
+}
+
+impl GridSpec {
+    pub fn size(&self) -> Vec3 {
+        self.max - self.min
+    }
+    pub fn cell_size(&self) -> Vec3 {
+        self.size() / self.resolution.as_vec3()
+    }
+    pub fn cell_count(&self) -> u64 {
+        self.resolution.x as u64 * self.resolution.y as u64 * self.resolution.z as u64
+    }
+    pub fn cell_center(&self, i: u32, j: u32, k: u32) -> Vec3 {
+        self.min + (UVec3::new(i, j, k).as_vec3() + 0.5) * self.cell_size()
+    }
+    /// Linear index of cell (i, j, k), x fastest.
+    pub fn index(&self, i: u32, j: u32, k: u32) -> usize {
+        let r = self.resolution;
+        (i as usize) + r.x as usize * ((j as usize) + r.y as usize * k as usize)
+    }
+}
+
+/// The participating medium's optical properties.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Medium {
+    /// Homogeneous fog filling all space, in 1/m. Default 0.
+    pub base_extinction: f32,
+    /// Single-scattering albedo σ_s/σ_t in [0, 1]. Default 1.
+    pub albedo: f32,
+    /// Henyey–Greenstein asymmetry g in (−1, 1); 0 is isotropic. Default 0.
+    pub anisotropy: f32,
+}
+
+impl Default for Medium {
+    fn default() -> Self {
+        Self { base_extinction: 0.0, albedo: 1.0, anisotropy: 0.0 }
+    }
+}
+
+/// A gaussian blob of fog: σ_t(x) = density · exp(−|x − center|² / radius²).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Particle {
+    pub center: Vec3,
+    /// r in exp(−d²/r²), metres; must be > 0.
+    pub radius: f32,
+    /// Peak extinction c, 1/m; must be ≥ 0.
+    pub density: f32,
+    /// Optional label shown in the editor. Default none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Hidden particles are kept in the file but contribute nothing. Default false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub hidden: bool,
+}
+
+impl Particle {
+    pub fn new(center: Vec3, radius: f32, density: f32) -> Self {
+        Self { center, radius, density, name: None, hidden: false }
+    }
+
+    /// Distance beyond which this particle's extinction is below `epsilon` (physics.md §2):
+    /// r·sqrt(ln(c/ε)), or 0 when the peak itself is below ε.
+    pub fn cutoff_radius(&self, epsilon: f32) -> f32 {
+        if self.density <= epsilon {
+            0.0
+        } else {
+            self.radius * (self.density / epsilon).ln().sqrt()
+        }
+    }
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
+/// An isotropic point light.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Light {
+    pub position: Vec3,
+    /// Radiant intensity I in W/sr; must be ≥ 0.
+    pub intensity: f32,
+    /// Per-channel scale of the intensity (linear RGB). Default white (1, 1, 1).
+    #[serde(default = "white")]
+    pub color: Vec3,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Hidden lights are kept in the file but cast no light. Default false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub hidden: bool,
+}
+
+impl Light {
+    pub fn new(position: Vec3, intensity: f32, color: Vec3) -> Self {
+        Self { position, intensity, color, name: None, hidden: false }
+    }
+    /// Radiant intensity per RGB channel.
+    pub fn radiance_rgb(&self) -> Vec3 {
+        self.color * self.intensity
+    }
+}
+
+fn white() -> Vec3 {
+    Vec3::ONE
+}
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Camera {
+    pub position: Vec3,
+    pub target: Vec3,
+    /// Default +y.
+    pub up: Vec3,
+    /// Vertical field of view in degrees, in (0, 180). Default 40.
+    pub fov_y_deg: f32,
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Self { position: Vec3::new(0.0, 2.0, 7.0), target: Vec3::new(0.0, 1.5, 0.0), up: Vec3::Y, fov_y_deg: 40.0 }
+    }
+}
+
+impl Camera {
+    /// Orthonormal basis (right, up, forward) of the view.
+    pub fn basis(&self) -> (Vec3, Vec3, Vec3) {
+        let forward = (self.target - self.position).normalize();
+        let right = forward.cross(self.up).normalize();
+        let up = right.cross(forward);
+        (right, up, forward)
+    }
+
+    /// Unit direction of the ray through the centre of pixel (px, py) of a
+    /// `width`×`height` image, row 0 at the top.
+    pub fn ray_dir(&self, px: u32, py: u32, width: u32, height: u32) -> Vec3 {
+        let (right, up, forward) = self.basis();
+        let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = width as f32 / height as f32;
+        let sx = ((px as f32 + 0.5) / width as f32 * 2.0 - 1.0) * tan_half * aspect;
+        let sy = (1.0 - (py as f32 + 0.5) / height as f32 * 2.0) * tan_half;
+        (forward + right * sx + up * sy).normalize()
+    }
+}
+
+/// How the preview image is rendered.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RenderSettings {
+    /// Output size in pixels. Default 640×360.
+    pub width: u32,
+    pub height: u32,
+    /// Ray-march step as a fraction of the smallest cell edge. Default 0.5.
+    pub step_factor: f32,
+    /// Multiplier on linear radiance before tone mapping (PNG only). Default 1.
+    pub exposure: f32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self { width: 640, height: 360, step_factor: 0.5, exposure: 1.0 }
+    }
+}
+
+/// How optical depth towards each light is propagated through the grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Scheme {
+    /// Giroud & Biri's 6-neighbour gather, iterated over the whole grid until converged.
+    #[default]
+    Giroud,
+}
+
+impl std::fmt::Display for Scheme {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Scheme::Giroud => "giroud",
+        })
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct PropagationSettings {
+    /// Default `giroud`.
+    pub scheme: Scheme,
+}
+
+impl Project {
+    /// The extinction σ_t at a point of the analytic medium (f32; the f64 reference lives
+    /// in `crate::reference`).
+    pub fn visible_particles(&self) -> impl Iterator<Item = &Particle> {
+        self.particles.iter().filter(|p| !p.hidden)
+    }
+    pub fn visible_lights(&self) -> impl Iterator<Item = &Light> {
+        self.lights.iter().filter(|l| !l.hidden)
+    }
+}

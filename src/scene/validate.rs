@@ -1,0 +1,139 @@
+//! Checks that a project describes a physically meaningful, bakeable scene.
+//!
+//! [`Project::validate`] names the offending field by its path (`particles[3].radius`)
+//! so the editor and the CLI can both point at it; the RON loader adds file, line and
+//! column.
+
+use super::{GridSpec, Project};
+use glam::Vec3;
+
+/// Largest grid edge accepted before a device is known (wgpu's default 3D texture limit is
+/// 2048; the pipeline re-checks against the adapter's real limit).
+pub const MAX_RESOLUTION_DEFAULT: u32 = 4096;
+
+/// A field with an invalid value.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{field}: {problem}")]
+pub struct ValidationError {
+    /// Path of the field, e.g. `particles[3].radius`.
+    pub field: String,
+    /// What is wrong and how to fix it.
+    pub problem: String,
+}
+
+fn err(field: impl Into<String>, problem: impl Into<String>) -> ValidationError {
+    ValidationError { field: field.into(), problem: problem.into() }
+}
+
+fn finite(field: &str, v: f32) -> Result<(), ValidationError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(err(field, format!("must be a finite number, got {v}")))
+    }
+}
+
+fn finite3(field: &str, v: Vec3) -> Result<(), ValidationError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(err(field, format!("must be finite, got ({}, {}, {})", v.x, v.y, v.z)))
+    }
+}
+
+fn at_least(field: &str, v: f32, min: f32) -> Result<(), ValidationError> {
+    finite(field, v)?;
+    if v >= min {
+        Ok(())
+    } else {
+        Err(err(field, format!("must be ≥ {min}, got {v}")))
+    }
+}
+
+impl GridSpec {
+    /// Checks bounds and resolution against `max_resolution` cells per axis.
+    pub fn validate(&self, max_resolution: u32) -> Result<(), ValidationError> {
+        finite3("grid.min", self.min)?;
+        finite3("grid.max", self.max)?;
+        for (axis, (lo, hi)) in ["x", "y", "z"].iter().zip(self.min.to_array().into_iter().zip(self.max.to_array())) {
+            if lo >= hi {
+                return Err(err(format!("grid.max.{axis}"), format!("must be greater than grid.min.{axis} ({lo}), got {hi}")));
+            }
+        }
+        for (axis, n) in ["x", "y", "z"].iter().zip(self.resolution.to_array()) {
+            if n == 0 || n > max_resolution {
+                return Err(err(
+                    format!("grid.resolution.{axis}"),
+                    format!("must be within 1..={max_resolution}, got {n}; lower the resolution"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Project {
+    /// Checks every field; `max_resolution` is the largest grid edge allowed.
+    pub fn validate(&self, max_resolution: u32) -> Result<(), ValidationError> {
+        if self.version == 0 || self.version > super::PROJECT_VERSION {
+            return Err(err(
+                "version",
+                format!("unsupported project version {}; this build reads 1..={}", self.version, super::PROJECT_VERSION),
+            ));
+        }
+        self.grid.validate(max_resolution)?;
+        let m = &self.medium;
+        at_least("medium.base_extinction", m.base_extinction, 0.0)?;
+        at_least("medium.albedo", m.albedo, 0.0)?;
+        if m.albedo > 1.0 {
+            return Err(err("medium.albedo", format!("must be within [0, 1], got {}", m.albedo)));
+        }
+        finite("medium.anisotropy", m.anisotropy)?;
+        if m.anisotropy.abs() >= 1.0 {
+            return Err(err("medium.anisotropy", format!("must be within (−1, 1), got {}", m.anisotropy)));
+        }
+        for (i, p) in self.particles.iter().enumerate() {
+            finite3(&format!("particles[{i}].center"), p.center)?;
+            finite(&format!("particles[{i}].radius"), p.radius)?;
+            if p.radius <= 0.0 {
+                return Err(err(format!("particles[{i}].radius"), format!("must be > 0, got {}", p.radius)));
+            }
+            at_least(&format!("particles[{i}].density"), p.density, 0.0)?;
+        }
+        for (i, l) in self.lights.iter().enumerate() {
+            finite3(&format!("lights[{i}].position"), l.position)?;
+            at_least(&format!("lights[{i}].intensity"), l.intensity, 0.0)?;
+            finite3(&format!("lights[{i}].color"), l.color)?;
+            if l.color.min_element() < 0.0 {
+                return Err(err(format!("lights[{i}].color"), "components must be ≥ 0"));
+            }
+        }
+        let c = &self.camera;
+        finite3("camera.position", c.position)?;
+        finite3("camera.target", c.target)?;
+        finite3("camera.up", c.up)?;
+        let fwd = c.target - c.position;
+        if fwd.length_squared() < 1e-12 {
+            return Err(err("camera.target", "must differ from camera.position"));
+        }
+        if fwd.normalize().cross(c.up.normalize_or_zero()).length_squared() < 1e-10 {
+            return Err(err("camera.up", "must not be parallel to the view direction"));
+        }
+        finite("camera.fov_y_deg", c.fov_y_deg)?;
+        if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
+            return Err(err("camera.fov_y_deg", format!("must be within (0, 180), got {}", c.fov_y_deg)));
+        }
+        let r = &self.render;
+        for (name, v) in [("render.width", r.width), ("render.height", r.height)] {
+            if v == 0 || v > 16384 {
+                return Err(err(name, format!("must be within 1..=16384 pixels, got {v}")));
+            }
+        }
+        finite("render.step_factor", r.step_factor)?;
+        if !(r.step_factor >= 0.01 && r.step_factor <= 8.0) {
+            return Err(err("render.step_factor", format!("must be within [0.01, 8], got {}", r.step_factor)));
+        }
+        at_least("render.exposure", r.exposure, 0.0)?;
+        Ok(())
+    }
+}
