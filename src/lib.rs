@@ -7,3 +7,6 @@
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 
 pub mod scene;
+pub mod cli;
+pub mod gpu;
+pub mod output;

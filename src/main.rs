@@ -1,1 +1,13 @@
-fn main(){}
+//! The `fogsmith` command line.
+
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    match fogsmith::cli::run(std::env::args_os().collect()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("fogsmith: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,68 @@
+// Opacity propagation, Giroud & Biri's 6-neighbour gather (physics.md §5), one Jacobi
+// iteration over the whole grid per dispatch.
+//
+// A cell gathers optical depth from the neighbour one cell towards the light along each axis
+// where it is not in the light's slab, weighted by how well that axis matches the light
+// direction. Each neighbour's value is advanced to this cell by the trapezoid integral of σ_t
+// over the difference of their distances to the light, so a homogeneous medium gives exactly
+// β·distance everywhere. Neighbours outside the grid see only the base fog. Gathering only
+// towards the light's slab makes the dependencies acyclic: the iteration is exact after
+// (largest Manhattan distance to the light's slabs + 1) sweeps, which the host computes.
+
+@group(0) @binding(0) var<uniform> grid: GridParams;
+@group(0) @binding(1) var ev: texture_3d<f32>;
+@group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
+@group(0) @binding(3) var<storage, read> active_lights: array<u32>;
+@group(0) @binding(4) var<storage, read> src: array<f32>;
+@group(0) @binding(5) var<storage, read_write> dst: array<f32>;
+
+fn sigma_at(c: vec3i) -> f32 {
+    if any(c < vec3i(0)) || any(c >= vec3i(grid.dims)) {
+        return grid.base_extinction;
+    }
+    return textureLoad(ev, c, 0).r;
+}
+
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: vec3u) {
+    let zgroups = (grid.dims.z + 3u) / 4u;
+    let slot = wg.z / zgroups;
+    let id = vec3u(gid.xy, gid.z - slot * zgroups * 4u);
+    if any(id >= grid.dims) || slot >= arrayLength(&active_lights) {
+        return;
+    }
+    let light = active_lights[slot];
+    let s = lights[light].position;
+    let base = light * cell_count();
+    let x = cell_center(id);
+    let offs = x - s;
+    let dist = length(offs);
+    let sigma = sigma_at(vec3i(id));
+
+    var sum = 0.0;
+    var wsum = 0.0;
+    for (var a = 0u; a < 3u; a++) {
+        if abs(offs[a]) <= 0.5 * grid.cell[a] * 1.0001 {
+            continue;
+        }
+        var toward = vec3i(0);
+        toward[a] = select(1, -1, offs[a] > 0.0);
+        let n = vec3i(id) + toward;
+        let nx = grid.min + (vec3f(n) + 0.5) * grid.cell;
+        let ndist = length(nx - s);
+        var tn: f32;
+        if any(n < vec3i(0)) || any(n >= vec3i(grid.dims)) {
+            tn = grid.base_extinction * ndist;
+        } else {
+            tn = src[base + linear_index(vec3u(n))];
+        }
+        let w = abs(offs[a]) / dist;
+        sum += w * (tn + 0.5 * (sigma + sigma_at(n)) * (dist - ndist));
+        wsum += w;
+    }
+    var t = sigma * dist;
+    if wsum > 0.0 {
+        t = sum / wsum;
+    }
+    dst[base + linear_index(id)] = t;
+}

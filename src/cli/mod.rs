@@ -1,0 +1,145 @@
+//! Command-line interface: headless rendering and adapter information.
+
+use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
+use crate::output::write_image;
+use crate::scene::{load_project, Scheme};
+use clap::{Parser, Subcommand};
+use std::ffi::OsString;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(name = "fogsmith", version, about = "Author, preview and bake volumetric fog.")]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a project headlessly to a PNG (tone-mapped) or EXR (linear HDR) image.
+    Render {
+        project: PathBuf,
+        /// Output image: .png or .exr.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Image width in pixels (default: the project's render.width).
+        #[arg(long)]
+        width: Option<u32>,
+        /// Image height in pixels (default: the project's render.height).
+        #[arg(long)]
+        height: Option<u32>,
+        /// Propagation scheme (default: the project's propagation.scheme).
+        #[arg(long)]
+        scheme: Option<Scheme>,
+        /// Print a JSON summary on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Print the GPU adapter Fogsmith would use and its limits.
+    Info {
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Runs the CLI with `args` (including the program name).
+pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
+    let cli = Cli::parse_from(args);
+    match cli.command {
+        None => {
+            use clap::CommandFactory;
+            Cli::command().print_help()?;
+            Ok(())
+        }
+        Some(Command::Info { json }) => info(json),
+        Some(Command::Render { project, output, width, height, scheme, json }) => {
+            render(&project, &output, width, height, scheme, json)
+        }
+    }
+}
+
+fn info(json: bool) -> Result<(), Box<dyn std::error::Error>> {
+    let ctx = GpuContext::new_headless()?;
+    let l = &ctx.limits;
+    if json {
+        let v = serde_json::json!({
+            "adapter": ctx.adapter_info.name,
+            "backend": format!("{:?}", ctx.adapter_info.backend),
+            "device_type": format!("{:?}", ctx.adapter_info.device_type),
+            "driver": ctx.adapter_info.driver,
+            "driver_info": ctx.adapter_info.driver_info,
+            "timestamp_queries": ctx.supports_timestamps(),
+            "limits": {
+                "max_texture_dimension_3d": l.max_texture_dimension_3d,
+                "max_texture_dimension_2d": l.max_texture_dimension_2d,
+                "max_storage_buffer_binding_size": l.max_storage_buffer_binding_size,
+                "max_buffer_size": l.max_buffer_size,
+            }
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        println!("adapter: {}", ctx.adapter_summary());
+        println!("driver: {} {}", ctx.adapter_info.driver, ctx.adapter_info.driver_info);
+        println!("timestamp queries: {}", ctx.supports_timestamps());
+        println!("max 3D texture edge: {}", l.max_texture_dimension_3d);
+        println!("max 2D texture edge: {}", l.max_texture_dimension_2d);
+        println!("max storage buffer binding: {} bytes", l.max_storage_buffer_binding_size);
+        println!("max buffer: {} bytes", l.max_buffer_size);
+    }
+    Ok(())
+}
+
+fn render(
+    project_path: &PathBuf,
+    output: &PathBuf,
+    width: Option<u32>,
+    height: Option<u32>,
+    scheme: Option<Scheme>,
+    json: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let project = load_project(project_path)?;
+    let mut request = FrameRequest::for_project(&project);
+    request.width = width.unwrap_or(request.width);
+    request.height = height.unwrap_or(request.height);
+    request.scheme = scheme.unwrap_or(request.scheme);
+    for (name, v) in [("--width", request.width), ("--height", request.height)] {
+        if v == 0 || v > 16384 {
+            return Err(format!("{name} must be within 1..=16384, got {v}").into());
+        }
+    }
+    let ctx = GpuContext::new_headless()?;
+    let adapter = ctx.adapter_summary();
+    let mut pipeline = FogPipeline::new(ctx);
+    let report = pipeline.update(&project, &request)?;
+    let image = pipeline.read_image()?;
+    write_image(output, &image, project.render.exposure)?;
+    if json {
+        let v = serde_json::json!({
+            "project": project_path,
+            "output": output,
+            "width": request.width,
+            "height": request.height,
+            "lights": project.lights.len(),
+            "particles": project.particles.len(),
+            "grid": project.grid.resolution.to_array(),
+            "scheme": request.scheme.to_string(),
+            "timings_ms": report.timings_ms,
+            "counters": report.counters,
+            "adapter": adapter,
+        });
+        println!("{}", serde_json::to_string(&v)?);
+    } else {
+        let t = report.timings_ms;
+        eprintln!(
+            "rendered {} ({}×{}) on {adapter}: inject {:.1} ms, propagate {:.1} ms ({} iterations), march {:.1} ms",
+            output.display(),
+            request.width,
+            request.height,
+            t.inject,
+            t.propagate,
+            report.counters.propagation_iterations,
+            t.march
+        );
+    }
+    Ok(())
+}

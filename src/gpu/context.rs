@@ -1,0 +1,105 @@
+//! The device the pipeline runs on: either opened headlessly (CLI, tests, benchmarks) or
+//! borrowed from the editor's egui-wgpu renderer, so the editor and the pipeline share one.
+
+use super::GpuError;
+
+/// A wgpu device and queue plus what the pipeline needs to know about the adapter.
+#[derive(Clone)]
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter_info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    pub features: wgpu::Features,
+}
+
+/// Features used when the adapter has them; none is required.
+const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY;
+
+impl GpuContext {
+    /// Opens the best adapter without a window. Vulkan is preferred: on machines with only
+    /// Mesa's llvmpipe the GL backend returns wrong results for 3D storage textures, so GL
+    /// is used only when no other backend has an adapter. `FOGSMITH_BACKEND=vulkan|gl|metal|dx12`
+    /// overrides the choice.
+    pub fn new_headless() -> Result<Self, GpuError> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = match std::env::var("FOGSMITH_BACKEND").ok().as_deref() {
+            Some("vulkan") => wgpu::Backends::VULKAN,
+            Some("gl") => wgpu::Backends::GL,
+            Some("metal") => wgpu::Backends::METAL,
+            Some("dx12") => wgpu::Backends::DX12,
+            _ => wgpu::Backends::all(),
+        };
+        let instance = wgpu::Instance::new(desc);
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let adapter = adapters
+            .into_iter()
+            .filter(|a| a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS))
+            .max_by_key(|a| adapter_rank(&a.get_info()))
+            .ok_or(GpuError::NoAdapter)?;
+        let info = adapter.get_info();
+        let features = adapter.features() & OPTIONAL_FEATURES;
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("fogsmith"),
+            required_features: features,
+            required_limits: limits.clone(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| GpuError::Device { adapter: info.name.clone(), message: e.to_string() })?;
+        Ok(Self { device, queue, adapter_info: info, limits, features })
+    }
+
+    /// Wraps a device opened elsewhere (the editor's egui-wgpu device).
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, adapter_info: wgpu::AdapterInfo) -> Self {
+        let limits = device.limits();
+        let features = device.features();
+        Self { device, queue, adapter_info, limits, features }
+    }
+
+    /// "name (backend, device type)".
+    pub fn adapter_summary(&self) -> String {
+        format!("{} ({:?}, {:?})", self.adapter_info.name, self.adapter_info.backend, self.adapter_info.device_type)
+    }
+
+    pub fn supports_timestamps(&self) -> bool {
+        self.features.contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    /// Largest grid edge the adapter can hold as a 3D texture.
+    pub fn max_grid_edge(&self) -> u32 {
+        self.limits.max_texture_dimension_3d
+    }
+
+    /// Blocks until all submitted work has finished.
+    pub fn wait(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(e.to_string()))
+    }
+}
+
+/// Higher is better: real GPUs first, then Vulkan software rasterisers, GL last.
+fn adapter_rank(info: &wgpu::AdapterInfo) -> u32 {
+    let device = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 40,
+        wgpu::DeviceType::IntegratedGpu => 30,
+        wgpu::DeviceType::VirtualGpu => 20,
+        wgpu::DeviceType::Cpu => 10,
+        wgpu::DeviceType::Other => 5,
+    };
+    let backend = match info.backend {
+        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 2,
+        wgpu::Backend::Gl => 0,
+        _ => 1,
+    };
+    // A GL adapter never outranks a native one, whatever its device type.
+    if backend == 0 {
+        device / 10
+    } else {
+        device * 10 + backend
+    }
+}

@@ -1,0 +1,21 @@
+use thiserror::Error;
+
+/// What can go wrong in the GPU pipeline. Every message says how to fix it.
+#[derive(Debug, Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found (wgpu saw none on Vulkan, Metal, DX12 or GL). On Debian/Ubuntu run ./setup.sh, which installs \
+         Mesa's software Vulkan driver (mesa-vulkan-drivers libvulkan1); elsewhere install your GPU's Vulkan driver"
+    )]
+    NoAdapter,
+    #[error("could not open the GPU device on adapter {adapter}: {message}")]
+    Device { adapter: String, message: String },
+    #[error("{what} needs {needed} but the adapter {adapter} allows at most {limit}; {suggestion}")]
+    Limit { what: String, needed: u64, limit: u64, adapter: String, suggestion: String },
+    #[error("GPU readback failed: {0}")]
+    Readback(String),
+    #[error("GPU validation error in {stage}: {message}")]
+    Validation { stage: &'static str, message: String },
+    #[error("invalid request: {0}")]
+    Invalid(String),
+}

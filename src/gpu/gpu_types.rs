@@ -1,0 +1,51 @@
+//! Plain-old-data mirrors of the WGSL structs in `shaders/common.wgsl` and friends.
+
+use bytemuck::{Pod, Zeroable};
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GridParams {
+    pub min: [f32; 3],
+    pub base_extinction: f32,
+    pub max: [f32; 3],
+    pub light_count: u32,
+    pub cell: [f32; 3],
+    pub cutoff_epsilon: f32,
+    pub dims: [u32; 3],
+    pub _pad: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct LightGpu {
+    pub position: [f32; 3],
+    pub _pad0: f32,
+    pub rgb: [f32; 3],
+    pub _pad1: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ParticleGpu {
+    pub center: [f32; 3],
+    pub inv_r2: f32,
+    pub density: f32,
+    pub cutoff2: f32,
+    pub _pad: [f32; 2],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct MarchParams {
+    pub origin: [f32; 3],
+    pub step: f32,
+    pub right: [f32; 3],
+    pub albedo: f32,
+    pub up: [f32; 3],
+    pub anisotropy: f32,
+    pub forward: [f32; 3],
+    pub exposure: f32,
+    pub size: [u32; 2],
+    pub tr_cutoff: f32,
+    pub far_distance: f32,
+}

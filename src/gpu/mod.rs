@@ -1,0 +1,26 @@
+//! The GPU pipeline: the only module that talks to wgpu.
+//!
+//! Three compute stages turn a [`Project`](crate::scene::Project) into an image:
+//! 1. **Injection** (`shaders/inject.wgsl`): particles, binned on the CPU into 8³ bricks by
+//!    their cut-off spheres, are summed with the base fog into the extinction volume (EV), an
+//!    r32float 3D texture of σ_t at cell centres.
+//! 2. **Opacity propagation** (`shaders/propagate_giroud.wgsl`): for each light, an optical
+//!    depth volume (OPV) of T(cell, light), all lights packed in one storage buffer.
+//! 3. **Ray march** (`shaders/march.wgsl`): single scattering along camera rays with
+//!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
+//!
+//! [`FogPipeline`] owns the long-lived pipelines and the scene's resources, tracks which
+//! inputs each stage last consumed, and reruns only what a change invalidates.
+
+mod binning;
+mod context;
+mod error;
+mod gpu_types;
+mod layout;
+mod pipeline;
+mod readback;
+
+pub use binning::{cutoff_epsilon, cutoff_radius};
+pub use context::GpuContext;
+pub use error::GpuError;
+pub use pipeline::{giroud_iterations, Counters, FogPipeline, FrameReport, FrameRequest, Image, StageTimings, TRANSMITTANCE_CUTOFF};

@@ -1,0 +1,663 @@
+//! [`FogPipeline`]: the long-lived object that owns the compute pipelines and the scene's GPU
+//! resources, decides which stages a change requires, runs them and reads results back.
+
+use super::binning::{self, bin_particles};
+use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu};
+use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
+use super::readback::{read_buffer, read_texture};
+use super::{GpuContext, GpuError};
+use crate::scene::{GridSpec, Light, Particle, Project, Scheme, Volume};
+use std::time::Instant;
+
+/// What to render this frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameRequest {
+    pub width: u32,
+    pub height: u32,
+    pub scheme: Scheme,
+    /// Recompute every stage even if nothing changed.
+    pub force: bool,
+}
+
+impl FrameRequest {
+    /// The project's own render size and propagation scheme.
+    pub fn for_project(project: &Project) -> Self {
+        Self {
+            width: project.render.width,
+            height: project.render.height,
+            scheme: project.propagation.scheme,
+            force: false,
+        }
+    }
+}
+
+/// Wall time per stage in milliseconds (queue drained after each stage).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct StageTimings {
+    pub inject: f64,
+    pub propagate: f64,
+    pub march: f64,
+}
+
+/// What the last update did. Tests read these to prove that work was skipped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Counters {
+    pub dispatches: u32,
+    pub cells_injected: u64,
+    /// Particle–brick overlaps evaluated by injection.
+    pub particle_overlaps: u64,
+    pub cells_propagated: u64,
+    pub lights_propagated: u32,
+    /// Lights whose OPV was up to date or that are hidden / have zero intensity.
+    pub lights_skipped: u32,
+    /// Jacobi iterations of the `giroud` scheme.
+    pub propagation_iterations: u32,
+    pub samples_marched: u64,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FrameReport {
+    pub timings_ms: StageTimings,
+    pub counters: Counters,
+}
+
+/// Linear HDR radiance read back from the GPU: RGB plus alpha = 1 − transmittance.
+#[derive(Clone, Debug)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<[f32; 4]>,
+}
+
+/// Fraction of view transmittance below which a ray stops: the radiance it could still
+/// collect is at most this fraction of what an unattenuated ray behind it would add.
+pub const TRANSMITTANCE_CUTOFF: f32 = 1e-4;
+
+struct GridResources {
+    spec: GridSpec,
+    light_count: usize,
+    grid_buf: wgpu::Buffer,
+    ev: wgpu::Texture,
+    ev_view: wgpu::TextureView,
+    lights_buf: wgpu::Buffer,
+    opv: [wgpu::Buffer; 2],
+}
+
+struct ImageResources {
+    width: u32,
+    height: u32,
+    hdr: wgpu::Texture,
+    ldr_view: wgpu::TextureView,
+    params_buf: wgpu::Buffer,
+}
+
+/// What the GPU currently holds, to decide what a new project state invalidates.
+#[derive(Default)]
+struct Baked {
+    /// Grid, base extinction and particles of the EV on the GPU.
+    ev_inputs: Option<(GridSpec, f32, Vec<Particle>)>,
+    /// Per light: position baked into its OPV and the EV generation it used.
+    opv_inputs: Vec<Option<(glam::Vec3, u64, Scheme)>>,
+    ev_generation: u64,
+    image_inputs: Option<String>,
+}
+
+/// The GPU fog pipeline: injection → propagation → ray march, plus readback.
+pub struct FogPipeline {
+    ctx: GpuContext,
+    inject_layout: wgpu::BindGroupLayout,
+    inject: wgpu::ComputePipeline,
+    giroud_layout: wgpu::BindGroupLayout,
+    giroud: wgpu::ComputePipeline,
+    march_layout: wgpu::BindGroupLayout,
+    march: wgpu::ComputePipeline,
+    counters_buf: wgpu::Buffer,
+    grid: Option<GridResources>,
+    image: Option<ImageResources>,
+    baked: Baked,
+    last_report: FrameReport,
+}
+
+fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    // Bindings must not be empty.
+    let padded;
+    let contents = if bytes.is_empty() {
+        padded = [0u8; 16];
+        &padded[..]
+    } else {
+        bytes
+    };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+    })
+}
+
+impl FogPipeline {
+    pub fn new(ctx: GpuContext) -> Self {
+        let device = &ctx.device;
+        let inject_layout = bind_group_layout(
+            device,
+            "inject",
+            &[
+                Slot::Uniform,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageTexture3d(wgpu::TextureFormat::R32Float),
+            ],
+        );
+        let inject = compute_pipeline(device, "inject", include_str!("../../shaders/inject.wgsl"), &inject_layout);
+        let giroud_layout = bind_group_layout(
+            device,
+            "propagate_giroud",
+            &[
+                Slot::Uniform,
+                Slot::Texture3d,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageWrite,
+            ],
+        );
+        let giroud = compute_pipeline(
+            device,
+            "propagate_giroud",
+            include_str!("../../shaders/propagate_giroud.wgsl"),
+            &giroud_layout,
+        );
+        let march_layout = bind_group_layout(
+            device,
+            "march",
+            &[
+                Slot::Uniform,
+                Slot::Uniform,
+                Slot::Texture3d,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageTexture2d(wgpu::TextureFormat::Rgba32Float),
+                Slot::StorageTexture2d(wgpu::TextureFormat::Rgba8Unorm),
+                Slot::StorageWrite,
+            ],
+        );
+        let march = compute_pipeline(device, "march", include_str!("../../shaders/march.wgsl"), &march_layout);
+        let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
+        Self {
+            ctx,
+            inject_layout,
+            inject,
+            giroud_layout,
+            giroud,
+            march_layout,
+            march,
+            counters_buf,
+            grid: None,
+            image: None,
+            baked: Baked::default(),
+            last_report: FrameReport::default(),
+        }
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    pub fn last_report(&self) -> FrameReport {
+        self.last_report
+    }
+
+    /// Refuses, before allocating anything, a scene larger than the adapter allows.
+    pub fn check_limits(&self, project: &Project, width: u32, height: u32) -> Result<(), GpuError> {
+        let limits = &self.ctx.limits;
+        let adapter = self.ctx.adapter_info.name.clone();
+        let edge = project.grid.resolution.max_element();
+        if edge > limits.max_texture_dimension_3d {
+            return Err(GpuError::Limit {
+                what: format!("a {}³-edge grid", edge),
+                needed: edge as u64,
+                limit: limits.max_texture_dimension_3d as u64,
+                adapter,
+                suggestion: "lower grid.resolution".into(),
+            });
+        }
+        let opv_bytes = project.grid.cell_count() * project.lights.len().max(1) as u64 * 4;
+        let opv_limit = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        if opv_bytes > opv_limit {
+            let per_light = project.grid.cell_count() * 4;
+            return Err(GpuError::Limit {
+                what: format!(
+                    "the optical-depth volumes of {} lights on a {}×{}×{} grid",
+                    project.lights.len(),
+                    project.grid.resolution.x,
+                    project.grid.resolution.y,
+                    project.grid.resolution.z
+                ),
+                needed: opv_bytes,
+                limit: opv_limit,
+                adapter,
+                suggestion: format!(
+                    "use at most {} lights at this resolution or lower grid.resolution",
+                    opv_limit / per_light
+                ),
+            });
+        }
+        let edge2d = width.max(height);
+        if edge2d > limits.max_texture_dimension_2d {
+            return Err(GpuError::Limit {
+                what: format!("a {width}×{height} image"),
+                needed: edge2d as u64,
+                limit: limits.max_texture_dimension_2d as u64,
+                adapter,
+                suggestion: "render a smaller image".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Brings the GPU state up to date with `project`, running only the stages the changes
+    /// since the last call require, and renders the frame.
+    pub fn update(&mut self, project: &Project, request: &FrameRequest) -> Result<FrameReport, GpuError> {
+        project
+            .validate(self.ctx.max_grid_edge())
+            .map_err(|e| GpuError::Invalid(e.to_string()))?;
+        self.check_limits(project, request.width, request.height)?;
+        let scope = ErrorScope::push(&self.ctx.device);
+        let mut report = FrameReport::default();
+        if request.force {
+            self.baked = Baked::default();
+        }
+        self.ensure_grid(project);
+        self.write_lights(project);
+
+        let ev_inputs = (project.grid, project.medium.base_extinction, project.particles.clone());
+        if self.baked.ev_inputs.as_ref() != Some(&ev_inputs) {
+            let t = Instant::now();
+            self.run_inject(project, &mut report.counters)?;
+            report.timings_ms.inject = ms(t);
+            self.baked.ev_inputs = Some(ev_inputs);
+            self.baked.ev_generation += 1;
+        }
+
+        let t = Instant::now();
+        self.run_propagation(project, request.scheme, &mut report.counters)?;
+        report.timings_ms.propagate = ms(t);
+
+        let image_key = format!(
+            "{:?}{:?}{:?}{:?}{:?}{}",
+            project.camera, project.render, project.medium, project.lights, request, self.baked.ev_generation
+        );
+        if self.baked.image_inputs.as_deref() != Some(image_key.as_str()) || report.counters.lights_propagated > 0 {
+            let t = Instant::now();
+            self.run_march(project, request, &mut report.counters)?;
+            report.timings_ms.march = ms(t);
+            self.baked.image_inputs = Some(image_key);
+        }
+        scope.pop("update")?;
+        self.last_report = report;
+        Ok(report)
+    }
+
+    fn ensure_grid(&mut self, project: &Project) {
+        let spec = project.grid;
+        let light_count = project.lights.len();
+        if let Some(g) = &self.grid {
+            if g.spec == spec && g.light_count == light_count {
+                return;
+            }
+        }
+        let device = &self.ctx.device;
+        let r = spec.resolution;
+        let ev = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("extinction volume"),
+            size: wgpu::Extent3d { width: r.x, height: r.y, depth_or_array_layers: r.z },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let ev_view = ev.create_view(&Default::default());
+        let grid_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("grid params"),
+            size: std::mem::size_of::<GridParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
+        let opv = ["optical depth A", "optical depth B"].map(|label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: opv_size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        });
+        let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("lights"),
+            size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv });
+        self.baked = Baked::default();
+    }
+
+    fn write_lights(&mut self, project: &Project) {
+        let Some(g) = &self.grid else { return };
+        let lights: Vec<LightGpu> = project.lights.iter().map(light_gpu).collect();
+        if !lights.is_empty() {
+            self.ctx.queue.write_buffer(&g.lights_buf, 0, bytemuck::cast_slice(&lights));
+        }
+        let spec = project.grid;
+        let params = GridParams {
+            min: spec.min.to_array(),
+            base_extinction: project.medium.base_extinction,
+            max: spec.max.to_array(),
+            light_count: project.lights.len() as u32,
+            cell: spec.cell_size().to_array(),
+            cutoff_epsilon: 0.0,
+            dims: spec.resolution.to_array(),
+            _pad: 0,
+        };
+        self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
+    }
+
+    fn run_inject(&mut self, project: &Project, counters: &mut Counters) -> Result<(), GpuError> {
+        let Some(g) = &self.grid else { return Ok(()) };
+        let device = &self.ctx.device;
+        let bins = bin_particles(&project.grid, &project.particles);
+        let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
+        let particles_buf = storage_buffer(device, "particles", bytemuck::cast_slice(&particles));
+        let offsets_buf = storage_buffer(device, "brick offsets", bytemuck::cast_slice(&bins.offsets));
+        let items_buf = storage_buffer(device, "brick items", bytemuck::cast_slice(&bins.items));
+        let bg = bind_group(
+            device,
+            "inject",
+            &self.inject_layout,
+            &[
+                g.grid_buf.as_entire_binding(),
+                particles_buf.as_entire_binding(),
+                offsets_buf.as_entire_binding(),
+                items_buf.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&g.ev_view),
+            ],
+        );
+        let r = project.grid.resolution;
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: None });
+            pass.set_pipeline(&self.inject);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4));
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()?;
+        counters.dispatches += 1;
+        counters.cells_injected += project.grid.cell_count();
+        counters.particle_overlaps += bins.overlaps() as u64 * (binning::BRICK as u64).pow(3);
+        Ok(())
+    }
+
+    fn run_propagation(&mut self, project: &Project, scheme: Scheme, counters: &mut Counters) -> Result<(), GpuError> {
+        let Some(g) = &self.grid else { return Ok(()) };
+        let generation = self.baked.ev_generation;
+        self.baked.opv_inputs.resize(project.lights.len(), None);
+        let mut active = Vec::new();
+        for (i, light) in project.lights.iter().enumerate() {
+            let key = (light.position, generation, scheme);
+            if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
+                counters.lights_skipped += 1;
+            } else {
+                active.push(i as u32);
+                self.baked.opv_inputs[i] = Some(key);
+            }
+        }
+        if active.is_empty() {
+            return Ok(());
+        }
+        match scheme {
+            Scheme::Giroud => {
+                let iterations = active
+                    .iter()
+                    .map(|&l| giroud_iterations(&project.grid, project.lights[l as usize].position))
+                    .max()
+                    .unwrap_or(1);
+                // An even count leaves the result in buffer A, where every other light's OPV is.
+                let iterations = iterations + iterations % 2;
+                let device = &self.ctx.device;
+                let active_buf = storage_buffer(device, "active lights", bytemuck::cast_slice(&active));
+                let make = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
+                    bind_group(
+                        device,
+                        "propagate_giroud",
+                        &self.giroud_layout,
+                        &[
+                            g.grid_buf.as_entire_binding(),
+                            wgpu::BindingResource::TextureView(&g.ev_view),
+                            g.lights_buf.as_entire_binding(),
+                            active_buf.as_entire_binding(),
+                            src.as_entire_binding(),
+                            dst.as_entire_binding(),
+                        ],
+                    )
+                };
+                let ab = make(&g.opv[0], &g.opv[1]);
+                let ba = make(&g.opv[1], &g.opv[0]);
+                let r = project.grid.resolution;
+                let mut encoder = device.create_command_encoder(&Default::default());
+                // Lights not being updated must survive in B too, since B feeds back into A.
+                encoder.copy_buffer_to_buffer(&g.opv[0], 0, &g.opv[1], 0, None);
+                {
+                    let mut pass =
+                        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: None });
+                    pass.set_pipeline(&self.giroud);
+                    for it in 0..iterations {
+                        pass.set_bind_group(0, if it % 2 == 0 { &ab } else { &ba }, &[]);
+                        pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4) * active.len() as u32);
+                    }
+                }
+                self.ctx.queue.submit([encoder.finish()]);
+                self.ctx.wait()?;
+                counters.dispatches += iterations;
+                counters.propagation_iterations = iterations;
+                counters.cells_propagated += project.grid.cell_count() * active.len() as u64 * iterations as u64;
+            }
+        }
+        counters.lights_propagated += active.len() as u32;
+        Ok(())
+    }
+
+    fn ensure_image(&mut self, width: u32, height: u32) {
+        if let Some(img) = &self.image {
+            if img.width == width && img.height == height {
+                return;
+            }
+        }
+        let device = &self.ctx.device;
+        let make = |label: &str, format: wgpu::TextureFormat, extra: wgpu::TextureUsages| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING | extra,
+                view_formats: &[],
+            })
+        };
+        let hdr = make("radiance (linear)", wgpu::TextureFormat::Rgba32Float, wgpu::TextureUsages::COPY_SRC);
+        let ldr = make("radiance (tone-mapped)", wgpu::TextureFormat::Rgba8Unorm, wgpu::TextureUsages::COPY_SRC);
+        let ldr_view = ldr.create_view(&Default::default());
+        let params_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("march params"),
+            size: std::mem::size_of::<MarchParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.image = Some(ImageResources { width, height, hdr, ldr_view, params_buf });
+    }
+
+    fn run_march(&mut self, project: &Project, request: &FrameRequest, counters: &mut Counters) -> Result<(), GpuError> {
+        self.ensure_image(request.width, request.height);
+        let (Some(g), Some(img)) = (&self.grid, &self.image) else { return Ok(()) };
+        let device = &self.ctx.device;
+        let params = march_params(project, request.width, request.height);
+        self.ctx.queue.write_buffer(&img.params_buf, 0, bytemuck::bytes_of(&params));
+        self.ctx.queue.write_buffer(&self.counters_buf, 0, &[0u8; 16]);
+        let hdr_view = img.hdr.create_view(&Default::default());
+        let bg = bind_group(
+            device,
+            "march",
+            &self.march_layout,
+            &[
+                g.grid_buf.as_entire_binding(),
+                img.params_buf.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&g.ev_view),
+                g.lights_buf.as_entire_binding(),
+                g.opv[0].as_entire_binding(),
+                wgpu::BindingResource::TextureView(&hdr_view),
+                wgpu::BindingResource::TextureView(&img.ldr_view),
+                self.counters_buf.as_entire_binding(),
+            ],
+        );
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: None });
+            pass.set_pipeline(&self.march);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.dispatch_workgroups(request.width.div_ceil(8), request.height.div_ceil(8), 1);
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()?;
+        let c: Vec<u32> = read_buffer(&self.ctx, &self.counters_buf, 0, 4)?;
+        counters.samples_marched += c[0] as u64;
+        counters.dispatches += 1;
+        Ok(())
+    }
+
+    /// The extinction volume σ_t at cell centres.
+    pub fn read_ev(&self) -> Result<Volume, GpuError> {
+        let g = self.grid.as_ref().ok_or_else(|| GpuError::Invalid("nothing baked yet: call update first".into()))?;
+        let data = read_texture(&self.ctx, &g.ev, g.spec.resolution.to_array(), 4)?;
+        Ok(Volume::new(g.spec, data))
+    }
+
+    /// Optical depth T towards light `light` at cell centres.
+    pub fn read_opv(&self, light: usize) -> Result<Volume, GpuError> {
+        let g = self.grid.as_ref().ok_or_else(|| GpuError::Invalid("nothing baked yet: call update first".into()))?;
+        if light >= g.light_count {
+            return Err(GpuError::Invalid(format!("light {light} does not exist (the scene has {})", g.light_count)));
+        }
+        let n = g.spec.cell_count();
+        let data = read_buffer(&self.ctx, &g.opv[0], light as u64 * n * 4, n as usize)?;
+        Ok(Volume::new(g.spec, data))
+    }
+
+    /// The last rendered frame as linear HDR radiance.
+    pub fn read_image(&self) -> Result<Image, GpuError> {
+        let img = self.image.as_ref().ok_or_else(|| GpuError::Invalid("nothing rendered yet: call update first".into()))?;
+        let rgba = read_texture(&self.ctx, &img.hdr, [img.width, img.height, 1], 16)?;
+        Ok(Image { width: img.width, height: img.height, rgba })
+    }
+
+    /// The tone-mapped frame (rgba8unorm), for display by the editor without a CPU round trip.
+    pub fn display_view(&self) -> Option<&wgpu::TextureView> {
+        self.image.as_ref().map(|i| &i.ldr_view)
+    }
+
+    /// Size in bytes of the GPU resources the pipeline holds for the current scene.
+    pub fn memory_bytes(&self) -> u64 {
+        let grid = self.grid.as_ref().map_or(0, |g| g.spec.cell_count() * 4 * (1 + 2 * g.light_count.max(1) as u64));
+        let image = self.image.as_ref().map_or(0, |i| i.width as u64 * i.height as u64 * 20);
+        grid + image
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn light_gpu(l: &Light) -> LightGpu {
+    let rgb = if l.hidden { glam::Vec3::ZERO } else { l.radiance_rgb() };
+    LightGpu { position: l.position.to_array(), _pad0: 0.0, rgb: rgb.to_array(), _pad1: 0.0 }
+}
+
+fn particle_gpu(p: &Particle) -> ParticleGpu {
+    let r = binning::cutoff_radius(p);
+    ParticleGpu {
+        center: p.center.to_array(),
+        inv_r2: 1.0 / (p.radius * p.radius),
+        density: if p.hidden { 0.0 } else { p.density },
+        cutoff2: r * r,
+        _pad: [0.0; 2],
+    }
+}
+
+/// Jacobi sweeps after which the `giroud` gather has converged exactly: one more than the
+/// largest Manhattan distance (in cells) from any cell to the light's slabs.
+pub fn giroud_iterations(grid: &GridSpec, light: glam::Vec3) -> u32 {
+    let cell = grid.cell_size();
+    let mut total = 0u32;
+    for a in 0..3 {
+        let n = grid.resolution[a] as i64;
+        let u = ((light[a] - grid.min[a]) / cell[a]) as f64;
+        let slab = u.floor() as i64;
+        let far = if slab < 0 {
+            n
+        } else if slab >= n {
+            n
+        } else {
+            slab.max(n - 1 - slab) as i64
+        };
+        total += far as u32;
+    }
+    total + 1
+}
+
+/// Camera basis scaled to the image plane, step and far distance for the march.
+fn march_params(project: &Project, width: u32, height: u32) -> MarchParams {
+    let cam = &project.camera;
+    let (right, up, forward) = cam.basis();
+    let tan_half = (cam.fov_y_deg.to_radians() * 0.5).tan();
+    let aspect = width as f32 / height as f32;
+    let cell = project.grid.cell_size().min_element();
+    let base = project.medium.base_extinction;
+    // Beyond the grid only base fog remains; march it until its transmittance is 1e-4,
+    // or at most 20 grid diagonals.
+    let diag = project.grid.size().length();
+    let far_distance = if base > 0.0 { (9.21 / base).min(20.0 * diag) } else { 0.0 };
+    MarchParams {
+        origin: cam.position.to_array(),
+        step: project.render.step_factor * cell,
+        right: (right * tan_half * aspect).to_array(),
+        albedo: project.medium.albedo,
+        up: (up * tan_half).to_array(),
+        anisotropy: project.medium.anisotropy,
+        forward: forward.to_array(),
+        exposure: project.render.exposure,
+        size: [width, height],
+        tr_cutoff: TRANSMITTANCE_CUTOFF,
+        far_distance,
+    }
+}
+
+/// Catches wgpu validation errors of one update as a typed error instead of a panic.
+struct ErrorScope(wgpu::ErrorScopeGuard);
+
+impl ErrorScope {
+    fn push(device: &wgpu::Device) -> Self {
+        Self(device.push_error_scope(wgpu::ErrorFilter::Validation))
+    }
+    fn pop(self, stage: &'static str) -> Result<(), GpuError> {
+        match pollster::block_on(self.0.pop()) {
+            Some(e) => Err(GpuError::Validation { stage, message: e.to_string() }),
+            None => Ok(()),
+        }
+    }
+}
