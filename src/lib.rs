@@ -5,8 +5,10 @@
 //!   readback, timings.
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
+//! - [`editor`]: the interactive editor window (eframe + egui_dock).
 
 pub mod scene;
 pub mod cli;
 pub mod gpu;
 pub mod output;
+pub mod editor;

@@ -1,4 +1,5 @@
-//! Command-line interface: headless rendering and adapter information.
+//! Command-line interface: the editor (no subcommand), headless rendering and adapter
+//! information.
 
 use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
 use crate::output::write_image;
@@ -8,10 +9,24 @@ use std::ffi::OsString;
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "fogsmith", version, about = "Author, preview and bake volumetric fog.")]
+#[command(
+    name = "fogsmith",
+    version,
+    about = "Author, preview and bake volumetric fog.",
+    long_about = "Author, preview and bake volumetric fog.\n\nWithout a subcommand, opens the editor on PROJECT (or on the bundled demo).",
+    args_conflicts_with_subcommands = true
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// Project to open in the editor (default: the bundled demo).
+    project: Option<PathBuf>,
+    /// Save a PNG of the editor window once the first preview frame is shown, then exit.
+    #[arg(long, value_name = "PNG", hide = true)]
+    screenshot: Option<PathBuf>,
+    /// Redraw the editor continuously for SECONDS (half still, half orbiting), print the frame rates, then exit.
+    #[arg(long, value_name = "SECONDS", hide = true)]
+    measure_fps: Option<f32>,
 }
 
 #[derive(Subcommand)]
@@ -47,8 +62,8 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
     let cli = Cli::parse_from(args);
     match cli.command {
         None => {
-            use clap::CommandFactory;
-            Cli::command().print_help()?;
+            let options = crate::editor::EditorOptions { screenshot: cli.screenshot, measure_fps: cli.measure_fps };
+            crate::editor::run(cli.project, options)?;
             Ok(())
         }
         Some(Command::Info { json }) => info(json),

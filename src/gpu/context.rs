@@ -83,7 +83,7 @@ impl GpuContext {
 }
 
 /// Higher is better: real GPUs first, then Vulkan software rasterisers, GL last.
-fn adapter_rank(info: &wgpu::AdapterInfo) -> u32 {
+pub fn adapter_rank(info: &wgpu::AdapterInfo) -> u32 {
     let device = match info.device_type {
         wgpu::DeviceType::DiscreteGpu => 40,
         wgpu::DeviceType::IntegratedGpu => 30,

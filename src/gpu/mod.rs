@@ -21,6 +21,6 @@ mod pipeline;
 mod readback;
 
 pub use binning::{cutoff_epsilon, cutoff_radius};
-pub use context::GpuContext;
+pub use context::{adapter_rank, GpuContext};
 pub use error::GpuError;
 pub use pipeline::{giroud_iterations, Counters, FogPipeline, FrameReport, FrameRequest, Image, StageTimings, TRANSMITTANCE_CUTOFF};

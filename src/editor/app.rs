@@ -1,0 +1,1172 @@
+//! The eframe application: dock layout, menus, shortcuts, files (open/save in background
+//! threads, recent files, drag-and-drop, unsaved-changes confirmation), messages, and the
+//! bridge to the pipeline (one shared device, the preview handed to egui-wgpu as a texture).
+
+use super::session::Session;
+use super::slices::{Slice, SliceSettings};
+use super::tools::{Brush, Stroke, Tool};
+use super::{EditorError, EditorOptions};
+use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
+use crate::scene::{load_project, save_project, Project};
+use eframe::egui_wgpu::{self, wgpu};
+use egui::{Context, Id, Key, KeyboardShortcut, Modifiers};
+use egui_dock::{DockArea, DockState, NodeIndex};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::Instant;
+
+/// The dockable panels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Tab {
+    Viewport,
+    Slices,
+    Outliner,
+    Inspector,
+    Stats,
+}
+
+impl Tab {
+    pub const ALL: [Tab; 5] = [Tab::Viewport, Tab::Slices, Tab::Outliner, Tab::Inspector, Tab::Stats];
+    pub fn title(self) -> &'static str {
+        match self {
+            Tab::Viewport => "Viewport",
+            Tab::Slices => "Slices",
+            Tab::Outliner => "Outliner",
+            Tab::Inspector => "Inspector",
+            Tab::Stats => "Stats",
+        }
+    }
+}
+
+/// The default arrangement: outliner left, viewport centre with slices below, inspector and
+/// stats right.
+pub fn default_layout() -> DockState<Tab> {
+    let mut dock = DockState::new(vec![Tab::Viewport]);
+    let tree = dock.main_surface_mut();
+    let [center, _right] = tree.split_right(NodeIndex::root(), 0.76, vec![Tab::Inspector, Tab::Stats]);
+    let [center, _left] = tree.split_left(center, 0.2, vec![Tab::Outliner]);
+    tree.split_below(center, 0.64, vec![Tab::Slices]);
+    dock
+}
+
+/// The project the editor starts on.
+pub struct StartProject {
+    pub project: Project,
+    pub path: Option<PathBuf>,
+    pub name: String,
+    pub error: Option<String>,
+}
+
+impl StartProject {
+    /// The file at `path`, or the demo; a file that fails to load opens an empty project and
+    /// the error is shown in the window.
+    pub fn resolve(path: Option<PathBuf>) -> Result<Self, EditorError> {
+        match path {
+            None => Ok(Self { project: super::demo_project()?, path: None, name: super::DEMO_NAME.into(), error: None }),
+            Some(path) => match load_project(&path) {
+                Ok(project) => Ok(Self { project, path: Some(path), name: String::new(), error: None }),
+                Err(e) => Ok(Self {
+                    project: Project::default(),
+                    path: None,
+                    name: "untitled.ron".into(),
+                    error: Some(e.to_string()),
+                }),
+            },
+        }
+    }
+}
+
+/// What is remembered between runs.
+#[derive(Serialize, Deserialize)]
+#[serde(default)]
+struct Persisted {
+    dock: Option<DockState<Tab>>,
+    recent: Vec<PathBuf>,
+    tool: Tool,
+    brush: Brush,
+    slices: SliceSettings,
+    exposure_follows_project: bool,
+}
+
+impl Default for Persisted {
+    fn default() -> Self {
+        Self {
+            dock: None,
+            recent: Vec::new(),
+            tool: Tool::default(),
+            brush: Brush::default(),
+            slices: SliceSettings::default(),
+            exposure_follows_project: true,
+        }
+    }
+}
+
+const STORAGE_KEY: &str = "fogsmith-editor";
+const MAX_RECENT: usize = 10;
+
+/// An action that would discard unsaved changes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    New,
+    OpenDialog,
+    Open(PathBuf),
+    Revert,
+    Quit,
+}
+
+enum JobResult {
+    Picked { save_as: bool, path: Option<PathBuf> },
+    Loaded { path: PathBuf, result: Result<Project, String> },
+    Saved { path: PathBuf, generation: u64, result: Result<(), String> },
+    Exact { key: ExactKey, result: Result<Vec<f64>, String> },
+}
+
+/// Identifies the exact optical depths computed for one slice of one project state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct ExactKey {
+    pub epoch: u64,
+    pub generation: u64,
+    pub light: usize,
+    pub axis: super::slices::Axis,
+    pub index: u32,
+}
+
+/// A dismissable message.
+pub(crate) struct Toast {
+    pub text: String,
+    pub error: bool,
+    pub born: f64,
+}
+
+/// The pipeline on egui-wgpu's device and the texture its frames are shown through.
+pub(crate) struct GpuView {
+    render_state: egui_wgpu::RenderState,
+    pub pipeline: FogPipeline,
+    pub texture: Option<(egui::TextureId, [u32; 2])>,
+    rendered: Option<(u64, u64, [u32; 2])>,
+    /// The last report in which a stage ran.
+    pub report: FrameReport,
+    pub error: Option<String>,
+    pub renders: u64,
+}
+
+impl GpuView {
+    fn new(render_state: &egui_wgpu::RenderState) -> Self {
+        let info = render_state.adapter.get_info();
+        let ctx = GpuContext::from_device(render_state.device.clone(), render_state.queue.clone(), info);
+        Self {
+            render_state: render_state.clone(),
+            pipeline: FogPipeline::new(ctx),
+            texture: None,
+            rendered: None,
+            report: FrameReport::default(),
+            error: None,
+            renders: 0,
+        }
+    }
+
+    /// Brings the pipeline up to date with the session at `size` pixels; returns whether a
+    /// new frame was rendered.
+    fn render(&mut self, session: &Session, epoch: u64, size: [u32; 2]) -> bool {
+        let key = (epoch, session.generation(), size);
+        if self.rendered == Some(key) {
+            return false;
+        }
+        self.rendered = Some(key);
+        let project = session.project();
+        let request = FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
+        match self.pipeline.update(project, &request) {
+            Ok(report) => {
+                if report.counters.dispatches > 0 {
+                    self.report = report;
+                }
+                self.error = None;
+                self.renders += 1;
+            }
+            Err(e) => {
+                self.error = Some(e.to_string());
+                return false;
+            }
+        }
+        if let Some(view) = self.pipeline.display_view() {
+            let mut renderer = self.render_state.renderer.write();
+            let device = &self.render_state.device;
+            match self.texture {
+                None => {
+                    let id = renderer.register_native_texture(device, view, wgpu::FilterMode::Linear);
+                    self.texture = Some((id, size));
+                }
+                Some((id, old)) if old != size => {
+                    renderer.update_egui_texture_from_wgpu_texture(device, view, wgpu::FilterMode::Linear, id);
+                    self.texture = Some((id, size));
+                }
+                Some(_) => {}
+            }
+        }
+        true
+    }
+}
+
+/// Frame times of the last couple of seconds.
+#[derive(Default)]
+pub(crate) struct FrameClock {
+    times: VecDeque<Instant>,
+}
+
+impl FrameClock {
+    fn tick(&mut self) {
+        let now = Instant::now();
+        self.times.push_back(now);
+        while self.times.len() > 2 && now.duration_since(self.times[0]).as_secs_f32() > 2.0 {
+            self.times.pop_front();
+        }
+    }
+    /// Frames per second over the recent window, if the editor has been redrawing.
+    pub fn fps(&self) -> Option<f32> {
+        let (first, last) = (self.times.front()?, self.times.back()?);
+        let span = last.duration_since(*first).as_secs_f32();
+        (self.times.len() > 2 && span > 0.0).then(|| (self.times.len() - 1) as f32 / span)
+    }
+}
+
+/// A pointer gesture in progress in the viewport or a slice.
+pub(crate) enum Gesture {
+    Orbit,
+    Pan,
+    Box { start: egui::Pos2 },
+    Move { tag: u64, depth: f32 },
+    MoveLight { tag: u64, light: usize, depth: f32 },
+    Paint(Stroke),
+    SlicePaint(Stroke),
+    Erase { tag: u64 },
+    ScaleDrag { tag: u64, targets: std::collections::BTreeSet<usize> },
+}
+
+/// G / S: the selection follows the pointer until a click confirms or Esc cancels.
+pub(crate) struct Modal {
+    pub scale: bool,
+    pub tag: u64,
+    pub start: egui::Pos2,
+    pub applied: glam::Vec3,
+    pub applied_factor: f32,
+}
+
+/// Everything the panels share, apart from the dock layout.
+pub struct EditorState {
+    pub(crate) session: Session,
+    /// Bumped when the whole project is replaced, so caches keyed on generations reset.
+    pub(crate) epoch: u64,
+    pub(crate) tool: Tool,
+    pub(crate) brush: Brush,
+    pub(crate) slices: SliceSettings,
+    pub(crate) gpu: Option<GpuView>,
+    pub(crate) gpu_missing: Option<String>,
+    pub(crate) toasts: Vec<Toast>,
+    pub(crate) recent: Vec<PathBuf>,
+    pub(crate) confirm: Option<Action>,
+    after_save: Option<Action>,
+    pub(crate) show_shortcuts: bool,
+    pub(crate) gesture: Option<Gesture>,
+    pub(crate) modal: Option<Modal>,
+    pub(crate) scale_wheel: Option<(u64, f64)>,
+    pub(crate) viewport_rect: Option<egui::Rect>,
+    pub(crate) preview_size: [u32; 2],
+    pub(crate) interacting: bool,
+    pub(crate) clock: FrameClock,
+    pub(crate) continuous: bool,
+    pub(crate) slice: SliceCache,
+    pub(crate) rename: Option<(super::tools::Hit, String)>,
+    pub(crate) outliner_anchor: Option<super::tools::Hit>,
+    jobs_tx: mpsc::Sender<JobResult>,
+    jobs_rx: mpsc::Receiver<JobResult>,
+    pub(crate) busy: Vec<String>,
+    options: EditorOptions,
+    frames: u64,
+    screenshot_requested: bool,
+    measure_start: Option<Instant>,
+    measure_frames: [u32; 2],
+    title: String,
+    quit_confirmed: bool,
+    ctx: Context,
+}
+
+/// The slice currently shown and what it was made from.
+#[derive(Default)]
+pub(crate) struct SliceCache {
+    pub key: Option<(u64, u64, SliceSettings)>,
+    pub slice: Option<Slice>,
+    pub texture: Option<egui::TextureHandle>,
+    pub error: Option<String>,
+    pub exact: Option<(ExactKey, Result<Vec<f64>, String>)>,
+    pub exact_pending: Option<ExactKey>,
+    pub hover: Option<String>,
+}
+
+/// The editor application.
+pub struct EditorApp {
+    pub dock: DockState<Tab>,
+    pub state: EditorState,
+}
+
+impl EditorApp {
+    pub fn new(cc: &eframe::CreationContext<'_>, start: StartProject, options: EditorOptions) -> Self {
+        let persisted: Persisted = cc.storage.and_then(|s| eframe::get_value(s, STORAGE_KEY)).unwrap_or_default();
+        let (gpu, gpu_missing) = match &cc.wgpu_render_state {
+            Some(rs) => (Some(GpuView::new(rs)), None),
+            None => (None, Some("no wgpu renderer: the preview needs eframe's wgpu backend".to_string())),
+        };
+        let (jobs_tx, jobs_rx) = mpsc::channel();
+        let dock = persisted
+            .dock
+            .filter(|d| d.iter_all_tabs().next().is_some())
+            .unwrap_or_else(default_layout);
+        let mut state = EditorState {
+            session: Session::new(start.project, start.path, &start.name),
+            epoch: 1,
+            tool: persisted.tool,
+            brush: persisted.brush,
+            slices: persisted.slices,
+            gpu,
+            gpu_missing,
+            toasts: Vec::new(),
+            recent: persisted.recent,
+            confirm: None,
+            after_save: None,
+            show_shortcuts: false,
+            gesture: None,
+            modal: None,
+            scale_wheel: None,
+            viewport_rect: None,
+            preview_size: [640, 400],
+            interacting: false,
+            clock: FrameClock::default(),
+            continuous: options.measure_fps.is_some(),
+            slice: SliceCache::default(),
+            rename: None,
+            outliner_anchor: None,
+            jobs_tx,
+            jobs_rx,
+            busy: Vec::new(),
+            options,
+            frames: 0,
+            screenshot_requested: false,
+            measure_start: None,
+            measure_frames: [0, 0],
+            title: String::new(),
+            quit_confirmed: false,
+            ctx: cc.egui_ctx.clone(),
+        };
+        if let Some(e) = start.error {
+            state.error(e);
+        }
+        if let Some(p) = state.session.path().map(Path::to_owned) {
+            state.push_recent(p);
+        }
+        Self { dock, state }
+    }
+
+    pub fn session(&self) -> &Session {
+        &self.state.session
+    }
+    pub fn session_mut(&mut self) -> &mut Session {
+        &mut self.state.session
+    }
+    pub fn pipeline(&self) -> Option<&FogPipeline> {
+        self.state.gpu.as_ref().map(|g| &g.pipeline)
+    }
+    /// The preview's screen rectangle in the last frame.
+    pub fn viewport_rect(&self) -> Option<egui::Rect> {
+        self.state.viewport_rect
+    }
+    pub fn tool(&self) -> Tool {
+        self.state.tool
+    }
+    pub fn set_tool(&mut self, tool: Tool) {
+        self.state.tool = tool;
+    }
+    pub fn brush_mut(&mut self) -> &mut Brush {
+        &mut self.state.brush
+    }
+    pub fn slice_settings_mut(&mut self) -> &mut SliceSettings {
+        &mut self.state.slices
+    }
+    /// The slice shown in the Slices panel, if it has been drawn.
+    pub fn current_slice(&self) -> Option<&Slice> {
+        self.state.slice.slice.as_ref()
+    }
+    /// Messages currently shown (errors and notices).
+    pub fn messages(&self) -> Vec<(bool, String)> {
+        self.state.toasts.iter().map(|t| (t.error, t.text.clone())).collect()
+    }
+    pub fn gpu_error(&self) -> Option<String> {
+        self.state.gpu.as_ref().and_then(|g| g.error.clone()).or_else(|| self.state.gpu_missing.clone())
+    }
+    /// Background jobs (saving, loading, dialogs) still running.
+    pub fn busy(&self) -> usize {
+        self.state.busy.len()
+    }
+    /// Runs or (with unsaved changes) asks before running `action`.
+    pub fn request(&mut self, action: Action) {
+        self.state.request(action);
+    }
+    /// Saves to `path` in the background.
+    pub fn save_as(&mut self, path: PathBuf) {
+        self.state.save_to(path);
+    }
+    pub fn title(&self) -> &str {
+        &self.state.title
+    }
+
+    fn menu_bar(&mut self, ui: &mut egui::Ui) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| self.state.file_menu(ui));
+            ui.menu_button("Edit", |ui| self.state.edit_menu(ui));
+            ui.menu_button("View", |ui| self.view_menu(ui));
+            ui.menu_button("Help", |ui| {
+                if ui.button("Shortcuts").on_hover_text("All keyboard and mouse shortcuts (F1)").clicked() {
+                    self.state.show_shortcuts = true;
+                }
+            });
+        });
+    }
+
+    fn view_menu(&mut self, ui: &mut egui::Ui) {
+        ui.label("Panels");
+        for tab in Tab::ALL {
+            let mut open = self.dock.find_tab(&tab).is_some();
+            if ui.checkbox(&mut open, tab.title()).on_hover_text("Show or hide this panel").changed() {
+                self.set_tab_open(tab, open);
+            }
+        }
+        if ui.button("Reset layout").on_hover_text("Back to the default arrangement of panels").clicked() {
+            self.dock = default_layout();
+        }
+        ui.separator();
+        ui.label("Camera");
+        self.state.camera_menu(ui);
+    }
+
+    /// Opens (in the focused area) or closes a panel.
+    pub fn set_tab_open(&mut self, tab: Tab, open: bool) {
+        match (self.dock.find_tab(&tab), open) {
+            (Some(path), false) => {
+                self.dock.remove_tab(path);
+            }
+            (None, true) => {
+                if self.dock.iter_all_tabs().next().is_none() {
+                    self.dock = DockState::new(vec![tab]);
+                } else {
+                    self.dock.push_to_first_leaf(tab);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Makes `tab` the visible tab of its area.
+    pub fn focus_tab(&mut self, tab: Tab) {
+        if let Some(path) = self.dock.find_tab(&tab) {
+            let _ = self.dock.set_active_tab(path);
+        } else {
+            self.set_tab_open(tab, true);
+        }
+    }
+}
+
+impl eframe::App for EditorApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let ctx = ui.ctx().clone();
+        self.state.begin_frame(&ctx);
+        egui::Panel::top("menu").show(ui, |ui| self.menu_bar(ui));
+        egui::Panel::bottom("status").show(ui, |ui| self.state.status_bar(ui));
+        let style = egui_dock::Style::from_egui(ui.style().as_ref());
+        egui::CentralPanel::default().frame(egui::Frame::NONE).show(ui, |ui| {
+            DockArea::new(&mut self.dock).style(style).show_inside(ui, &mut self.state);
+        });
+        self.state.end_frame(&ctx);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        let persisted = Persisted {
+            dock: Some(self.dock.clone()),
+            recent: self.state.recent.clone(),
+            tool: self.state.tool,
+            brush: self.state.brush,
+            slices: self.state.slices,
+            exposure_follows_project: true,
+        };
+        eframe::set_value(storage, STORAGE_KEY, &persisted);
+    }
+}
+
+impl egui_dock::TabViewer for EditorState {
+    type Tab = Tab;
+
+    fn title(&mut self, tab: &mut Tab) -> egui::WidgetText {
+        tab.title().into()
+    }
+
+    fn id(&mut self, tab: &mut Tab) -> Id {
+        Id::new(("fogsmith-tab", tab.title()))
+    }
+
+    fn ui(&mut self, ui: &mut egui::Ui, tab: &mut Tab) {
+        match tab {
+            Tab::Viewport => super::viewport::show(self, ui),
+            Tab::Slices => super::panels::slices(self, ui),
+            Tab::Outliner => super::panels::outliner(self, ui),
+            Tab::Inspector => super::panels::inspector(self, ui),
+            Tab::Stats => super::panels::stats(self, ui),
+        }
+    }
+
+    fn scroll_bars(&self, tab: &Tab) -> [bool; 2] {
+        match tab {
+            Tab::Inspector | Tab::Stats => [false, true],
+            _ => [false, false],
+        }
+    }
+}
+
+impl EditorState {
+    pub(crate) fn error(&mut self, text: impl Into<String>) {
+        let born = self.ctx.input(|i| i.time);
+        self.toasts.push(Toast { text: text.into(), error: true, born });
+    }
+
+    pub(crate) fn info(&mut self, text: impl Into<String>) {
+        let born = self.ctx.input(|i| i.time);
+        self.toasts.push(Toast { text: text.into(), error: false, born });
+    }
+
+    fn push_recent(&mut self, path: PathBuf) {
+        let path = std::fs::canonicalize(&path).unwrap_or(path);
+        self.recent.retain(|p| p != &path);
+        self.recent.insert(0, path);
+        self.recent.truncate(MAX_RECENT);
+    }
+
+    /// Renders the preview at the last known viewport size if the project changed.
+    pub(crate) fn render_preview(&mut self) {
+        let size = if self.interacting {
+            [(self.preview_size[0] / 2).max(16), (self.preview_size[1] / 2).max(16)]
+        } else {
+            self.preview_size
+        };
+        if let Some(gpu) = &mut self.gpu {
+            let before = gpu.error.clone();
+            gpu.render(&self.session, self.epoch, size);
+            if gpu.error.is_some() && gpu.error != before {
+                let message = gpu.error.clone().unwrap_or_default();
+                self.error(format!("Preview failed: {message}"));
+            }
+        }
+    }
+
+    fn replace_project(&mut self, project: Project, path: Option<PathBuf>, name: &str) {
+        self.session.replace(project, path, name);
+        self.epoch += 1;
+        self.gesture = None;
+        self.modal = None;
+        self.rename = None;
+        self.slice = SliceCache::default();
+    }
+
+    fn spawn(&mut self, label: &str, job: impl FnOnce() -> JobResult + Send + 'static) {
+        self.busy.push(label.to_owned());
+        let tx = self.jobs_tx.clone();
+        let ctx = self.ctx.clone();
+        std::thread::spawn(move || {
+            let _ = tx.send(job());
+            ctx.request_repaint();
+        });
+    }
+
+    pub(crate) fn request(&mut self, action: Action) {
+        let discards = !matches!(action, Action::Quit) || !self.quit_confirmed;
+        if self.session.is_dirty() && discards {
+            self.confirm = Some(action);
+        } else {
+            self.perform(action);
+        }
+    }
+
+    fn perform(&mut self, action: Action) {
+        match action {
+            Action::New => self.replace_project(Project::default(), None, "untitled.ron"),
+            Action::OpenDialog => self.spawn("Choosing a file", || JobResult::Picked {
+                save_as: false,
+                path: rfd::FileDialog::new().add_filter("Fogsmith project", &["ron"]).pick_file(),
+            }),
+            Action::Open(path) => {
+                let p = path.clone();
+                self.spawn(&format!("Opening {}", path.display()), move || JobResult::Loaded {
+                    result: load_project(&p).map_err(|e| e.to_string()),
+                    path: p,
+                });
+            }
+            Action::Revert => match self.session.path().map(Path::to_owned) {
+                Some(path) => self.perform(Action::Open(path)),
+                None => self.info("Nothing to revert to: the project has never been saved"),
+            },
+            Action::Quit => {
+                self.quit_confirmed = true;
+                self.ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+        }
+    }
+
+    pub(crate) fn save(&mut self) {
+        match self.session.path().map(Path::to_owned) {
+            Some(path) => self.save_to(path),
+            None => self.save_as_dialog(),
+        }
+    }
+
+    fn save_as_dialog(&mut self) {
+        let name = self.session.name().to_owned();
+        self.spawn("Choosing where to save", move || JobResult::Picked {
+            save_as: true,
+            path: rfd::FileDialog::new().add_filter("Fogsmith project", &["ron"]).set_file_name(name).save_file(),
+        });
+    }
+
+    pub(crate) fn save_to(&mut self, path: PathBuf) {
+        let path = if path.extension().is_none() { path.with_extension("ron") } else { path };
+        let project = self.session.project().clone();
+        let generation = self.session.generation();
+        let p = path.clone();
+        self.spawn(&format!("Saving {}", path.display()), move || JobResult::Saved {
+            result: save_project(&p, &project).map_err(|e| e.to_string()),
+            path: p,
+            generation,
+        });
+    }
+
+    fn finish_job(&mut self, result: JobResult) {
+        self.busy.pop();
+        match result {
+            JobResult::Picked { path: None, .. } => self.after_save = None,
+            JobResult::Picked { save_as: false, path: Some(path) } => self.perform(Action::Open(path)),
+            JobResult::Picked { save_as: true, path: Some(path) } => self.save_to(path),
+            JobResult::Loaded { path, result: Ok(project) } => {
+                self.replace_project(project, Some(path.clone()), "");
+                self.info(format!("Opened {}", path.display()));
+                self.push_recent(path);
+            }
+            JobResult::Loaded { path, result: Err(e) } => {
+                self.recent.retain(|p| p != &path);
+                self.error(format!("Could not open the project: {e}"));
+            }
+            JobResult::Saved { path, generation, result: Ok(()) } => {
+                self.session.mark_saved(path.clone(), generation);
+                self.info(format!("Saved {}", path.display()));
+                self.push_recent(path);
+                if let Some(action) = self.after_save.take() {
+                    self.perform(action);
+                }
+            }
+            JobResult::Saved { result: Err(e), .. } => {
+                self.after_save = None;
+                self.error(format!("Could not save: {e}"));
+            }
+            JobResult::Exact { key, result } => {
+                if self.slice.exact_pending == Some(key) {
+                    self.slice.exact_pending = None;
+                }
+                self.slice.exact = Some((key, result));
+                self.slice.key = None;
+            }
+        }
+    }
+
+    /// Starts computing the exact optical depth on a slice's cells, unless it is under way.
+    pub(crate) fn request_exact(&mut self, key: ExactKey, cells: Vec<[u32; 3]>) {
+        if self.slice.exact_pending == Some(key) {
+            return;
+        }
+        self.slice.exact_pending = Some(key);
+        let project = self.session.project().clone();
+        self.spawn("Computing the exact optical depth", move || JobResult::Exact {
+            key,
+            result: super::slices::exact_optical_depth(&project, key.light, &cells),
+        });
+    }
+
+    fn begin_frame(&mut self, ctx: &Context) {
+        self.clock.tick();
+        self.frames += 1;
+        while let Ok(result) = self.jobs_rx.try_recv() {
+            self.finish_job(result);
+        }
+        let dropped: Vec<PathBuf> = ctx.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).filter(|p| !p.as_os_str().is_empty()).collect());
+        if let Some(path) = dropped.into_iter().next() {
+            if path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("ron")) {
+                self.request(Action::Open(path));
+            } else {
+                self.error(format!("{}: not a Fogsmith project; drop a .ron file", path.display()));
+            }
+        }
+        if ctx.input(|i| i.viewport().close_requested()) && self.session.is_dirty() && !self.quit_confirmed {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.confirm = Some(Action::Quit);
+        }
+        if ctx.input(|i| i.pointer.any_released()) {
+            self.session.end_edit();
+        }
+        self.shortcuts(ctx);
+        self.render_preview();
+    }
+
+    fn end_frame(&mut self, ctx: &Context) {
+        self.confirm_dialog(ctx);
+        self.shortcuts_window(ctx);
+        self.show_toasts(ctx);
+        let title = format!("{}{} — Fogsmith", self.session.name(), if self.session.is_dirty() { " ●" } else { "" });
+        if title != self.title {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.title = title;
+        }
+        if self.continuous || !self.busy.is_empty() {
+            ctx.request_repaint();
+        }
+        self.scripted(ctx);
+    }
+
+    /// `--screenshot` and `--measure-fps` runs.
+    fn scripted(&mut self, ctx: &Context) {
+        if let Some(path) = self.options.screenshot.clone() {
+            let ready = self.gpu.as_ref().is_none_or(|g| g.renders > 0 || g.error.is_some());
+            if ready && self.frames > 5 && !self.screenshot_requested {
+                self.screenshot_requested = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(egui::UserData::default()));
+            }
+            let shot = ctx.input(|i| {
+                i.raw.events.iter().find_map(|e| match e {
+                    egui::Event::Screenshot { image, .. } => Some(image.clone()),
+                    _ => None,
+                })
+            });
+            if let Some(image) = shot {
+                let bytes: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+                let [w, h] = image.size;
+                let result = image::RgbaImage::from_raw(w as u32, h as u32, bytes)
+                    .ok_or_else(|| "screenshot has the wrong size".to_string())
+                    .and_then(|img| img.save(&path).map_err(|e| e.to_string()));
+                match result {
+                    Ok(()) => eprintln!("fogsmith: screenshot saved to {}", path.display()),
+                    Err(e) => eprintln!("fogsmith: could not save the screenshot {}: {e}", path.display()),
+                }
+                self.quit_confirmed = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+            ctx.request_repaint();
+        }
+        if let Some(seconds) = self.options.measure_fps {
+            let ready = self.gpu.as_ref().is_none_or(|g| g.renders > 0);
+            if !ready || self.frames < 10 {
+                return;
+            }
+            let start = *self.measure_start.get_or_insert_with(Instant::now);
+            let t = start.elapsed().as_secs_f32();
+            if t < seconds * 0.5 {
+                self.measure_frames[0] += 1;
+            } else if t < seconds {
+                self.measure_frames[1] += 1;
+                let camera = super::view::orbit(&self.session.project().camera, 0.02, 0.0);
+                self.session.set_camera(camera);
+            } else {
+                let half = seconds * 0.5;
+                let p = self.session.project();
+                println!(
+                    "fps: still {:.1}, orbiting {:.1} ({} particles, {} lights, grid {:?}, preview {}x{})",
+                    self.measure_frames[0] as f32 / half,
+                    self.measure_frames[1] as f32 / half,
+                    p.particles.len(),
+                    p.lights.len(),
+                    p.grid.resolution.to_array(),
+                    self.preview_size[0],
+                    self.preview_size[1]
+                );
+                self.options.measure_fps = None;
+                self.quit_confirmed = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+            ctx.request_repaint();
+        }
+    }
+
+    fn shortcuts(&mut self, ctx: &Context) {
+        let cmd = |k| KeyboardShortcut::new(Modifiers::COMMAND, k);
+        let cmd_shift = |k| KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, k);
+        let typing = ctx.egui_wants_keyboard_input();
+        let pressed = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
+        if pressed(cmd_shift(Key::S)) {
+            self.save_as_dialog();
+        }
+        if pressed(cmd(Key::S)) {
+            self.save();
+        }
+        if typing {
+            return;
+        }
+        if pressed(cmd_shift(Key::Z)) || pressed(cmd(Key::Y)) {
+            self.redo();
+        }
+        if pressed(cmd(Key::Z)) {
+            self.undo();
+        }
+        if pressed(cmd(Key::O)) {
+            self.request(Action::OpenDialog);
+        }
+        if pressed(cmd(Key::N)) {
+            self.request(Action::New);
+        }
+        if pressed(cmd(Key::A)) {
+            self.session.select_all();
+        }
+        if pressed(cmd(Key::D)) {
+            self.duplicate();
+        }
+        if ctx.input(|i| i.modifiers.command) {
+            return;
+        }
+        let key = |k: Key| ctx.input_mut(|i| i.consume_key(Modifiers::NONE, k));
+        if key(Key::F1) {
+            self.show_shortcuts = !self.show_shortcuts;
+        }
+        if key(Key::Delete) || key(Key::X) || key(Key::Backspace) {
+            self.delete();
+        }
+        for tool in Tool::ALL {
+            let k = match tool {
+                Tool::Select => Key::Q,
+                Tool::Paint => Key::B,
+                Tool::Scale => Key::R,
+                Tool::Erase => Key::E,
+                Tool::Light => Key::L,
+            };
+            if key(k) {
+                self.tool = tool;
+            }
+        }
+        if key(Key::F) {
+            self.frame_selection();
+        }
+        if key(Key::Escape) {
+            if self.modal.is_some() {
+                self.cancel_modal();
+            } else {
+                self.session.selection.clear();
+            }
+        }
+        let pointer = ctx.input(|i| i.pointer.hover_pos());
+        let in_viewport = pointer.zip(self.viewport_rect).is_some_and(|(p, r)| r.contains(p));
+        if in_viewport && self.modal.is_none() && !self.session.selection.is_empty() {
+            if let Some(start) = pointer {
+                if key(Key::G) {
+                    self.start_modal(false, start);
+                } else if key(Key::S) && !self.session.selection.particles.is_empty() {
+                    self.start_modal(true, start);
+                }
+            }
+        }
+        use super::view::AxisView;
+        let views = [(Key::Num1, AxisView::Front), (Key::Num3, AxisView::Right), (Key::Num7, AxisView::Top)];
+        for (k, v) in views {
+            if key(k) {
+                self.axis_view(v);
+            }
+        }
+        let step = 0.08;
+        let orbit = ctx.input(|i| {
+            let mut d = glam::Vec2::ZERO;
+            if i.key_down(Key::ArrowLeft) {
+                d.x -= step;
+            }
+            if i.key_down(Key::ArrowRight) {
+                d.x += step;
+            }
+            if i.key_down(Key::ArrowUp) {
+                d.y += step;
+            }
+            if i.key_down(Key::ArrowDown) {
+                d.y -= step;
+            }
+            d
+        });
+        if orbit != glam::Vec2::ZERO {
+            let c = super::view::orbit(&self.session.project().camera, orbit.x, orbit.y);
+            self.session.set_camera(c);
+        }
+        if key(Key::Plus) || key(Key::Equals) {
+            let c = super::view::zoom(&self.session.project().camera, 0.85);
+            self.session.set_camera(c);
+        }
+        if key(Key::Minus) {
+            let c = super::view::zoom(&self.session.project().camera, 1.0 / 0.85);
+            self.session.set_camera(c);
+        }
+    }
+
+    fn start_modal(&mut self, scale: bool, start: egui::Pos2) {
+        let tag = self.session.new_tag();
+        self.modal = Some(Modal { scale, tag, start, applied: glam::Vec3::ZERO, applied_factor: 1.0 });
+    }
+
+    pub(crate) fn cancel_modal(&mut self) {
+        if let Some(m) = self.modal.take() {
+            if m.applied != glam::Vec3::ZERO || m.applied_factor != 1.0 {
+                self.session.undo();
+            }
+        }
+    }
+
+    pub(crate) fn undo(&mut self) {
+        self.modal = None;
+        if !self.session.undo() {
+            self.info("Nothing to undo");
+        }
+    }
+
+    pub(crate) fn redo(&mut self) {
+        self.modal = None;
+        if !self.session.redo() {
+            self.info("Nothing to redo");
+        }
+    }
+
+    pub(crate) fn delete(&mut self) {
+        self.session.delete_selection();
+    }
+
+    pub(crate) fn duplicate(&mut self) {
+        let offset = self.session.project().grid.cell_size().max_element() * 2.0;
+        self.session.duplicate_selection(glam::Vec3::new(offset, 0.0, offset));
+    }
+
+    pub(crate) fn frame_selection(&mut self) {
+        let p = self.session.project();
+        let (center, radius) = match self.session.selection_center() {
+            Some(c) => {
+                let r = self
+                    .session
+                    .selection
+                    .particles
+                    .iter()
+                    .filter_map(|&i| p.particles.get(i))
+                    .map(|q| (q.center - c).length() + q.radius * 2.0)
+                    .chain(self.session.selection.lights.iter().filter_map(|&i| p.lights.get(i)).map(|l| (l.position - c).length() + 0.1))
+                    .fold(0.1f32, f32::max);
+                (c, r)
+            }
+            None => ((p.grid.min + p.grid.max) * 0.5, p.grid.size().length() * 0.5),
+        };
+        let c = super::view::frame(&p.camera, center, radius);
+        self.session.set_camera(c);
+    }
+
+    pub(crate) fn axis_view(&mut self, v: super::view::AxisView) {
+        let p = self.session.project();
+        let c = super::view::axis_view(&p.camera, &p.grid, v);
+        self.session.set_camera(c);
+    }
+
+    fn camera_menu(&mut self, ui: &mut egui::Ui) {
+        use super::view::AxisView;
+        for (label, v, key) in [
+            ("Front", AxisView::Front, "1"),
+            ("Back", AxisView::Back, ""),
+            ("Right", AxisView::Right, "3"),
+            ("Left", AxisView::Left, ""),
+            ("Top", AxisView::Top, "7"),
+        ] {
+            if ui.add(egui::Button::new(label).shortcut_text(key)).clicked() {
+                self.axis_view(v);
+            }
+        }
+        if ui.add(egui::Button::new("Frame selection").shortcut_text("F")).on_hover_text("Aim at the selection, or the whole grid").clicked() {
+            self.frame_selection();
+        }
+    }
+
+    fn file_menu(&mut self, ui: &mut egui::Ui) {
+        if ui.add(egui::Button::new("New").shortcut_text("Ctrl+N")).on_hover_text("Start an empty project").clicked() {
+            self.request(Action::New);
+        }
+        if ui.add(egui::Button::new("Open…").shortcut_text("Ctrl+O")).on_hover_text("Open a .ron project").clicked() {
+            self.request(Action::OpenDialog);
+        }
+        ui.menu_button("Open Recent", |ui| {
+            if self.recent.is_empty() {
+                ui.label("No recent projects");
+            }
+            for path in self.recent.clone() {
+                if ui.button(path.display().to_string()).clicked() {
+                    self.request(Action::Open(path));
+                }
+            }
+        });
+        ui.separator();
+        if ui.add(egui::Button::new("Save").shortcut_text("Ctrl+S")).on_hover_text("Save (keeps the previous file as .bak)").clicked() {
+            self.save();
+        }
+        if ui.add(egui::Button::new("Save As…").shortcut_text("Ctrl+Shift+S")).on_hover_text("Save under a new name").clicked() {
+            self.save_as_dialog();
+        }
+        let can_revert = self.session.path().is_some();
+        if ui.add_enabled(can_revert, egui::Button::new("Revert")).on_hover_text("Reload the file, dropping unsaved changes").clicked() {
+            self.request(Action::Revert);
+        }
+        ui.separator();
+        if ui.button("Quit").clicked() {
+            self.request(Action::Quit);
+        }
+    }
+
+    fn edit_menu(&mut self, ui: &mut egui::Ui) {
+        if ui.add_enabled(self.session.can_undo(), egui::Button::new("Undo").shortcut_text("Ctrl+Z")).clicked() {
+            self.undo();
+        }
+        if ui.add_enabled(self.session.can_redo(), egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z")).clicked() {
+            self.redo();
+        }
+        ui.separator();
+        if ui.add(egui::Button::new("Select all").shortcut_text("Ctrl+A")).clicked() {
+            self.session.select_all();
+        }
+        if ui.add(egui::Button::new("Duplicate").shortcut_text("Ctrl+D")).clicked() {
+            self.duplicate();
+        }
+        if ui.add(egui::Button::new("Delete").shortcut_text("Del / X")).clicked() {
+            self.delete();
+        }
+    }
+
+    fn status_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            if let Some(job) = self.busy.last() {
+                ui.spinner();
+                ui.label(job.as_str());
+                ui.separator();
+            }
+            let p = self.session.project();
+            ui.label(format!(
+                "{} particles · {} lights · {} selected · tool: {}",
+                p.particles.len(),
+                p.lights.len(),
+                self.session.selection.len(),
+                self.tool.label()
+            ));
+            if self.modal.is_some() {
+                ui.separator();
+                ui.label("Move the mouse; click or Enter to confirm, Esc or right-click to cancel");
+            }
+        });
+    }
+
+    fn confirm_dialog(&mut self, ctx: &Context) {
+        let Some(action) = self.confirm.clone() else { return };
+        let what = match &action {
+            Action::New => "starting a new project",
+            Action::OpenDialog | Action::Open(_) => "opening another project",
+            Action::Revert => "reverting",
+            Action::Quit => "quitting",
+        };
+        let mut choice = None;
+        egui::Modal::new(Id::new("confirm-discard")).show(ctx, |ui| {
+            ui.heading("Unsaved changes");
+            ui.label(format!("{} has unsaved changes. Save them before {what}?", self.session.name()));
+            ui.horizontal(|ui| {
+                if ui.button("Save").clicked() {
+                    choice = Some(0);
+                }
+                if ui.button("Discard").clicked() {
+                    choice = Some(1);
+                }
+                if ui.button("Cancel").clicked() {
+                    choice = Some(2);
+                }
+            });
+        });
+        match choice {
+            Some(0) => {
+                self.confirm = None;
+                self.after_save = Some(action);
+                self.save();
+            }
+            Some(1) => {
+                self.confirm = None;
+                if action == Action::Quit {
+                    self.quit_confirmed = true;
+                }
+                self.perform(action);
+            }
+            Some(_) => self.confirm = None,
+            None => {}
+        }
+    }
+
+    fn shortcuts_window(&mut self, ctx: &Context) {
+        let mut open = self.show_shortcuts;
+        egui::Window::new("Shortcuts").open(&mut open).resizable(false).show(ctx, |ui| {
+            egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
+                for (k, v) in SHORTCUTS {
+                    ui.label(*k);
+                    ui.label(*v);
+                    ui.end_row();
+                }
+            });
+        });
+        self.show_shortcuts = open;
+    }
+
+    fn show_toasts(&mut self, ctx: &Context) {
+        let now = ctx.input(|i| i.time);
+        self.toasts.retain(|t| t.error || now - t.born < 4.0);
+        if self.toasts.iter().any(|t| !t.error) {
+            ctx.request_repaint_after(std::time::Duration::from_millis(250));
+        }
+        let mut dismiss = None;
+        egui::Area::new(Id::new("toasts")).anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0]).show(ctx, |ui| {
+            for (i, t) in self.toasts.iter().enumerate() {
+                egui::Frame::popup(ui.style()).show(ui, |ui| {
+                    ui.set_max_width(420.0);
+                    ui.horizontal(|ui| {
+                        let text = egui::RichText::new(&t.text);
+                        ui.label(if t.error { text.color(ui.visuals().error_fg_color) } else { text });
+                        if ui.small_button("✕").on_hover_text("Dismiss").clicked() {
+                            dismiss = Some(i);
+                        }
+                    });
+                });
+            }
+        });
+        if let Some(i) = dismiss {
+            self.toasts.remove(i);
+        }
+    }
+}
+
+const SHORTCUTS: &[(&str, &str)] = &[
+    ("Middle drag / right drag", "Orbit"),
+    ("Shift + middle / right drag", "Pan"),
+    ("Wheel", "Zoom (with the Scale tool: scale; Ctrl + wheel zooms)"),
+    ("Arrow keys, + / −", "Orbit, zoom"),
+    ("1 / 3 / 7", "Front / right / top view"),
+    ("F", "Frame the selection"),
+    ("Q / B / R / E / L", "Select, Paint, Scale, Erase, Light tool"),
+    ("G / S", "Grab / scale the selection with the mouse"),
+    ("Alt (Scale tool)", "Change density instead of radius"),
+    ("Shift / Ctrl + click", "Add to / toggle the selection"),
+    ("Ctrl+A", "Select all"),
+    ("Ctrl+D", "Duplicate"),
+    ("Delete / X", "Delete the selection"),
+    ("Esc", "Cancel grab/scale, clear the selection"),
+    ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo"),
+    ("Ctrl+N / Ctrl+O", "New / open"),
+    ("Ctrl+S / Ctrl+Shift+S", "Save / save as"),
+    ("F1", "This sheet"),
+];

@@ -1,0 +1,131 @@
+//! The editor: an eframe/egui_dock window to paint gaussian fog, place lights and watch the
+//! pipeline's live preview beside slices of its volumes.
+//!
+//! - [`session`]: the project under edit, selection, undo/redo and file state (no UI).
+//! - [`tools`], [`view`], [`slices`]: the geometry and data behind tools, the viewport and
+//!   the slice views (no UI either).
+//! - [`app`]: the eframe application (menus, shortcuts, files, dialogs, messages);
+//!   `viewport` and `panels` draw the dockable tabs.
+//!
+//! The editor never calls wgpu itself: it shares egui-wgpu's device with the
+//! [`FogPipeline`](crate::gpu::FogPipeline) and hands the pipeline's display view to egui-wgpu.
+
+pub mod app;
+mod panels;
+pub mod session;
+pub mod slices;
+pub mod tools;
+pub mod view;
+mod viewport;
+
+pub use app::{EditorApp, Tab};
+
+use crate::scene::Project;
+use std::path::PathBuf;
+use eframe::egui_wgpu;
+use std::sync::Arc;
+
+/// The demo project opened by a bare `fogsmith`.
+pub const DEMO_PROJECT: &str = include_str!("../../projects/cornell.ron");
+pub const DEMO_NAME: &str = "cornell.ron (demo)";
+
+/// Why the editor could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum EditorError {
+    #[error(
+        "no display: the editor needs a window (neither DISPLAY nor WAYLAND_DISPLAY is set). \
+         For headless use, render with `fogsmith render PROJECT.ron -o image.png`"
+    )]
+    NoDisplay,
+    #[error("could not open the editor window: {0}. For headless use, render with `fogsmith render PROJECT.ron -o image.png`")]
+    Window(String),
+    #[error("the demo project does not parse: {0}")]
+    Demo(String),
+}
+
+/// Start-up options, mostly for scripted runs.
+#[derive(Clone, Debug, Default)]
+pub struct EditorOptions {
+    /// Save a PNG of the window once the first preview frame is on screen, then exit.
+    pub screenshot: Option<PathBuf>,
+    /// Redraw continuously for this many seconds (half still, half orbiting), print the
+    /// frame rates, then exit.
+    pub measure_fps: Option<f32>,
+}
+
+/// The project a bare `fogsmith` opens.
+pub fn demo_project() -> Result<Project, EditorError> {
+    crate::scene::parse_project(DEMO_PROJECT, std::path::Path::new(DEMO_NAME)).map_err(|e| EditorError::Demo(e.to_string()))
+}
+
+/// How the editor asks egui-wgpu for its device: the adapter the pipeline would pick
+/// (Vulkan before GL, which gives wrong 3D storage texture results on llvmpipe), with the
+/// adapter's full limits and timestamp queries when available, so the pipeline can run on
+/// the same device. `FOGSMITH_BACKEND=vulkan|gl|metal|dx12` restricts the backend.
+pub fn wgpu_setup() -> egui_wgpu::WgpuSetup {
+    use egui_wgpu::wgpu;
+    let mut setup = egui_wgpu::WgpuSetupCreateNew::without_display_handle();
+    setup.instance_descriptor.backends = match std::env::var("FOGSMITH_BACKEND").ok().as_deref() {
+        Some("vulkan") => wgpu::Backends::VULKAN,
+        Some("gl") => wgpu::Backends::GL,
+        Some("metal") => wgpu::Backends::METAL,
+        Some("dx12") => wgpu::Backends::DX12,
+        _ => wgpu::Backends::PRIMARY | wgpu::Backends::GL,
+    };
+    setup.native_adapter_selector = Some(Arc::new(|adapters: &[wgpu::Adapter], surface: Option<&wgpu::Surface<'_>>| {
+        adapters
+            .iter()
+            .filter(|a| a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS))
+            .filter(|a| surface.is_none_or(|s| !s.get_capabilities(a).formats.is_empty()))
+            .max_by_key(|a| crate::gpu::adapter_rank(&a.get_info()))
+            .cloned()
+            .ok_or_else(|| crate::gpu::GpuError::NoAdapter.to_string())
+    }));
+    setup.device_descriptor = Arc::new(|adapter: &wgpu::Adapter| wgpu::DeviceDescriptor {
+        label: Some("fogsmith editor"),
+        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+        required_limits: adapter.limits(),
+        ..Default::default()
+    });
+    egui_wgpu::WgpuSetup::CreateNew(setup)
+}
+
+/// Opens the editor window on `project_path`, or on the demo project when `None`.
+/// Returns when the window closes.
+pub fn run(project_path: Option<PathBuf>, options: EditorOptions) -> Result<(), EditorError> {
+    #[cfg(all(unix, not(target_os = "macos")))]
+    if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+        return Err(EditorError::NoDisplay);
+    }
+    let start = app::StartProject::resolve(project_path)?;
+    let native = eframe::NativeOptions {
+        renderer: eframe::Renderer::Wgpu,
+        wgpu_options: egui_wgpu::WgpuConfiguration { wgpu_setup: wgpu_setup(), ..Default::default() },
+        viewport: egui::ViewportBuilder::default()
+            .with_title("Fogsmith")
+            .with_app_id("fogsmith")
+            .with_inner_size([1400.0, 880.0])
+            .with_min_inner_size([640.0, 400.0])
+            .with_drag_and_drop(true),
+        ..Default::default()
+    };
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        eframe::run_native(
+            "fogsmith",
+            native,
+            Box::new(move |cc| Ok(Box::new(EditorApp::new(cc, start, options)) as Box<dyn eframe::App>)),
+        )
+    }));
+    match result {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(EditorError::Window(e.to_string())),
+        Err(panic) => {
+            let message = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "the windowing system failed".into());
+            Err(EditorError::Window(message))
+        }
+    }
+}

@@ -1,0 +1,610 @@
+//! The Slices, Outliner, Inspector and Stats tabs.
+
+use super::app::{EditorState, ExactKey, Gesture};
+use super::session::NEW_STEP;
+use super::slices::{self, Axis, Colormap, Field, Scale};
+use super::tools::{Hit, Stroke, Tool};
+use crate::scene::{Project, Scheme};
+use egui::{Color32, DragValue, Pos2, Rect, Sense, Ui};
+use glam::Vec3;
+
+// ---------------------------------------------------------------- Slices
+
+pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
+    let lights = state.session.project().lights.len();
+    let grid = state.session.project().grid;
+    let s = &mut state.slices;
+    ui.horizontal_wrapped(|ui| {
+        egui::ComboBox::from_id_salt("slice-field").selected_text(s.field.label()).show_ui(ui, |ui| {
+            for f in Field::ALL {
+                ui.selectable_value(&mut s.field, f, f.label());
+            }
+        })
+        .response
+        .on_hover_text("EV: extinction σt; OPV: optical depth T towards a light; exp(−T): transmittance; error: |T − T_exact| against the CPU reference on this slice");
+        if s.field.needs_light() {
+            let name = |i: usize| format!("light {i}");
+            egui::ComboBox::from_id_salt("slice-light").selected_text(name(s.light)).show_ui(ui, |ui| {
+                for i in 0..lights {
+                    ui.selectable_value(&mut s.light, i, name(i));
+                }
+            });
+        }
+        for axis in Axis::ALL {
+            ui.selectable_value(&mut s.axis, axis, axis.label()).on_hover_text(format!("Slice across the {} axis", axis.label()));
+        }
+        let max = grid.resolution.to_array()[s.axis.index()].saturating_sub(1);
+        s.index = s.index.min(max);
+        ui.add(egui::Slider::new(&mut s.index, 0..=max).text("cell")).on_hover_text("Slice index along the axis");
+        egui::ComboBox::from_id_salt("slice-cmap").selected_text(s.colormap.label()).show_ui(ui, |ui| {
+            for c in Colormap::ALL {
+                ui.selectable_value(&mut s.colormap, c, c.label());
+            }
+        });
+        ui.checkbox(&mut s.log, "log").on_hover_text("Logarithmic colour scale over six decades below the maximum");
+    });
+    if state.slices.field.needs_light() && lights == 0 {
+        ui.label("The project has no lights: add one with the Light tool.");
+        return;
+    }
+    state.slices.light = state.slices.light.min(lights.saturating_sub(1));
+    refresh_slice(state, ui.ctx());
+
+    if let Some(e) = &state.slice.error {
+        ui.colored_label(ui.visuals().error_fg_color, e);
+    }
+    let (Some(slice), Some(tex)) = (state.slice.slice.clone(), state.slice.texture.clone()) else {
+        if state.slice.exact_pending.is_some() {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label("Computing the exact optical depth on this slice…");
+            });
+        }
+        return;
+    };
+    let (lo, hi) = slice.range();
+    let scale = Scale::for_range(lo, hi, state.slices.log);
+    let avail = ui.available_rect_before_wrap();
+    let bar_w = 70.0;
+    let probe_h = 20.0;
+    let img_area = Rect::from_min_max(avail.min, Pos2::new(avail.max.x - bar_w, avail.max.y - probe_h));
+    let (ua, va) = slice.axis.image_axes();
+    let world = grid.size().to_array();
+    let aspect = world[ua] / world[va];
+    let mut w = img_area.width();
+    let mut h = w / aspect;
+    if h > img_area.height() {
+        h = img_area.height();
+        w = h * aspect;
+    }
+    if w < 4.0 || h < 4.0 {
+        return;
+    }
+    let img_rect = Rect::from_min_size(img_area.min, egui::vec2(w, h));
+    let response = ui.allocate_rect(Rect::from_min_max(avail.min, avail.max), Sense::click_and_drag());
+    let painter = ui.painter_at(avail);
+    painter.image(tex.id(), img_rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
+    colour_bar(&painter, Rect::from_min_size(Pos2::new(img_rect.max.x + 8.0, img_rect.min.y), egui::vec2(14.0, h)), state.slices.colormap, &scale, ui);
+
+    let hover = response.hover_pos().filter(|p| img_rect.contains(*p));
+    let unit = state.slices.field.unit();
+    state.slice.hover = hover.map(|p| {
+        let x = (((p.x - img_rect.min.x) / w * slice.width as f32) as usize).min(slice.width - 1);
+        let y = (((p.y - img_rect.min.y) / h * slice.height as f32) as usize).min(slice.height - 1);
+        let [i, j, k] = slice.cell(x, y);
+        let c = grid.cell_center(i, j, k);
+        format!("cell ({i}, {j}, {k}) · world ({:.3}, {:.3}, {:.3}) m · value {:.5} {unit}", c.x, c.y, c.z, slice.get(x, y))
+    });
+    let probe = state.slice.hover.clone().unwrap_or_else(|| format!("range {lo:.4} … {hi:.4} {unit}"));
+    painter.text(Pos2::new(avail.min.x, img_rect.max.y + 4.0), egui::Align2::LEFT_TOP, probe, egui::FontId::monospace(12.0), ui.visuals().text_color());
+
+    if state.tool == Tool::Paint {
+        slice_paint(state, &response, img_rect, slice.axis, slice.index);
+    }
+}
+
+fn slice_paint(state: &mut EditorState, response: &egui::Response, img_rect: Rect, axis: Axis, index: u32) {
+    let grid = state.session.project().grid;
+    let (ua, va) = axis.image_axes();
+    let to_world = |p: Pos2| {
+        let u = ((p.x - img_rect.min.x) / img_rect.width()).clamp(0.0, 1.0);
+        let v = 1.0 - ((p.y - img_rect.min.y) / img_rect.height()).clamp(0.0, 1.0);
+        let mut w = grid.cell_center(index.min(grid.resolution.x - 1), index.min(grid.resolution.y - 1), index.min(grid.resolution.z - 1)).to_array();
+        let (min, size) = (grid.min.to_array(), grid.size().to_array());
+        w[ua] = min[ua] + u * size[ua];
+        w[va] = min[va] + v * size[va];
+        Vec3::from_array(w)
+    };
+    let mut right = [0.0f32; 3];
+    let mut up = [0.0f32; 3];
+    right[ua] = 1.0;
+    up[va] = 1.0;
+    if response.drag_started_by(egui::PointerButton::Primary) || response.clicked() {
+        state.gesture = Some(Gesture::SlicePaint(Stroke::new(state.session.new_tag())));
+    }
+    if let (Some(Gesture::SlicePaint(stroke)), Some(p)) = (&mut state.gesture, response.interact_pointer_pos()) {
+        if img_rect.contains(p) {
+            let dabs = stroke.dabs_to(to_world(p), Vec3::from_array(right), Vec3::from_array(up), &state.brush);
+            let tag = stroke.tag;
+            if !dabs.is_empty() {
+                state.session.add_particles(tag, dabs);
+            }
+        }
+    }
+    if response.drag_stopped() || response.clicked() {
+        state.gesture = None;
+        state.session.end_edit();
+    }
+}
+
+fn colour_bar(painter: &egui::Painter, rect: Rect, cmap: Colormap, scale: &Scale, ui: &Ui) {
+    let n = 48;
+    for i in 0..n {
+        let t0 = i as f32 / n as f32;
+        let y0 = rect.max.y - t0 * rect.height();
+        let y1 = rect.max.y - (i + 1) as f32 / n as f32 * rect.height();
+        painter.rect_filled(Rect::from_x_y_ranges(rect.x_range(), y1..=y0), 0.0, cmap.color(t0 + 0.5 / n as f32));
+    }
+    painter.rect_stroke(rect, 0.0, egui::Stroke::new(1.0, ui.visuals().weak_text_color()), egui::StrokeKind::Outside);
+    for k in 0..=4 {
+        let t = k as f32 / 4.0;
+        let y = rect.max.y - t * rect.height();
+        let v = scale.value_at(t);
+        let text = if v != 0.0 && (v.abs() < 1e-2 || v.abs() >= 1e4) { format!("{v:.1e}") } else { format!("{v:.3}") };
+        painter.line_segment([Pos2::new(rect.max.x, y), Pos2::new(rect.max.x + 4.0, y)], egui::Stroke::new(1.0, ui.visuals().text_color()));
+        painter.text(Pos2::new(rect.max.x + 6.0, y), egui::Align2::LEFT_CENTER, text, egui::FontId::monospace(10.0), ui.visuals().text_color());
+    }
+}
+
+/// Reads back and colours the slice if the project or the settings changed.
+fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
+    let settings = state.slices;
+    let key = (state.epoch, state.session.generation(), settings);
+    if state.slice.key == Some(key) {
+        return;
+    }
+    state.render_preview();
+    let Some(gpu) = &state.gpu else {
+        state.slice.error = state.gpu_missing.clone();
+        return;
+    };
+    if let Some(e) = &gpu.error {
+        state.slice.error = Some(e.clone());
+        state.slice.key = Some(key);
+        return;
+    }
+    let volume = match settings.field {
+        Field::Extinction => gpu.pipeline.read_ev(),
+        _ => gpu.pipeline.read_opv(settings.light),
+    };
+    let volume = match volume {
+        Ok(v) => v,
+        Err(e) => {
+            state.slice.error = Some(e.to_string());
+            state.slice.key = Some(key);
+            return;
+        }
+    };
+    let mut slice = slices::extract(&volume, settings.axis, settings.index);
+    state.slice.error = None;
+    match settings.field {
+        Field::Transmittance => slice.values.iter_mut().for_each(|v| *v = (-*v).exp()),
+        Field::Error => {
+            let ek = ExactKey {
+                epoch: state.epoch,
+                generation: state.session.generation(),
+                light: settings.light,
+                axis: settings.axis,
+                index: slice.index,
+            };
+            match &state.slice.exact {
+                Some((k, Ok(exact))) if *k == ek => slice = slices::error_slice(&slice, exact),
+                Some((k, Err(e))) if *k == ek => {
+                    state.slice.error = Some(format!("Error view unavailable: {e}"));
+                    state.slice.slice = None;
+                    state.slice.key = Some(key);
+                    return;
+                }
+                _ => {
+                    let cells = slice.cells();
+                    state.request_exact(ek, cells);
+                    state.slice.slice = None;
+                    state.slice.texture = None;
+                    return;
+                }
+            }
+        }
+        Field::Extinction | Field::OpticalDepth => {}
+    }
+    let (lo, hi) = slice.range();
+    let image = slices::colorize(&slice, settings.colormap, &Scale::for_range(lo, hi, settings.log));
+    let options = egui::TextureOptions::NEAREST;
+    match &mut state.slice.texture {
+        Some(t) => t.set(image, options),
+        None => state.slice.texture = Some(ctx.load_texture("slice", image, options)),
+    }
+    state.slice.slice = Some(slice);
+    state.slice.key = Some(key);
+}
+
+// ---------------------------------------------------------------- Outliner
+
+pub(crate) fn outliner(state: &mut EditorState, ui: &mut Ui) {
+    let (np, nl) = (state.session.project().particles.len(), state.session.project().lights.len());
+    ui.horizontal(|ui| {
+        if ui.small_button("Select all").on_hover_text("Ctrl+A").clicked() {
+            state.session.select_all();
+        }
+        if ui.small_button("None").on_hover_text("Esc").clicked() {
+            state.session.selection.clear();
+        }
+    });
+    egui::CollapsingHeader::new(format!("Lights ({nl})")).default_open(true).show(ui, |ui| {
+        for i in 0..nl {
+            row(state, ui, Hit::Light(i));
+        }
+    });
+    egui::CollapsingHeader::new(format!("Particles ({np})")).default_open(true).show(ui, |ui| {
+        let row_h = ui.spacing().interact_size.y;
+        egui::ScrollArea::vertical().auto_shrink([false, false]).show_rows(ui, row_h, np, |ui, range| {
+            for i in range {
+                row(state, ui, Hit::Particle(i));
+            }
+        });
+    });
+}
+
+fn item_name(project: &Project, hit: Hit) -> (String, bool) {
+    match hit {
+        Hit::Particle(i) => project.particles.get(i).map_or((String::new(), false), |p| (p.name.clone().unwrap_or_else(|| format!("Particle {i}")), p.hidden)),
+        Hit::Light(i) => project.lights.get(i).map_or((String::new(), false), |l| (l.name.clone().unwrap_or_else(|| format!("Light {i}")), l.hidden)),
+    }
+}
+
+fn is_selected(state: &EditorState, hit: Hit) -> bool {
+    match hit {
+        Hit::Particle(i) => state.session.selection.particles.contains(&i),
+        Hit::Light(i) => state.session.selection.lights.contains(&i),
+    }
+}
+
+fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
+    let (name, hidden) = item_name(state.session.project(), hit);
+    ui.horizontal(|ui| {
+        let eye = if hidden { "◌" } else { "●" };
+        if ui.small_button(eye).on_hover_text(if hidden { "Hidden: click to show" } else { "Visible: click to hide" }).clicked() {
+            let p = state.session.edit(NEW_STEP);
+            match hit {
+                Hit::Particle(i) => {
+                    if let Some(q) = p.particles.get_mut(i) {
+                        q.hidden = !q.hidden;
+                    }
+                }
+                Hit::Light(i) => {
+                    if let Some(l) = p.lights.get_mut(i) {
+                        l.hidden = !l.hidden;
+                    }
+                }
+            }
+        }
+        if let Some((h, text)) = &mut state.rename {
+            if *h == hit {
+                let r = ui.text_edit_singleline(text);
+                r.request_focus();
+                if r.lost_focus() {
+                    let committed = ui.input(|i| !i.key_pressed(egui::Key::Escape));
+                    let new = text.trim().to_owned();
+                    state.rename = None;
+                    if committed && new != name {
+                        let name = (!new.is_empty()).then_some(new);
+                        let p = state.session.edit(NEW_STEP);
+                        match hit {
+                            Hit::Particle(i) => {
+                                if let Some(q) = p.particles.get_mut(i) {
+                                    q.name = name;
+                                }
+                            }
+                            Hit::Light(i) => {
+                                if let Some(l) = p.lights.get_mut(i) {
+                                    l.name = name;
+                                }
+                            }
+                        }
+                    }
+                }
+                return;
+            }
+        }
+        let r = ui.selectable_label(is_selected(state, hit), &name).on_hover_text("Click: select · Ctrl-click: toggle · Shift-click: range · double-click: rename");
+        if r.double_clicked() {
+            state.rename = Some((hit, name.clone()));
+        } else if r.clicked() {
+            let m = ui.input(|i| i.modifiers);
+            outliner_click(state, hit, m);
+        }
+    });
+}
+
+fn outliner_click(state: &mut EditorState, hit: Hit, m: egui::Modifiers) {
+    let sel = &mut state.session.selection;
+    if m.shift {
+        if let (Some(Hit::Particle(a)), Hit::Particle(b)) = (state.outliner_anchor, hit) {
+            sel.particles.extend(a.min(b)..=a.max(b));
+            return;
+        }
+        if let (Some(Hit::Light(a)), Hit::Light(b)) = (state.outliner_anchor, hit) {
+            sel.lights.extend(a.min(b)..=a.max(b));
+            return;
+        }
+    }
+    if !m.command {
+        sel.clear();
+    }
+    let set = match hit {
+        Hit::Particle(i) => (&mut sel.particles, i),
+        Hit::Light(i) => (&mut sel.lights, i),
+    };
+    if !set.0.remove(&set.1) {
+        set.0.insert(set.1);
+    }
+    state.outliner_anchor = Some(hit);
+}
+
+// ---------------------------------------------------------------- Inspector
+
+/// A DragValue bound to a project field: one undo step per drag or typed edit.
+fn drag(ui: &mut Ui, value: f32, speed: f64, range: std::ops::RangeInclusive<f32>, unit: &str, tip: &str) -> Option<(f32, u64)> {
+    let mut v = value;
+    let r = ui.add(DragValue::new(&mut v).speed(speed).range(range).suffix(unit).max_decimals(4)).on_hover_text(tip);
+    (r.changed() && v != value).then(|| (v, r.id.value()))
+}
+
+fn drag_vec3(ui: &mut Ui, value: Vec3, speed: f64, unit: &str, tip: &str) -> Option<(Vec3, u64)> {
+    let mut out = None;
+    ui.horizontal(|ui| {
+        for (axis, label) in ["x", "y", "z"].iter().enumerate() {
+            ui.label(*label);
+            if let Some((v, id)) = drag(ui, value[axis], speed, f32::MIN..=f32::MAX, unit, tip) {
+                let mut w = value;
+                w[axis] = v;
+                out = Some((w, id));
+            }
+        }
+    });
+    out
+}
+
+pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
+    egui::CollapsingHeader::new("Selection").default_open(true).show(ui, |ui| selection_inspector(state, ui));
+    egui::CollapsingHeader::new("Medium").default_open(true).show(ui, |ui| {
+        let m = state.session.project().medium;
+        egui::Grid::new("medium").num_columns(2).show(ui, |ui| {
+            ui.label("base extinction");
+            if let Some((v, t)) = drag(ui, m.base_extinction, 0.002, 0.0..=100.0, " 1/m", "Homogeneous fog σt filling all space") {
+                state.session.edit(t).medium.base_extinction = v;
+            }
+            ui.end_row();
+            ui.label("albedo");
+            if let Some((v, t)) = drag(ui, m.albedo, 0.01, 0.0..=1.0, "", "Single-scattering albedo σs/σt") {
+                state.session.edit(t).medium.albedo = v;
+            }
+            ui.end_row();
+            ui.label("anisotropy g");
+            if let Some((v, t)) = drag(ui, m.anisotropy, 0.01, -0.99..=0.99, "", "Henyey–Greenstein asymmetry: 0 isotropic, > 0 forward scattering") {
+                state.session.edit(t).medium.anisotropy = v;
+            }
+            ui.end_row();
+        });
+    });
+    egui::CollapsingHeader::new("Grid").default_open(true).show(ui, |ui| {
+        let g = state.session.project().grid;
+        ui.label("min");
+        if let Some((v, t)) = drag_vec3(ui, g.min, 0.01, " m", "Lower corner of the baked box") {
+            state.session.edit(t).grid.min = v.min(g.max - Vec3::splat(1e-3));
+        }
+        ui.label("max");
+        if let Some((v, t)) = drag_vec3(ui, g.max, 0.01, " m", "Upper corner of the baked box") {
+            state.session.edit(t).grid.max = v.max(g.min + Vec3::splat(1e-3));
+        }
+        ui.horizontal(|ui| {
+            ui.label("resolution");
+            let max_edge = state.gpu.as_ref().map_or(512, |g| g.pipeline.context().max_grid_edge().min(1024));
+            let mut r = g.resolution.to_array();
+            let mut changed = None;
+            for v in &mut r {
+                let resp = ui.add(DragValue::new(v).range(1..=max_edge).speed(0.5)).on_hover_text("Cells along this axis");
+                if resp.changed() {
+                    changed = Some(resp.id.value());
+                }
+            }
+            if let Some(t) = changed {
+                state.session.edit(t).grid.resolution = glam::UVec3::from_array(r);
+            }
+        });
+        let lights = state.session.project().lights.len().max(1) as u64;
+        let bytes = g.cell_count() * 4 * (1 + 2 * lights);
+        ui.label(format!("≈ {:.1} MiB on the GPU ({} cells; EV + 2 OPV buffers × {lights} lights)", bytes as f64 / (1 << 20) as f64, g.cell_count()))
+            .on_hover_text("Extinction volume plus double-buffered optical-depth volumes, 4 bytes per cell");
+    });
+    egui::CollapsingHeader::new("Render").default_open(true).show(ui, |ui| {
+        let r = state.session.project().render;
+        let cam = state.session.project().camera;
+        egui::Grid::new("render").num_columns(2).show(ui, |ui| {
+            ui.label("exposure");
+            if let Some((v, t)) = drag(ui, r.exposure, 0.02, 0.0..=100.0, "", "Tone mapping: 1 − exp(−exposure · radiance)") {
+                state.session.edit(t).render.exposure = v;
+            }
+            ui.end_row();
+            ui.label("step factor");
+            if let Some((v, t)) = drag(ui, r.step_factor, 0.01, 0.01..=8.0, "× cell", "Ray-march step as a fraction of the smallest cell edge") {
+                state.session.edit(t).render.step_factor = v;
+            }
+            ui.end_row();
+            ui.label("field of view");
+            if let Some((v, t)) = drag(ui, cam.fov_y_deg, 0.2, 1.0..=170.0, "°", "Vertical field of view of the camera") {
+                state.session.edit(t).camera.fov_y_deg = v;
+            }
+            ui.end_row();
+            ui.label("output size");
+            ui.horizontal(|ui| {
+                let (mut w, mut h) = (r.width, r.height);
+                let a = ui.add(DragValue::new(&mut w).range(1..=16384).suffix(" px")).on_hover_text("Width of `fogsmith render` images");
+                let b = ui.add(DragValue::new(&mut h).range(1..=16384).suffix(" px")).on_hover_text("Height of `fogsmith render` images");
+                if a.changed() || b.changed() {
+                    let t = if a.changed() { a.id.value() } else { b.id.value() };
+                    let p = state.session.edit(t);
+                    p.render.width = w;
+                    p.render.height = h;
+                }
+            });
+            ui.end_row();
+        });
+    });
+    egui::CollapsingHeader::new("Propagation").default_open(true).show(ui, |ui| {
+        use clap::ValueEnum;
+        let current = state.session.project().propagation.scheme;
+        egui::ComboBox::from_label("scheme").selected_text(current.to_string()).show_ui(ui, |ui| {
+            for s in Scheme::value_variants() {
+                if ui.selectable_label(*s == current, s.to_string()).clicked() && *s != current {
+                    state.session.edit(NEW_STEP).propagation.scheme = *s;
+                }
+            }
+        })
+        .response
+        .on_hover_text("How optical depth towards each light is propagated through the grid");
+    });
+}
+
+fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
+    let sel = state.session.selection.clone();
+    if sel.is_empty() {
+        ui.label("Nothing selected. Click in the viewport or the outliner.");
+        return;
+    }
+    if sel.particles.len() == 1 && sel.lights.is_empty() {
+        let i = *sel.particles.iter().next().unwrap_or(&0);
+        let Some(p) = state.session.project().particles.get(i).cloned() else { return };
+        ui.label(format!("Particle {i}"));
+        ui.label("centre");
+        if let Some((v, t)) = drag_vec3(ui, p.center, 0.005, " m", "Centre of the gaussian") {
+            if let Some(q) = state.session.edit(t).particles.get_mut(i) {
+                q.center = v;
+            }
+        }
+        egui::Grid::new("particle").num_columns(2).show(ui, |ui| {
+            ui.label("radius");
+            if let Some((v, t)) = drag(ui, p.radius, 0.002, 1e-3..=100.0, " m", "r in σ = c·exp(−d²/r²)") {
+                if let Some(q) = state.session.edit(t).particles.get_mut(i) {
+                    q.radius = v;
+                }
+            }
+            ui.end_row();
+            ui.label("density");
+            if let Some((v, t)) = drag(ui, p.density, 0.02, 0.0..=1e4, " 1/m", "Peak extinction c") {
+                if let Some(q) = state.session.edit(t).particles.get_mut(i) {
+                    q.density = v;
+                }
+            }
+            ui.end_row();
+        });
+        return;
+    }
+    if sel.lights.len() == 1 && sel.particles.is_empty() {
+        let i = *sel.lights.iter().next().unwrap_or(&0);
+        let Some(l) = state.session.project().lights.get(i).cloned() else { return };
+        ui.label(l.name.clone().unwrap_or_else(|| format!("Light {i}")));
+        ui.label("position");
+        if let Some((v, t)) = drag_vec3(ui, l.position, 0.005, " m", "Position of the point light") {
+            if let Some(q) = state.session.edit(t).lights.get_mut(i) {
+                q.position = v;
+            }
+        }
+        egui::Grid::new("light").num_columns(2).show(ui, |ui| {
+            ui.label("intensity");
+            if let Some((v, t)) = drag(ui, l.intensity, 0.05, 0.0..=1e5, " W/sr", "Radiant intensity I") {
+                if let Some(q) = state.session.edit(t).lights.get_mut(i) {
+                    q.intensity = v;
+                }
+            }
+            ui.end_row();
+            ui.label("colour");
+            let mut c = l.color.to_array();
+            let r = ui.color_edit_button_rgb(&mut c).on_hover_text("Per-channel scale of the intensity (linear RGB)");
+            if r.changed() {
+                if let Some(q) = state.session.edit(r.id.value()).lights.get_mut(i) {
+                    q.color = Vec3::from_array(c);
+                }
+            }
+            ui.end_row();
+        });
+        return;
+    }
+    ui.label(format!("{} particles and {} lights selected", sel.particles.len(), sel.lights.len()));
+    if !sel.particles.is_empty() {
+        let p = state.session.project();
+        let n = sel.particles.len() as f32;
+        let mean_r = sel.particles.iter().filter_map(|&i| p.particles.get(i)).map(|q| q.radius).sum::<f32>() / n;
+        let mean_c = sel.particles.iter().filter_map(|&i| p.particles.get(i)).map(|q| q.density).sum::<f32>() / n;
+        egui::Grid::new("multi").num_columns(2).show(ui, |ui| {
+            ui.label("mean radius");
+            if let Some((v, t)) = drag(ui, mean_r, 0.002, 1e-3..=100.0, " m", "Scales every selected radius so that their mean becomes this value") {
+                state.session.scale_particles(t, &sel.particles, v / mean_r.max(1e-6), false);
+            }
+            ui.end_row();
+            ui.label("mean density");
+            if let Some((v, t)) = drag(ui, mean_c, 0.02, 0.0..=1e4, " 1/m", "Scales every selected density so that their mean becomes this value") {
+                if mean_c > 0.0 {
+                    state.session.scale_particles(t, &sel.particles, (v / mean_c).max(1e-6), true);
+                }
+            }
+            ui.end_row();
+        });
+    }
+}
+
+// ---------------------------------------------------------------- Stats
+
+pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
+    match state.clock.fps() {
+        Some(fps) => ui.label(format!("{fps:.1} frames/s (while redrawing)")),
+        None => ui.label("– frames/s (idle)"),
+    };
+    ui.checkbox(&mut state.continuous, "Redraw continuously").on_hover_text("Redraw every frame, to measure the frame rate");
+    let Some(gpu) = &state.gpu else {
+        ui.label(state.gpu_missing.clone().unwrap_or_default());
+        return;
+    };
+    let ctx = gpu.pipeline.context();
+    ui.label(format!("Adapter: {}", ctx.adapter_summary()));
+    ui.label(format!(
+        "Timestamp queries: {}",
+        if ctx.supports_timestamps() { "available" } else { "not available (wall times)" }
+    ));
+    ui.label(format!("GPU memory (scene): {:.1} MiB", gpu.pipeline.memory_bytes() as f64 / (1 << 20) as f64));
+    ui.separator();
+    ui.label("Last update that ran a stage");
+    let r = gpu.report;
+    egui::Grid::new("stats-times").striped(true).num_columns(2).show(ui, |ui| {
+        for (name, v) in [("inject", r.timings_ms.inject), ("propagate", r.timings_ms.propagate), ("march", r.timings_ms.march)] {
+            ui.label(name);
+            ui.label(if v > 0.0 { format!("{v:.2} ms") } else { "skipped".into() });
+            ui.end_row();
+        }
+    });
+    ui.separator();
+    let c = serde_json::to_value(r.counters).unwrap_or_default();
+    egui::Grid::new("stats-counters").striped(true).num_columns(2).show(ui, |ui| {
+        if let Some(map) = c.as_object() {
+            for (k, v) in map {
+                ui.label(k.replace('_', " "));
+                ui.label(v.to_string());
+                ui.end_row();
+            }
+        }
+    });
+    ui.separator();
+    let p = state.session.project();
+    ui.label(format!("{} particles, {} lights, grid {:?}", p.particles.len(), p.lights.len(), p.grid.resolution.to_array()));
+    ui.label(format!("Preview {}×{} px, {} frames rendered", state.preview_size[0], state.preview_size[1], gpu.renders));
+    ui.label(format!("Undo steps: {}", state.session.undo_len()));
+}

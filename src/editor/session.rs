@@ -1,0 +1,443 @@
+//! The editing session: the project being edited, the selection, undo/redo history, the file
+//! it came from and whether it has unsaved changes.
+//!
+//! Nothing here draws or touches the GPU, so every edit the editor can make is testable
+//! without a window. Undo keeps whole-project snapshots: simple, and cheap enough for the
+//! scene sizes the editor targets (a snapshot of 100 000 particles is a few MB; the history
+//! is bounded by step count and by total particles held).
+
+use crate::scene::{Light, Particle, Project};
+use glam::Vec3;
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// Most undo steps kept.
+const MAX_UNDO_STEPS: usize = 200;
+/// Most particles kept across all undo snapshots before the oldest steps are dropped.
+const MAX_UNDO_PARTICLES: usize = 20_000_000;
+
+/// Which particles and lights are selected (indices into the project's lists).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Selection {
+    pub particles: BTreeSet<usize>,
+    pub lights: BTreeSet<usize>,
+}
+
+impl Selection {
+    pub fn is_empty(&self) -> bool {
+        self.particles.is_empty() && self.lights.is_empty()
+    }
+    pub fn clear(&mut self) {
+        self.particles.clear();
+        self.lights.clear();
+    }
+    pub fn len(&self) -> usize {
+        self.particles.len() + self.lights.len()
+    }
+}
+
+/// A tag that lets consecutive edits (one brush stroke, one slider drag) share one undo step.
+pub type EditTag = u64;
+
+/// An edit that starts a new undo step whatever came before.
+pub const NEW_STEP: EditTag = 0;
+
+struct Snapshot {
+    project: Project,
+    selection: Selection,
+    generation: u64,
+}
+
+/// The project under edit plus its history and file state.
+pub struct Session {
+    project: Project,
+    pub selection: Selection,
+    undo: Vec<Snapshot>,
+    redo: Vec<Snapshot>,
+    path: Option<PathBuf>,
+    name: String,
+    generation: u64,
+    next_generation: u64,
+    saved_generation: Option<u64>,
+    open_tag: Option<EditTag>,
+    next_tag: EditTag,
+}
+
+impl Session {
+    /// A session on `project`, read from `path` (or never saved when `path` is `None`;
+    /// `name` is then shown in the title).
+    pub fn new(project: Project, path: Option<PathBuf>, name: &str) -> Self {
+        let saved = path.as_ref().map(|_| 1);
+        let name = path
+            .as_deref()
+            .and_then(Path::file_name)
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| name.to_owned());
+        Self {
+            project,
+            selection: Selection::default(),
+            undo: Vec::new(),
+            redo: Vec::new(),
+            path,
+            name,
+            generation: 1,
+            next_generation: 2,
+            saved_generation: saved,
+            open_tag: None,
+            next_tag: 1,
+        }
+    }
+
+    pub fn project(&self) -> &Project {
+        &self.project
+    }
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+    /// File name shown in the title.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Changes on every edit (and on undo/redo); lets views cache what they derive.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+    pub fn is_dirty(&self) -> bool {
+        self.saved_generation != Some(self.generation)
+    }
+    /// Records that the state of generation `generation` was written to `path`.
+    pub fn mark_saved(&mut self, path: PathBuf, generation: u64) {
+        self.name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        self.path = Some(path);
+        self.saved_generation = Some(generation);
+    }
+
+    /// A fresh tag for a multi-event edit such as a brush stroke.
+    pub fn new_tag(&mut self) -> EditTag {
+        self.next_tag += 1;
+        self.next_tag
+    }
+
+    /// Ends the current coalesced edit: the next edit starts a new undo step.
+    pub fn end_edit(&mut self) {
+        self.open_tag = None;
+    }
+
+    /// Mutable access for an edit. A new undo step is recorded unless `tag` continues the
+    /// edit in progress.
+    pub fn edit(&mut self, tag: EditTag) -> &mut Project {
+        if tag == NEW_STEP || self.open_tag != Some(tag) {
+            self.push_undo();
+            self.open_tag = if tag == NEW_STEP { None } else { Some(tag) };
+        }
+        self.generation = self.next_generation;
+        self.next_generation += 1;
+        &mut self.project
+    }
+
+    /// Changes the view camera: saved with the project but not an undo step, like a view
+    /// change in other editors.
+    pub fn set_camera(&mut self, camera: crate::scene::Camera) {
+        if camera != self.project.camera {
+            self.project.camera = camera;
+            self.generation = self.next_generation;
+            self.next_generation += 1;
+        }
+    }
+
+    fn push_undo(&mut self) {
+        self.undo.push(Snapshot {
+            project: self.project.clone(),
+            selection: self.selection.clone(),
+            generation: self.generation,
+        });
+        self.redo.clear();
+        let mut total: usize = self.undo.iter().map(|s| s.project.particles.len()).sum();
+        while self.undo.len() > MAX_UNDO_STEPS || (total > MAX_UNDO_PARTICLES && self.undo.len() > 1) {
+            total -= self.undo.remove(0).project.particles.len();
+        }
+    }
+
+    pub fn can_undo(&self) -> bool {
+        !self.undo.is_empty()
+    }
+    pub fn can_redo(&self) -> bool {
+        !self.redo.is_empty()
+    }
+    pub fn undo_len(&self) -> usize {
+        self.undo.len()
+    }
+
+    /// Restores the state before the last edit; the camera stays where the user put it.
+    pub fn undo(&mut self) -> bool {
+        let Some(s) = self.undo.pop() else { return false };
+        let current = self.swap_in(s);
+        self.redo.push(current);
+        true
+    }
+
+    pub fn redo(&mut self) -> bool {
+        let Some(s) = self.redo.pop() else { return false };
+        let current = self.swap_in(s);
+        self.undo.push(current);
+        true
+    }
+
+    fn swap_in(&mut self, mut s: Snapshot) -> Snapshot {
+        self.open_tag = None;
+        s.project.camera = self.project.camera;
+        let project = std::mem::replace(&mut self.project, s.project);
+        let selection = std::mem::replace(&mut self.selection, s.selection);
+        let generation = std::mem::replace(&mut self.generation, s.generation);
+        self.sanitize_selection();
+        Snapshot { project, selection, generation }
+    }
+
+    fn sanitize_selection(&mut self) {
+        let (np, nl) = (self.project.particles.len(), self.project.lights.len());
+        self.selection.particles.retain(|&i| i < np);
+        self.selection.lights.retain(|&i| i < nl);
+    }
+
+    // ---- edits used by tools, menus and panels ----
+
+    /// Appends particles (one undo step per `tag`) and returns how many there are now.
+    pub fn add_particles(&mut self, tag: EditTag, particles: impl IntoIterator<Item = Particle>) -> usize {
+        let p = self.edit(tag);
+        p.particles.extend(particles);
+        p.particles.len()
+    }
+
+    /// Removes visible particles whose centre lies within `radius` of the line through
+    /// `origin` along unit `dir` (in front of the origin). Returns how many were removed.
+    pub fn erase_along_ray(&mut self, tag: EditTag, origin: Vec3, dir: Vec3, radius: f32) -> usize {
+        let hit = |p: &Particle| {
+            let d = p.center - origin;
+            let t = d.dot(dir);
+            !p.hidden && t > 0.0 && (d - dir * t).length_squared() <= radius * radius
+        };
+        if !self.project.particles.iter().any(hit) {
+            return 0;
+        }
+        let removed: BTreeSet<usize> =
+            self.project.particles.iter().enumerate().filter(|(_, p)| hit(p)).map(|(i, _)| i).collect();
+        self.remove_particles(tag, &removed);
+        removed.len()
+    }
+
+    fn remove_particles(&mut self, tag: EditTag, removed: &BTreeSet<usize>) {
+        let project = self.edit(tag);
+        let mut index = 0;
+        project.particles.retain(|_| {
+            let keep = !removed.contains(&index);
+            index += 1;
+            keep
+        });
+        self.selection.particles = remap_after_removal(&self.selection.particles, removed);
+    }
+
+    /// Multiplies the radius (or, with `density`, the density) of `targets` by `factor`.
+    pub fn scale_particles(&mut self, tag: EditTag, targets: &BTreeSet<usize>, factor: f32, density: bool) {
+        if targets.is_empty() || !(factor.is_finite() && factor > 0.0) {
+            return;
+        }
+        let project = self.edit(tag);
+        for &i in targets {
+            if let Some(p) = project.particles.get_mut(i) {
+                if density {
+                    p.density = (p.density * factor).clamp(0.0, 1.0e6);
+                } else {
+                    p.radius = (p.radius * factor).clamp(1.0e-4, 1.0e4);
+                }
+            }
+        }
+    }
+
+    /// Moves the selected particles and lights by `delta`.
+    pub fn translate_selection(&mut self, tag: EditTag, delta: Vec3) {
+        if self.selection.is_empty() || !delta.is_finite() {
+            return;
+        }
+        let sel = self.selection.clone();
+        let project = self.edit(tag);
+        for &i in &sel.particles {
+            if let Some(p) = project.particles.get_mut(i) {
+                p.center += delta;
+            }
+        }
+        for &i in &sel.lights {
+            if let Some(l) = project.lights.get_mut(i) {
+                l.position += delta;
+            }
+        }
+    }
+
+    /// Deletes the selection; returns how many items went.
+    pub fn delete_selection(&mut self) -> usize {
+        if self.selection.is_empty() {
+            return 0;
+        }
+        let n = self.selection.len();
+        let particles = std::mem::take(&mut self.selection.particles);
+        let lights = std::mem::take(&mut self.selection.lights);
+        let project = self.edit(NEW_STEP);
+        let mut i = 0;
+        project.particles.retain(|_| {
+            let keep = !particles.contains(&i);
+            i += 1;
+            keep
+        });
+        let mut i = 0;
+        project.lights.retain(|_| {
+            let keep = !lights.contains(&i);
+            i += 1;
+            keep
+        });
+        n
+    }
+
+    /// Copies the selection, offset by `offset`, and selects the copies.
+    pub fn duplicate_selection(&mut self, offset: Vec3) -> usize {
+        if self.selection.is_empty() {
+            return 0;
+        }
+        let sel = self.selection.clone();
+        let project = self.edit(NEW_STEP);
+        let (np, nl) = (project.particles.len(), project.lights.len());
+        for &i in &sel.particles {
+            if let Some(p) = project.particles.get(i).cloned() {
+                project.particles.push(Particle { center: p.center + offset, ..p });
+            }
+        }
+        for &i in &sel.lights {
+            if let Some(l) = project.lights.get(i).cloned() {
+                project.lights.push(Light { position: l.position + offset, ..l });
+            }
+        }
+        let (np2, nl2) = (project.particles.len(), project.lights.len());
+        self.selection.particles = (np..np2).collect();
+        self.selection.lights = (nl..nl2).collect();
+        self.selection.len()
+    }
+
+    pub fn select_all(&mut self) {
+        self.selection.particles = (0..self.project.particles.len()).collect();
+        self.selection.lights = (0..self.project.lights.len()).collect();
+    }
+
+    /// Adds a light and selects it alone.
+    pub fn add_light(&mut self, light: Light) -> usize {
+        let project = self.edit(NEW_STEP);
+        project.lights.push(light);
+        let i = project.lights.len() - 1;
+        self.selection.clear();
+        self.selection.lights.insert(i);
+        i
+    }
+
+    /// Centre of the selected items, if any.
+    pub fn selection_center(&self) -> Option<Vec3> {
+        let p = &self.project;
+        let points: Vec<Vec3> = self
+            .selection
+            .particles
+            .iter()
+            .filter_map(|&i| p.particles.get(i).map(|q| q.center))
+            .chain(self.selection.lights.iter().filter_map(|&i| p.lights.get(i).map(|l| l.position)))
+            .collect();
+        if points.is_empty() {
+            None
+        } else {
+            Some(points.iter().copied().sum::<Vec3>() / points.len() as f32)
+        }
+    }
+
+    /// Replaces the whole project (File → New, Open, Revert): history and selection reset.
+    pub fn replace(&mut self, project: Project, path: Option<PathBuf>, name: &str) {
+        *self = Session::new(project, path, name);
+    }
+}
+
+/// Indices of `kept` after the items in `removed` were deleted from the list.
+fn remap_after_removal(kept: &BTreeSet<usize>, removed: &BTreeSet<usize>) -> BTreeSet<usize> {
+    kept.iter()
+        .filter(|i| !removed.contains(i))
+        .map(|&i| i - removed.range(..i).count())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn session() -> Session {
+        let mut p = Project::default();
+        p.particles = (0..4).map(|i| Particle::new(Vec3::new(i as f32, 1.0, 0.0), 0.2, 1.0)).collect();
+        Session::new(p, Some(PathBuf::from("/tmp/x.ron")), "x")
+    }
+
+    #[test]
+    fn a_stroke_is_one_undo_step() {
+        let mut s = session();
+        assert!(!s.is_dirty());
+        let tag = s.new_tag();
+        for _ in 0..5 {
+            s.add_particles(tag, [Particle::new(Vec3::ONE, 0.1, 1.0)]);
+        }
+        s.end_edit();
+        assert_eq!(s.project().particles.len(), 9);
+        assert!(s.is_dirty());
+        assert!(s.undo());
+        assert_eq!(s.project().particles.len(), 4);
+        assert!(!s.is_dirty(), "undoing back to the saved state is clean");
+        assert!(!s.undo());
+        assert!(s.redo());
+        assert_eq!(s.project().particles.len(), 9);
+    }
+
+    #[test]
+    fn undo_keeps_the_camera() {
+        let mut s = session();
+        s.add_particles(NEW_STEP, [Particle::new(Vec3::ONE, 0.1, 1.0)]);
+        let mut cam = s.project().camera;
+        cam.position.x += 1.0;
+        s.set_camera(cam);
+        s.undo();
+        assert_eq!(s.project().camera, cam);
+    }
+
+    #[test]
+    fn erasing_remaps_the_selection() {
+        let mut s = session();
+        s.selection.particles = [0, 3].into();
+        let n = s.erase_along_ray(NEW_STEP, Vec3::new(1.0, 1.0, 5.0), Vec3::NEG_Z, 0.1);
+        assert_eq!(n, 1);
+        assert_eq!(s.selection.particles, [0, 2].into());
+        assert_eq!(s.project().particles[2].center.x, 3.0);
+    }
+
+    #[test]
+    fn delete_duplicate_select_all() {
+        let mut s = session();
+        s.selection.particles = [1].into();
+        assert_eq!(s.duplicate_selection(Vec3::X), 1);
+        assert_eq!(s.project().particles.len(), 5);
+        assert_eq!(s.selection.particles, [4].into());
+        s.select_all();
+        assert_eq!(s.delete_selection(), 5);
+        assert!(s.project().particles.is_empty());
+        s.undo();
+        assert_eq!(s.project().particles.len(), 5);
+    }
+
+    #[test]
+    fn scaling_changes_radius_or_density() {
+        let mut s = session();
+        let t: BTreeSet<usize> = [0, 2].into();
+        s.scale_particles(NEW_STEP, &t, 2.0, false);
+        s.scale_particles(NEW_STEP, &t, 3.0, true);
+        let p = &s.project().particles;
+        assert!((p[0].radius - 0.4).abs() < 1e-6 && (p[0].density - 3.0).abs() < 1e-6);
+        assert_eq!(p[1].radius, 0.2);
+    }
+}

@@ -1,0 +1,319 @@
+//! Slice views of the baked volumes: which field, axis and index to show, extracting the
+//! 2D slice from a [`Volume`], colour maps and the exact optical depth used by the error view.
+
+use crate::scene::{GridSpec, Project, Volume};
+use egui::Color32;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Field {
+    /// σ_t, the extinction volume.
+    #[default]
+    Extinction,
+    /// T towards the chosen light.
+    OpticalDepth,
+    /// exp(−T) towards the chosen light.
+    Transmittance,
+    /// |T − T_exact| against the CPU reference, on this slice only.
+    Error,
+}
+
+impl Field {
+    pub const ALL: [Field; 4] = [Field::Extinction, Field::OpticalDepth, Field::Transmittance, Field::Error];
+    pub fn label(self) -> &'static str {
+        match self {
+            Field::Extinction => "EV σt",
+            Field::OpticalDepth => "OPV T",
+            Field::Transmittance => "exp(−T)",
+            Field::Error => "|T − T exact|",
+        }
+    }
+    pub fn unit(self) -> &'static str {
+        match self {
+            Field::Extinction => "1/m",
+            Field::Transmittance => "",
+            Field::OpticalDepth | Field::Error => "(optical depth)",
+        }
+    }
+    pub fn needs_light(self) -> bool {
+        self != Field::Extinction
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Axis {
+    X,
+    #[default]
+    Y,
+    Z,
+}
+
+impl Axis {
+    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
+    pub fn index(self) -> usize {
+        self as usize
+    }
+    /// The grid axes along the image's columns and rows (rows grow upwards).
+    pub fn image_axes(self) -> (usize, usize) {
+        match self {
+            Axis::X => (2, 1),
+            Axis::Y => (0, 2),
+            Axis::Z => (0, 1),
+        }
+    }
+    pub fn label(self) -> &'static str {
+        ["X", "Y", "Z"][self.index()]
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Colormap {
+    #[default]
+    Viridis,
+    Inferno,
+    Magma,
+    Grayscale,
+}
+
+impl Colormap {
+    pub const ALL: [Colormap; 4] = [Colormap::Viridis, Colormap::Inferno, Colormap::Magma, Colormap::Grayscale];
+    pub fn label(self) -> &'static str {
+        match self {
+            Colormap::Viridis => "viridis",
+            Colormap::Inferno => "inferno",
+            Colormap::Magma => "magma",
+            Colormap::Grayscale => "grayscale",
+        }
+    }
+
+    /// Colour at `t` in [0, 1].
+    pub fn color(self, t: f32) -> Color32 {
+        const VIRIDIS: [[u8; 3]; 9] = [
+            [68, 1, 84],
+            [71, 44, 122],
+            [59, 81, 139],
+            [44, 113, 142],
+            [33, 144, 141],
+            [39, 173, 129],
+            [92, 200, 99],
+            [170, 220, 50],
+            [253, 231, 37],
+        ];
+        const INFERNO: [[u8; 3]; 9] = [
+            [0, 0, 4],
+            [31, 12, 72],
+            [85, 15, 109],
+            [136, 34, 106],
+            [186, 54, 85],
+            [227, 89, 51],
+            [249, 140, 10],
+            [249, 201, 50],
+            [252, 255, 164],
+        ];
+        const MAGMA: [[u8; 3]; 9] = [
+            [0, 0, 4],
+            [28, 16, 68],
+            [79, 18, 123],
+            [129, 37, 129],
+            [181, 54, 122],
+            [229, 80, 100],
+            [251, 135, 97],
+            [254, 194, 135],
+            [252, 253, 191],
+        ];
+        let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+        let lut = match self {
+            Colormap::Viridis => &VIRIDIS,
+            Colormap::Inferno => &INFERNO,
+            Colormap::Magma => &MAGMA,
+            Colormap::Grayscale => {
+                let g = (t * 255.0 + 0.5) as u8;
+                return Color32::from_rgb(g, g, g);
+            }
+        };
+        let x = t * (lut.len() - 1) as f32;
+        let i = (x.floor() as usize).min(lut.len() - 2);
+        let f = x - i as f32;
+        let mix = |a: u8, b: u8| (a as f32 + (b as f32 - a as f32) * f + 0.5) as u8;
+        let (a, b) = (lut[i], lut[i + 1]);
+        Color32::from_rgb(mix(a[0], b[0]), mix(a[1], b[1]), mix(a[2], b[2]))
+    }
+}
+
+/// What the Slices panel shows; remembered between runs.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SliceSettings {
+    pub field: Field,
+    pub light: usize,
+    pub axis: Axis,
+    /// Slice index along `axis`.
+    pub index: u32,
+    pub colormap: Colormap,
+    pub log: bool,
+}
+
+impl Default for SliceSettings {
+    fn default() -> Self {
+        Self { field: Field::Extinction, light: 0, axis: Axis::Z, index: 32, colormap: Colormap::Viridis, log: false }
+    }
+}
+
+/// One slice of a volume: `width` × `height` values, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Slice {
+    pub axis: Axis,
+    pub index: u32,
+    pub width: usize,
+    pub height: usize,
+    pub values: Vec<f32>,
+}
+
+impl Slice {
+    /// The grid cell shown at column `x`, row `y`.
+    pub fn cell(&self, x: usize, y: usize) -> [u32; 3] {
+        let (ua, va) = self.axis.image_axes();
+        let mut c = [0u32; 3];
+        c[self.axis.index()] = self.index;
+        c[ua] = x as u32;
+        c[va] = (self.height - 1 - y) as u32;
+        c
+    }
+
+    /// Every cell of the slice in image order.
+    pub fn cells(&self) -> Vec<[u32; 3]> {
+        (0..self.height).flat_map(|y| (0..self.width).map(move |x| (x, y))).map(|(x, y)| self.cell(x, y)).collect()
+    }
+
+    pub fn get(&self, x: usize, y: usize) -> f32 {
+        self.values[y * self.width + x]
+    }
+
+    /// Smallest and largest finite values.
+    pub fn range(&self) -> (f32, f32) {
+        let mut lo = f32::INFINITY;
+        let mut hi = f32::NEG_INFINITY;
+        for &v in self.values.iter().filter(|v| v.is_finite()) {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        if lo > hi {
+            (0.0, 1.0)
+        } else {
+            (lo, hi)
+        }
+    }
+}
+
+/// Clamps a slice index into the grid along `axis`.
+pub fn clamp_index(grid: &GridSpec, axis: Axis, index: u32) -> u32 {
+    index.min(grid.resolution.to_array()[axis.index()].saturating_sub(1))
+}
+
+/// The slice of `volume` at `index` along `axis`.
+pub fn extract(volume: &Volume, axis: Axis, index: u32) -> Slice {
+    let dims = volume.dims();
+    let index = clamp_index(&volume.grid, axis, index);
+    let (ua, va) = axis.image_axes();
+    let (width, height) = (dims[ua] as usize, dims[va] as usize);
+    let mut slice = Slice { axis, index, width, height, values: Vec::with_capacity(width * height) };
+    for y in 0..height {
+        for x in 0..width {
+            let [i, j, k] = slice.cell(x, y);
+            slice.values.push(volume.get(i, j, k));
+        }
+    }
+    slice
+}
+
+/// Maps a value to [0, 1] for colouring, linearly or on a log scale spanning six decades
+/// below the maximum.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scale {
+    pub lo: f32,
+    pub hi: f32,
+    pub log: bool,
+}
+
+impl Scale {
+    pub fn for_range(lo: f32, hi: f32, log: bool) -> Self {
+        if log {
+            let hi = hi.max(1e-12);
+            let lo = if lo > 0.0 { lo.max(hi * 1e-6) } else { hi * 1e-6 };
+            Self { lo, hi: hi.max(lo * 1.0001), log }
+        } else {
+            let lo = lo.min(0.0);
+            Self { lo, hi: if hi > lo { hi } else { lo + 1.0 }, log }
+        }
+    }
+    pub fn normalize(&self, v: f32) -> f32 {
+        if self.log {
+            let v = v.max(self.lo);
+            (v / self.lo).ln() / (self.hi / self.lo).ln()
+        } else {
+            (v - self.lo) / (self.hi - self.lo)
+        }
+    }
+    /// The value at fraction `t` of the scale.
+    pub fn value_at(&self, t: f32) -> f32 {
+        if self.log {
+            self.lo * (self.hi / self.lo).powf(t)
+        } else {
+            self.lo + (self.hi - self.lo) * t
+        }
+    }
+}
+
+/// The slice as an image ready for an egui texture.
+pub fn colorize(slice: &Slice, colormap: Colormap, scale: &Scale) -> egui::ColorImage {
+    let pixels = slice.values.iter().map(|&v| colormap.color(scale.normalize(v))).collect();
+    egui::ColorImage::new([slice.width, slice.height], pixels)
+}
+
+/// Exact optical depth T(cell, light) on `cells`, from the CPU reference.
+pub fn exact_optical_depth(project: &Project, light: usize, cells: &[[u32; 3]]) -> Result<Vec<f64>, String> {
+    let _ = (project, light, cells);
+    Err("the CPU reference is not part of this build yet, so the error view is unavailable".into())
+}
+
+/// |T − T_exact| per value of an optical-depth slice.
+pub fn error_slice(opv: &Slice, exact: &[f64]) -> Slice {
+    let values = opv.values.iter().zip(exact).map(|(&t, &e)| (t as f64 - e).abs() as f32).collect();
+    Slice { values, ..opv.clone() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slices_index_cells_consistently() {
+        let mut grid = GridSpec::default();
+        grid.resolution = glam::UVec3::new(3, 4, 5);
+        let data = (0..60).map(|i| i as f32).collect();
+        let vol = Volume::new(grid, data);
+        for axis in Axis::ALL {
+            let s = extract(&vol, axis, 1);
+            for y in 0..s.height {
+                for x in 0..s.width {
+                    let [i, j, k] = s.cell(x, y);
+                    assert_eq!(s.get(x, y), vol.get(i, j, k));
+                }
+            }
+        }
+        let s = extract(&vol, Axis::Z, 9);
+        assert_eq!((s.index, s.width, s.height), (4, 3, 4));
+        assert_eq!(s.cell(0, 0), [0, 3, 4], "row 0 is the top (largest y)");
+    }
+
+    #[test]
+    fn scales_map_the_range() {
+        let lin = Scale::for_range(0.0, 4.0, false);
+        assert_eq!(lin.normalize(1.0), 0.25);
+        let log = Scale::for_range(1e-3, 10.0, true);
+        assert!((log.normalize(10.0) - 1.0).abs() < 1e-6);
+        assert!((log.value_at(log.normalize(0.5)) - 0.5).abs() < 1e-4);
+        assert_eq!(Colormap::Grayscale.color(1.0), Color32::WHITE);
+        assert_eq!(Colormap::Viridis.color(0.0), Color32::from_rgb(68, 1, 84));
+    }
+}

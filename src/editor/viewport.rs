@@ -1,0 +1,374 @@
+//! The Viewport tab: the tool bar, the pipeline's preview, camera navigation, the tools'
+//! pointer handling and the overlays (grid box, particle outlines, light gizmos, selection).
+
+use super::app::{EditorState, Gesture};
+use super::tools::{self, Hit, Stroke, Tool};
+use super::view::{self, ViewProjection};
+use egui::{Color32, Pos2, Rect, Sense, Stroke as Line, Ui};
+use glam::Vec3;
+
+const SELECTED: Color32 = Color32::from_rgb(255, 160, 40);
+/// Particles drawn with outlines; beyond this only the selection is outlined.
+const MAX_OUTLINES: usize = 20_000;
+
+pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
+    toolbar(state, ui);
+    let rect = ui.available_rect_before_wrap();
+    if rect.width() < 8.0 || rect.height() < 8.0 {
+        return;
+    }
+    let response = ui.allocate_rect(rect, Sense::click_and_drag());
+    state.viewport_rect = Some(rect);
+    let ppp = ui.ctx().pixels_per_point();
+    let size = [((rect.width() * ppp).round() as u32).clamp(16, 4096), ((rect.height() * ppp).round() as u32).clamp(16, 4096)];
+    state.preview_size = size;
+    handle_input(state, ui, &response, rect);
+    state.render_preview();
+
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 0.0, Color32::from_gray(8));
+    match &state.gpu {
+        Some(gpu) => {
+            if let Some((id, _)) = gpu.texture {
+                painter.image(id, rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
+            }
+            if let Some(e) = &gpu.error {
+                painter.text(rect.center(), egui::Align2::CENTER_CENTER, e, egui::FontId::proportional(14.0), ui.visuals().error_fg_color);
+            }
+        }
+        None => {
+            let msg = state.gpu_missing.clone().unwrap_or_default();
+            painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, egui::FontId::proportional(14.0), ui.visuals().error_fg_color);
+        }
+    }
+    overlays(state, &painter, rect, response.hover_pos());
+}
+
+fn toolbar(state: &mut EditorState, ui: &mut Ui) {
+    ui.horizontal_wrapped(|ui| {
+        for tool in Tool::ALL {
+            let text = format!("{} ({})", tool.label(), tool.shortcut());
+            if ui.selectable_label(state.tool == tool, text).on_hover_text(tool.tooltip()).clicked() {
+                state.tool = tool;
+            }
+        }
+        ui.separator();
+        let b = &mut state.brush;
+        ui.add(egui::DragValue::new(&mut b.radius).speed(0.005).range(0.005..=10.0).prefix("radius ").suffix(" m"))
+            .on_hover_text("Brush radius: the radius r of painted particles (σ = c·exp(−d²/r²)) and the brush footprint");
+        ui.add(egui::DragValue::new(&mut b.density).speed(0.05).range(0.0..=1000.0).prefix("density ").suffix(" 1/m"))
+            .on_hover_text("Peak extinction c of painted particles");
+        ui.add(egui::DragValue::new(&mut b.spacing).speed(0.01).range(0.05..=4.0).prefix("spacing ").suffix("×r"))
+            .on_hover_text("Distance between dabs along a stroke, in brush radii");
+        ui.add(egui::DragValue::new(&mut b.jitter).speed(0.01).range(0.0..=2.0).prefix("jitter ").suffix("×r"))
+            .on_hover_text("Random offset of each dab within the working plane, in brush radii");
+        ui.separator();
+        let mut exposure = state.session.project().render.exposure;
+        let r = ui
+            .add(egui::DragValue::new(&mut exposure).speed(0.02).range(0.0..=100.0).prefix("exposure "))
+            .on_hover_text("Tone-mapping exposure: display = 1 − exp(−exposure · radiance)");
+        if r.changed() {
+            state.session.edit(r.id.value()).render.exposure = exposure;
+        }
+    });
+}
+
+fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rect: Rect) {
+    let camera = state.session.project().camera;
+    let vp = ViewProjection::new(&camera, rect);
+    let (modifiers, scroll, pointer) = ui.input(|i| (i.modifiers, wheel_delta(&i.raw.events), i.pointer.clone()));
+    let hover = response.hover_pos();
+
+    if state.modal.is_some() {
+        modal(state, &vp, pointer.hover_pos(), ui, response);
+        state.interacting = false;
+        return;
+    }
+
+    if hover.is_some() && scroll != 0.0 {
+        if state.tool == Tool::Scale && !modifiers.command {
+            if let Some(pos) = hover {
+                wheel_scale(state, &vp, pos, scroll, modifiers.alt, ui.input(|i| i.time));
+            }
+        } else {
+            let c = view::zoom(&camera, (-scroll * 0.0015).exp());
+            state.session.set_camera(c);
+        }
+    }
+    let zoom = ui.input(|i| i.zoom_delta());
+    if hover.is_some() && zoom != 1.0 && scroll == 0.0 {
+        state.session.set_camera(view::zoom(&camera, 1.0 / zoom));
+    }
+
+    let nav = response.dragged_by(egui::PointerButton::Middle) || response.dragged_by(egui::PointerButton::Secondary);
+    if nav {
+        let delta = response.drag_delta();
+        let c = if modifiers.shift {
+            view::pan(&camera, delta, rect.height())
+        } else {
+            view::orbit(&camera, delta.x * 0.008, delta.y * 0.008)
+        };
+        state.session.set_camera(c);
+        state.gesture = Some(if modifiers.shift { Gesture::Pan } else { Gesture::Orbit });
+    }
+
+    let primary_pressed = response.drag_started_by(egui::PointerButton::Primary)
+        || (response.clicked_by(egui::PointerButton::Primary) && state.gesture.is_none());
+    let primary_down = pointer.primary_down();
+    let pos = pointer.interact_pos().or(hover);
+
+    if primary_pressed {
+        if let Some(pos) = pos {
+            start_gesture(state, &vp, pos, modifiers, response.clicked());
+        }
+    }
+    if let Some(pos) = pos {
+        if primary_down || response.drag_stopped() || response.clicked() {
+            continue_gesture(state, &vp, pos, response.drag_delta(), modifiers.alt);
+        }
+    }
+    if response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.gesture.is_some()) {
+        finish_gesture(state, &vp, pos, modifiers);
+    }
+    state.interacting = matches!(state.gesture, Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. }));
+}
+
+/// Vertical wheel movement this frame in points (lines count as 40 points).
+fn wheel_delta(events: &[egui::Event]) -> f32 {
+    events
+        .iter()
+        .map(|e| match e {
+            egui::Event::MouseWheel { unit, delta, .. } => match unit {
+                egui::MouseWheelUnit::Point => delta.y,
+                egui::MouseWheelUnit::Line => delta.y * 40.0,
+                egui::MouseWheelUnit::Page => delta.y * 400.0,
+            },
+            _ => 0.0,
+        })
+        .sum()
+}
+
+fn wheel_scale(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, scroll: f32, density: bool, now: f64) {
+    let targets = if state.session.selection.particles.is_empty() {
+        tools::under_brush(state.session.project(), vp, pos, state.brush.radius)
+    } else {
+        state.session.selection.particles.clone()
+    };
+    if targets.is_empty() {
+        return;
+    }
+    let tag = match state.scale_wheel {
+        Some((tag, last)) if now - last < 0.6 => tag,
+        _ => {
+            state.session.end_edit();
+            state.session.new_tag()
+        }
+    };
+    state.scale_wheel = Some((tag, now));
+    state.session.scale_particles(tag, &targets, (scroll * 0.002).exp(), density);
+}
+
+fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifiers: egui::Modifiers, _click: bool) {
+    let project = state.session.project();
+    state.gesture = match state.tool {
+        Tool::Select => match tools::pick(project, vp, pos) {
+            Some(hit) => {
+                let selected = match hit {
+                    Hit::Particle(i) => state.session.selection.particles.contains(&i),
+                    Hit::Light(i) => state.session.selection.lights.contains(&i),
+                };
+                if modifiers.shift || modifiers.command {
+                    toggle(state, hit, true);
+                    None
+                } else {
+                    if !selected {
+                        state.session.selection.clear();
+                        toggle(state, hit, false);
+                    }
+                    let depth = state.session.selection_center().and_then(|c| vp.project(c)).map_or(1.0, |(_, z)| z);
+                    Some(Gesture::Move { tag: state.session.new_tag(), depth })
+                }
+            }
+            None => Some(Gesture::Box { start: pos }),
+        },
+        Tool::Paint => Some(Gesture::Paint(Stroke::new(state.session.new_tag()))),
+        Tool::Erase => Some(Gesture::Erase { tag: state.session.new_tag() }),
+        Tool::Scale => {
+            let targets = if state.session.selection.particles.is_empty() {
+                tools::under_brush(project, vp, pos, state.brush.radius)
+            } else {
+                state.session.selection.particles.clone()
+            };
+            Some(Gesture::ScaleDrag { tag: state.session.new_tag(), targets })
+        }
+        Tool::Light => match tools::pick(project, vp, pos) {
+            Some(Hit::Light(i)) => {
+                let depth = project.lights.get(i).and_then(|l| vp.project(l.position)).map_or(1.0, |(_, z)| z);
+                state.session.selection.clear();
+                state.session.selection.lights.insert(i);
+                Some(Gesture::MoveLight { tag: state.session.new_tag(), light: i, depth })
+            }
+            _ => {
+                if let Some(point) = tools::working_plane_point(project, vp, pos) {
+                    let mut light = crate::scene::Light::new(point, 2.0, Vec3::ONE);
+                    light.name = Some(format!("Light {}", project.lights.len() + 1));
+                    state.session.add_light(light);
+                }
+                None
+            }
+        },
+    };
+}
+
+fn toggle(state: &mut EditorState, hit: Hit, toggle: bool) {
+    let set = match hit {
+        Hit::Particle(i) => (&mut state.session.selection.particles, i),
+        Hit::Light(i) => (&mut state.session.selection.lights, i),
+    };
+    if toggle && set.0.contains(&set.1) {
+        set.0.remove(&set.1);
+    } else {
+        set.0.insert(set.1);
+    }
+}
+
+fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, delta: egui::Vec2, alt: bool) {
+    let brush = state.brush;
+    match &mut state.gesture {
+        Some(Gesture::Paint(stroke)) => {
+            if let Some(point) = tools::working_plane_point(state.session.project(), vp, pos) {
+                let dabs = stroke.dabs_to(point, vp.right, vp.up, &brush);
+                if !dabs.is_empty() {
+                    let tag = stroke.tag;
+                    state.session.add_particles(tag, dabs);
+                }
+            }
+        }
+        Some(Gesture::Erase { tag }) => {
+            let tag = *tag;
+            state.session.erase_along_ray(tag, vp.position, vp.ray(pos), brush.radius);
+        }
+        Some(Gesture::Move { tag, depth }) if delta != egui::Vec2::ZERO => {
+            let (tag, depth) = (*tag, *depth);
+            state.session.translate_selection(tag, vp.drag_to_world(delta, depth));
+        }
+        Some(Gesture::MoveLight { tag, light, depth }) if delta != egui::Vec2::ZERO => {
+            let (tag, light, depth) = (*tag, *light, *depth);
+            let d = vp.drag_to_world(delta, depth);
+            if let Some(l) = state.session.edit(tag).lights.get_mut(light) {
+                l.position += d;
+            }
+        }
+        Some(Gesture::ScaleDrag { tag, targets }) if delta.x != 0.0 => {
+            let (tag, targets) = (*tag, targets.clone());
+            state.session.scale_particles(tag, &targets, (delta.x * 0.01).exp(), alt);
+        }
+        _ => {}
+    }
+}
+
+fn finish_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2>, modifiers: egui::Modifiers) {
+    if let (Some(Gesture::Box { start }), Some(end)) = (&state.gesture, pos) {
+        let r = Rect::from_two_pos(*start, end);
+        if r.area() > 4.0 {
+            let (particles, lights) = tools::box_select(state.session.project(), vp, r);
+            if !(modifiers.shift || modifiers.command) {
+                state.session.selection.clear();
+            }
+            state.session.selection.particles.extend(particles);
+            state.session.selection.lights.extend(lights);
+        } else if !(modifiers.shift || modifiers.command) {
+            state.session.selection.clear();
+        }
+    }
+    state.gesture = None;
+    state.session.end_edit();
+}
+
+fn modal(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2>, ui: &Ui, response: &egui::Response) {
+    let Some(pos) = pos else { return };
+    let confirm = response.clicked() || ui.input(|i| i.key_pressed(egui::Key::Enter));
+    let cancel = response.secondary_clicked();
+    let Some(center) = state.session.selection_center() else {
+        state.modal = None;
+        return;
+    };
+    let Some((center_screen, depth)) = vp.project(center) else { return };
+    let Some(m) = &mut state.modal else { return };
+    if m.scale {
+        let d0 = m.start.distance(center_screen).max(4.0);
+        let factor = (pos.distance(center_screen) / d0).clamp(0.01, 100.0);
+        let step = factor / m.applied_factor;
+        m.applied_factor = factor;
+        let (tag, targets) = (m.tag, state.session.selection.particles.clone());
+        state.session.scale_particles(tag, &targets, step, ui.input(|i| i.modifiers.alt));
+    } else {
+        let total = vp.drag_to_world(pos - m.start, depth);
+        let step = total - m.applied;
+        m.applied = total;
+        let tag = m.tag;
+        state.session.translate_selection(tag, step);
+    }
+    if cancel {
+        state.cancel_modal();
+    } else if confirm {
+        state.modal = None;
+        state.session.end_edit();
+    }
+}
+
+fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Option<Pos2>) {
+    let project = state.session.project();
+    let vp = ViewProjection::new(&project.camera, rect);
+    let g = &project.grid;
+    let corners: Vec<Vec3> =
+        (0..8).map(|i| Vec3::new(if i & 1 == 0 { g.min.x } else { g.max.x }, if i & 2 == 0 { g.min.y } else { g.max.y }, if i & 4 == 0 { g.min.z } else { g.max.z })).collect();
+    let grid_line = Line::new(1.0, Color32::from_rgba_unmultiplied(160, 170, 190, 110));
+    for (a, b) in [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)] {
+        if let (Some((pa, _)), Some((pb, _))) = (vp.project(corners[a]), vp.project(corners[b])) {
+            painter.line_segment([pa, pb], grid_line);
+        }
+    }
+    let outline = Line::new(1.0, Color32::from_rgba_unmultiplied(200, 220, 255, 45));
+    let draw_all = project.particles.len() <= MAX_OUTLINES;
+    for (i, p) in project.particles.iter().enumerate() {
+        let selected = state.session.selection.particles.contains(&i);
+        if p.hidden || !(draw_all || selected) {
+            continue;
+        }
+        if let Some((s, z)) = vp.project(p.center) {
+            let r = p.radius * vp.points_per_metre(z);
+            if selected {
+                painter.circle_stroke(s, r, Line::new(1.5, SELECTED));
+            } else {
+                painter.circle_stroke(s, r, outline);
+            }
+        }
+    }
+    for (i, l) in project.lights.iter().enumerate() {
+        let Some((s, _)) = vp.project(l.position) else { continue };
+        let c = (l.color / l.color.max_element().max(1e-6) * 255.0).clamp(Vec3::ZERO, Vec3::splat(255.0));
+        let fill = Color32::from_rgb(c.x as u8, c.y as u8, c.z as u8);
+        let selected = state.session.selection.lights.contains(&i);
+        let edge = if selected { SELECTED } else { Color32::from_gray(20) };
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::TAU / 8.0;
+            let d = egui::vec2(a.cos(), a.sin());
+            painter.line_segment([s + d * 8.0, s + d * 13.0], Line::new(1.5, if l.hidden { Color32::GRAY } else { fill }));
+        }
+        painter.circle(s, 6.0, if l.hidden { Color32::GRAY } else { fill }, Line::new(if selected { 2.0 } else { 1.0 }, edge));
+    }
+    if let Some(Gesture::Box { start }) = &state.gesture {
+        if let Some(end) = hover {
+            painter.rect_stroke(Rect::from_two_pos(*start, end), 0.0, Line::new(1.0, SELECTED), egui::StrokeKind::Inside);
+        }
+    }
+    if let Some(pos) = hover {
+        if matches!(state.tool, Tool::Paint | Tool::Erase | Tool::Scale) {
+            let z = tools::working_plane_point(project, &vp, pos).and_then(|p| vp.project(p)).map_or(1.0, |(_, z)| z);
+            let r = state.brush.radius * vp.points_per_metre(z);
+            let color = if state.tool == Tool::Erase { Color32::from_rgb(255, 90, 90) } else { Color32::WHITE };
+            painter.circle_stroke(pos, r, Line::new(1.0, color));
+        }
+    }
+}

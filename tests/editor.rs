@@ -1,0 +1,211 @@
+//! Drives the editor headlessly with egui_kittest on a real wgpu device (lavapipe on
+//! machines without a GPU): painting, scaling, slices, undo, files, and a snapshot of the
+//! default layout. Without an adapter these tests fail; they never skip.
+
+use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
+use egui_kittest::kittest::Queryable;
+use egui_kittest::{Harness, SnapshotOptions};
+use fogsmith::editor::app::{Action, StartProject};
+use fogsmith::editor::slices::Axis;
+use fogsmith::editor::tools::Tool;
+use fogsmith::editor::view::ViewProjection;
+use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::scene::{load_project, Volume};
+use std::path::PathBuf;
+
+fn demo() -> StartProject {
+    StartProject::resolve(None).expect("the bundled demo parses")
+}
+
+fn harness(start: StartProject) -> Harness<'static, EditorApp> {
+    let mut h = Harness::builder()
+        .with_size(Vec2::new(1280.0, 800.0))
+        .wgpu_setup(fogsmith::editor::wgpu_setup())
+        .build_eframe(|cc| EditorApp::new(cc, start, EditorOptions::default()));
+    h.run_steps(3);
+    assert_eq!(h.state().gpu_error(), None, "the preview must render");
+    h
+}
+
+fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {
+    h.state().pipeline().expect("the editor shares egui-wgpu's device with the pipeline").read_ev().expect("EV readback")
+}
+
+fn max_diff(a: &Volume, b: &Volume) -> f32 {
+    a.data.iter().zip(&b.data).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+}
+
+fn press(h: &mut Harness<'_, EditorApp>, pos: Pos2, button: PointerButton, pressed: bool) {
+    h.event(Event::PointerButton { pos, button, pressed, modifiers: Modifiers::NONE });
+    h.step();
+}
+
+fn drag(h: &mut Harness<'_, EditorApp>, from: Pos2, to: Pos2, steps: usize) {
+    h.event(Event::PointerMoved(from));
+    h.step();
+    press(h, from, PointerButton::Primary, true);
+    for k in 1..=steps {
+        let p = from + (to - from) * (k as f32 / steps as f32);
+        h.event(Event::PointerMoved(p));
+        h.step();
+    }
+    press(h, to, PointerButton::Primary, false);
+    h.step();
+}
+
+fn wait_idle(h: &mut Harness<'_, EditorApp>) {
+    for _ in 0..2000 {
+        if h.state().busy() == 0 {
+            h.step();
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        h.step();
+    }
+    panic!("background jobs did not finish");
+}
+
+#[test]
+fn painting_a_stroke_adds_fog_and_undo_restores_it() {
+    let mut h = harness(demo());
+    let rect = h.state().viewport_rect().expect("the viewport is shown");
+    let before = h.state().session().project().particles.len();
+    let ev_before = read_ev(&h);
+    h.state_mut().set_tool(Tool::Paint);
+    h.state_mut().brush_mut().spacing = 0.3;
+    let c = rect.center();
+    drag(&mut h, c - Vec2::new(60.0, 0.0), c + Vec2::new(60.0, 20.0), 12);
+    let after = h.state().session().project().particles.len();
+    assert!(after > before + 3, "the stroke deposited particles: {before} → {after}");
+    assert!(h.state().session().is_dirty());
+    assert!(h.state().title().contains('●'), "title marks unsaved changes: {}", h.state().title());
+    let ev_after = read_ev(&h);
+    assert!(max_diff(&ev_before, &ev_after) > 0.1, "the extinction volume changed");
+
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().session().project().particles.len(), before, "one undo removes the whole stroke");
+    assert!(!h.state().session().is_dirty() || h.state().session().path().is_none());
+    assert!(max_diff(&ev_before, &read_ev(&h)) < 1e-6, "the EV is back to what it was");
+
+    h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().session().project().particles.len(), after, "redo brings the stroke back");
+}
+
+#[test]
+fn clicking_selects_and_the_wheel_scales_the_selection() {
+    let mut h = harness(demo());
+    let rect = h.state().viewport_rect().expect("the viewport is shown");
+    let project = h.state().session().project().clone();
+    let view = ViewProjection::new(&project.camera, rect);
+    // The high wisp (index 24) stands alone in front of the camera.
+    let (pos, _) = view.project(project.particles[24].center).expect("in view");
+    h.state_mut().set_tool(Tool::Select);
+    h.event(Event::PointerMoved(pos));
+    h.step();
+    press(&mut h, pos, PointerButton::Primary, true);
+    press(&mut h, pos, PointerButton::Primary, false);
+    h.step();
+    let sel = &h.state().session().selection;
+    assert_eq!(sel.particles.iter().copied().collect::<Vec<_>>(), vec![24], "the click picked the wisp");
+
+    h.state_mut().set_tool(Tool::Scale);
+    let r0 = project.particles[24].radius;
+    for _ in 0..3 {
+        h.event(Event::MouseWheel {
+            unit: egui::MouseWheelUnit::Point,
+            delta: Vec2::new(0.0, 60.0),
+            phase: egui::TouchPhase::Move,
+            modifiers: Modifiers::NONE,
+        });
+        h.step();
+    }
+    let p = &h.state().session().project().particles;
+    assert!(p[24].radius > r0 * 1.2, "radius grew: {r0} → {}", p[24].radius);
+    assert_eq!(p[0].radius, project.particles[0].radius, "unselected particles keep their size");
+    assert_eq!(p[24].density, project.particles[24].density);
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert_eq!(h.state().session().project().particles[24].radius, r0, "the wheel gesture is one undo step");
+}
+
+#[test]
+fn the_slice_axis_and_field_follow_the_controls() {
+    let mut h = harness(demo());
+    h.run_steps(2);
+    let s = h.state().current_slice().expect("the Slices panel shows a slice");
+    assert_eq!(s.axis, Axis::Z);
+    h.get_by_label("X").click();
+    h.run_steps(3);
+    let s = h.state().current_slice().expect("slice after changing axis");
+    assert_eq!(s.axis, Axis::X);
+    let project = h.state().session().project().clone();
+    assert_eq!((s.width, s.height), (project.grid.resolution.z as usize, project.grid.resolution.y as usize));
+    let ev = read_ev(&h);
+    let (x, y) = (s.width / 2, s.height / 2);
+    let [i, j, k] = s.cell(x, y);
+    assert_eq!(s.get(x, y), ev.get(i, j, k), "the slice shows the EV values");
+
+    h.state_mut().slice_settings_mut().field = fogsmith::editor::slices::Field::Transmittance;
+    h.run_steps(3);
+    let s = h.state().current_slice().expect("transmittance slice");
+    assert!(s.values.iter().all(|v| (0.0..=1.0).contains(v)), "exp(−T) lies in [0, 1]");
+}
+
+#[test]
+fn save_and_reopen_round_trip() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path: PathBuf = dir.path().join("scene.ron");
+    let mut h = harness(demo());
+    let rect = h.state().viewport_rect().expect("viewport");
+    h.state_mut().set_tool(Tool::Paint);
+    drag(&mut h, rect.center(), rect.center() + Vec2::new(40.0, -30.0), 6);
+    h.state_mut().save_as(path.clone());
+    wait_idle(&mut h);
+    assert!(!h.state().session().is_dirty(), "saved: {:?}", h.state().messages());
+    assert!(h.state().title().starts_with("scene.ron"), "{}", h.state().title());
+    let saved = h.state().session().project().clone();
+    assert_eq!(load_project(&path).expect("the saved file loads"), saved);
+
+    h.state_mut().request(Action::New);
+    h.step();
+    assert!(h.state().session().project().particles.is_empty());
+    h.state_mut().request(Action::Open(path.clone()));
+    wait_idle(&mut h);
+    assert_eq!(h.state().session().project(), &saved);
+    assert_eq!(h.state().session().path(), Some(path.as_path()));
+}
+
+#[test]
+fn unsaved_changes_ask_before_they_are_discarded_and_errors_are_shown() {
+    let mut h = harness(demo());
+    h.state_mut().session_mut().select_all();
+    h.key_press(egui::Key::Delete);
+    h.step();
+    assert!(h.state().session().project().particles.is_empty());
+    h.state_mut().request(Action::New);
+    h.run_steps(2);
+    h.get_by_label("Unsaved changes");
+    h.get_by_label("Cancel").click();
+    h.run_steps(2);
+    assert!(h.state().session().is_dirty(), "cancel keeps the edits");
+
+    h.state_mut().request(Action::New);
+    h.run_steps(2);
+    h.get_by_label("Discard").click();
+    h.run_steps(2);
+    h.state_mut().request(Action::Open(PathBuf::from("/nonexistent/nowhere.ron")));
+    wait_idle(&mut h);
+    let messages = h.state().messages();
+    assert!(messages.iter().any(|(error, text)| *error && text.contains("nowhere.ron")), "{messages:?}");
+}
+
+#[test]
+fn default_layout_snapshot() {
+    let mut h = harness(demo());
+    h.run_steps(4);
+    // The preview comes from a software rasteriser or a GPU; small differences are allowed.
+    let options = SnapshotOptions::new().threshold(6.0).max_failed_pixels(4000);
+    h.snapshot_options("editor_layout", &options);
+}
