@@ -84,7 +84,7 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
     let response = ui.allocate_rect(Rect::from_min_max(avail.min, avail.max), Sense::click_and_drag());
     let painter = ui.painter_at(avail);
     painter.image(tex.id(), img_rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
-    colour_bar(&painter, Rect::from_min_size(Pos2::new(img_rect.max.x + 8.0, img_rect.min.y), egui::vec2(14.0, h)), state.slices.colormap, &scale, ui);
+    colour_bar(&painter, Rect::from_min_size(Pos2::new(img_rect.max.x + 8.0, img_rect.min.y + 7.0), egui::vec2(14.0, (h - 14.0).max(4.0))), state.slices.colormap, &scale, ui);
 
     let hover = response.hover_pos().filter(|p| img_rect.contains(*p));
     let unit = state.slices.field.unit();
@@ -271,18 +271,18 @@ fn is_selected(state: &EditorState, hit: Hit) -> bool {
 fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
     let (name, hidden) = item_name(state.session.project(), hit);
     ui.horizontal(|ui| {
-        let eye = if hidden { "◌" } else { "●" };
-        if ui.small_button(eye).on_hover_text(if hidden { "Hidden: click to show" } else { "Visible: click to hide" }).clicked() {
+        let mut visible = !hidden;
+        if ui.checkbox(&mut visible, "").on_hover_text("Visible: untick to hide (kept in the file, contributes nothing)").changed() {
             let p = state.session.edit(NEW_STEP);
             match hit {
                 Hit::Particle(i) => {
                     if let Some(q) = p.particles.get_mut(i) {
-                        q.hidden = !q.hidden;
+                        q.hidden = !visible;
                     }
                 }
                 Hit::Light(i) => {
                     if let Some(l) = p.lights.get_mut(i) {
-                        l.hidden = !l.hidden;
+                        l.hidden = !visible;
                     }
                 }
             }

@@ -65,9 +65,8 @@ pub struct Session {
 
 impl Session {
     /// A session on `project`, read from `path` (or never saved when `path` is `None`;
-    /// `name` is then shown in the title).
+    /// `name` is then shown in the title). It starts without unsaved changes.
     pub fn new(project: Project, path: Option<PathBuf>, name: &str) -> Self {
-        let saved = path.as_ref().map(|_| 1);
         let name = path
             .as_deref()
             .and_then(Path::file_name)
@@ -82,7 +81,7 @@ impl Session {
             name,
             generation: 1,
             next_generation: 2,
-            saved_generation: saved,
+            saved_generation: Some(1),
             open_tag: None,
             next_tag: 1,
         }

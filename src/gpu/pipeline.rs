@@ -120,10 +120,11 @@ pub struct FogPipeline {
 
 fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;
-    // Bindings must not be empty.
+    // Bindings must not be empty, and must hold at least one element of the largest
+    // per-element struct (a light is 32 bytes).
     let padded;
     let contents = if bytes.is_empty() {
-        padded = [0u8; 16];
+        padded = [0u8; 64];
         &padded[..]
     } else {
         bytes
