@@ -104,6 +104,10 @@ impl Default for Persisted {
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
+/// Time the march may take per frame while the camera moves.
+const MOVE_BUDGET_MS: f64 = 50.0;
+/// Inject + propagate time above which rebakes wait for the end of a gesture.
+const SLOW_BAKE_MS: f64 = 150.0;
 const MAX_RECENT: usize = 10;
 
 /// An action that would discard unsaved changes.
@@ -150,6 +154,10 @@ pub(crate) struct GpuView {
     pub report: FrameReport,
     pub error: Option<String>,
     pub renders: u64,
+    /// Measured march cost, to size the preview while the camera moves.
+    march_ms_per_pixel: f64,
+    /// Time of the last inject + propagate that did work.
+    pub bake_ms: f64,
 }
 
 impl GpuView {
@@ -164,12 +172,14 @@ impl GpuView {
             report: FrameReport::default(),
             error: None,
             renders: 0,
+            march_ms_per_pixel: 1e-4,
+            bake_ms: 0.0,
         }
     }
 
     /// Brings the pipeline up to date with the session at `size` pixels; returns whether a
     /// new frame was rendered.
-    fn render(&mut self, session: &Session, epoch: u64, size: [u32; 2]) -> bool {
+    fn render(&mut self, session: &Session, epoch: u64, size: [u32; 2], full: bool) -> bool {
         let key = (epoch, session.generation(), size);
         if self.rendered == Some(key) {
             return false;
@@ -181,6 +191,12 @@ impl GpuView {
             Ok(report) => {
                 if report.counters.dispatches > 0 {
                     self.report = report;
+                }
+                if report.timings_ms.march > 0.0 && full {
+                    self.march_ms_per_pixel = report.timings_ms.march / (size[0] as f64 * size[1] as f64).max(1.0);
+                }
+                if report.counters.cells_injected > 0 || report.counters.lights_propagated > 0 {
+                    self.bake_ms = report.timings_ms.inject + report.timings_ms.propagate;
                 }
                 self.error = None;
                 self.renders += 1;
@@ -274,6 +290,8 @@ pub struct EditorState {
     pub(crate) viewport_rect: Option<egui::Rect>,
     pub(crate) preview_size: [u32; 2],
     pub(crate) interacting: bool,
+    /// Scripted camera motion counts as interaction (`--measure-fps`).
+    pub(crate) force_interacting: bool,
     pub(crate) clock: FrameClock,
     pub(crate) continuous: bool,
     pub(crate) slice: SliceCache,
@@ -341,6 +359,7 @@ impl EditorApp {
             viewport_rect: None,
             preview_size: [640, 400],
             interacting: false,
+            force_interacting: false,
             clock: FrameClock::default(),
             continuous: options.measure_fps.is_some(),
             slice: SliceCache::default(),
@@ -548,20 +567,31 @@ impl EditorState {
         self.recent.truncate(MAX_RECENT);
     }
 
-    /// Renders the preview at the last known viewport size if the project changed.
+    /// Renders the preview if the project changed. While the camera moves the frame is
+    /// rendered at a resolution whose march fits a frame budget (full resolution once
+    /// still); while the pointer is down for an edit and a rebake is slow on this adapter,
+    /// the rebake waits for the release (the overlays follow the edit meanwhile).
     pub(crate) fn render_preview(&mut self) {
+        let Some(gpu) = &mut self.gpu else { return };
+        let pointer_down = self.ctx.input(|i| i.pointer.any_down());
+        let editing = self.modal.is_some() || (pointer_down && !matches!(self.gesture, Some(Gesture::Orbit | Gesture::Pan)));
+        if editing && gpu.bake_ms > SLOW_BAKE_MS && gpu.rendered.is_some() {
+            return;
+        }
+        let [w, h] = self.preview_size;
         let size = if self.interacting {
-            [(self.preview_size[0] / 2).max(16), (self.preview_size[1] / 2).max(16)]
+            let full = (w as f64 * h as f64).max(1.0);
+            let budget = (MOVE_BUDGET_MS / gpu.march_ms_per_pixel.max(1e-9)).clamp(64.0 * 64.0, full);
+            let s = ((budget / full).sqrt() * 16.0).floor().max(1.0) / 16.0;
+            [((w as f64 * s) as u32).max(16), ((h as f64 * s) as u32).max(16)]
         } else {
             self.preview_size
         };
-        if let Some(gpu) = &mut self.gpu {
-            let before = gpu.error.clone();
-            gpu.render(&self.session, self.epoch, size);
-            if gpu.error.is_some() && gpu.error != before {
-                let message = gpu.error.clone().unwrap_or_default();
-                self.error(format!("Preview failed: {message}"));
-            }
+        let before = gpu.error.clone();
+        gpu.render(&self.session, self.epoch, size, size == self.preview_size);
+        if gpu.error.is_some() && gpu.error != before {
+            let message = gpu.error.clone().unwrap_or_default();
+            self.error(format!("Preview failed: {message}"));
         }
     }
 
@@ -777,6 +807,7 @@ impl EditorState {
                 self.measure_frames[1] += 1;
                 let camera = super::view::orbit(&self.session.project().camera, 0.02, 0.0);
                 self.session.set_camera(camera);
+                self.force_interacting = true;
             } else {
                 let half = seconds * 0.5;
                 let p = self.session.project();
@@ -790,6 +821,17 @@ impl EditorState {
                     self.preview_size[0],
                     self.preview_size[1]
                 );
+                if let Some(g) = &self.gpu {
+                    let t = g.report.timings_ms;
+                    println!(
+                        "last update: inject {:.1} ms, propagate {:.1} ms, march {:.1} ms at {:?}; {}",
+                        t.inject,
+                        t.propagate,
+                        t.march,
+                        g.texture.map(|t| t.1),
+                        g.pipeline.context().adapter_summary()
+                    );
+                }
                 self.options.measure_fps = None;
                 self.quit_confirmed = true;
                 ctx.send_viewport_cmd(egui::ViewportCommand::Close);

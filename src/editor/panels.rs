@@ -159,7 +159,7 @@ fn colour_bar(painter: &egui::Painter, rect: Rect, cmap: Colormap, scale: &Scale
 /// Reads back and colours the slice if the project or the settings changed.
 fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
     let settings = state.slices;
-    let key = (state.epoch, state.session.generation(), settings);
+    let key = (state.epoch, state.session.content_generation(), settings);
     if state.slice.key == Some(key) {
         return;
     }
@@ -192,7 +192,7 @@ fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
         Field::Error => {
             let ek = ExactKey {
                 epoch: state.epoch,
-                generation: state.session.generation(),
+                generation: state.session.content_generation(),
                 light: settings.light,
                 axis: settings.axis,
                 index: slice.index,

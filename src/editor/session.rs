@@ -57,6 +57,7 @@ pub struct Session {
     path: Option<PathBuf>,
     name: String,
     generation: u64,
+    content_generation: u64,
     next_generation: u64,
     saved_generation: Option<u64>,
     open_tag: Option<EditTag>,
@@ -80,6 +81,7 @@ impl Session {
             path,
             name,
             generation: 1,
+            content_generation: 1,
             next_generation: 2,
             saved_generation: Some(1),
             open_tag: None,
@@ -100,6 +102,10 @@ impl Session {
     /// Changes on every edit (and on undo/redo); lets views cache what they derive.
     pub fn generation(&self) -> u64 {
         self.generation
+    }
+    /// Like [`Self::generation`] but unchanged by camera moves: for views of the volumes.
+    pub fn content_generation(&self) -> u64 {
+        self.content_generation
     }
     pub fn is_dirty(&self) -> bool {
         self.saved_generation != Some(self.generation)
@@ -130,6 +136,7 @@ impl Session {
             self.open_tag = if tag == NEW_STEP { None } else { Some(tag) };
         }
         self.generation = self.next_generation;
+        self.content_generation = self.next_generation;
         self.next_generation += 1;
         &mut self.project
     }
@@ -188,6 +195,8 @@ impl Session {
         let project = std::mem::replace(&mut self.project, s.project);
         let selection = std::mem::replace(&mut self.selection, s.selection);
         let generation = std::mem::replace(&mut self.generation, s.generation);
+        self.content_generation = self.next_generation;
+        self.next_generation += 1;
         self.sanitize_selection();
         Snapshot { project, selection, generation }
     }

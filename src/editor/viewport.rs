@@ -130,7 +130,8 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
     if response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.gesture.is_some()) {
         finish_gesture(state, &vp, pos, modifiers);
     }
-    state.interacting = matches!(state.gesture, Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. }));
+    state.interacting = state.force_interacting
+        || matches!(state.gesture, Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. }));
 }
 
 /// Vertical wheel movement this frame in points (lines count as 40 points).
