@@ -49,3 +49,23 @@ pub struct MarchParams {
     pub tr_cutoff: f32,
     pub far_distance: f32,
 }
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SweepStep {
+    pub light_cell: [i32; 3],
+    pub level: i32,
+    pub lo: [i32; 2],
+    pub size: [u32; 2],
+    pub light: u32,
+    pub stride: u32,
+    pub _pad: [u32; 2],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ExactParams {
+    pub light: u32,
+    pub steps_per_cell: u32,
+    pub _pad: [u32; 2],
+}

@@ -5,6 +5,7 @@ use super::binning::{self, bin_particles};
 use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu};
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
 use super::readback::{read_buffer, read_texture};
+use super::propagate::{PropagationInputs, Propagator};
 use super::{GpuContext, GpuError};
 use crate::scene::{GridSpec, Light, Particle, Project, Scheme, Volume};
 use std::time::Instant;
@@ -97,7 +98,7 @@ struct Baked {
     /// Grid, base extinction and particles of the EV on the GPU.
     ev_inputs: Option<(GridSpec, f32, Vec<Particle>)>,
     /// Per light: position baked into its OPV and the EV generation it used.
-    opv_inputs: Vec<Option<(glam::Vec3, u64, Scheme)>>,
+    opv_inputs: Vec<Option<(glam::Vec3, u64, Scheme, u32)>>,
     ev_generation: u64,
     image_inputs: Option<String>,
 }
@@ -107,8 +108,7 @@ pub struct FogPipeline {
     ctx: GpuContext,
     inject_layout: wgpu::BindGroupLayout,
     inject: wgpu::ComputePipeline,
-    giroud_layout: wgpu::BindGroupLayout,
-    giroud: wgpu::ComputePipeline,
+    propagator: Propagator,
     march_layout: wgpu::BindGroupLayout,
     march: wgpu::ComputePipeline,
     counters_buf: wgpu::Buffer,
@@ -118,12 +118,12 @@ pub struct FogPipeline {
     last_report: FrameReport,
 }
 
-fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;
     // Bindings must not be empty.
     let padded;
     let contents = if bytes.is_empty() {
-        padded = [0u8; 16];
+        padded = [0u8; 256];
         &padded[..]
     } else {
         bytes
@@ -149,25 +149,8 @@ impl FogPipeline {
                 Slot::StorageTexture3d(wgpu::TextureFormat::R32Float),
             ],
         );
-        let inject = compute_pipeline(device, "inject", include_str!("../../shaders/inject.wgsl"), &inject_layout);
-        let giroud_layout = bind_group_layout(
-            device,
-            "propagate_giroud",
-            &[
-                Slot::Uniform,
-                Slot::Texture3d,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageWrite,
-            ],
-        );
-        let giroud = compute_pipeline(
-            device,
-            "propagate_giroud",
-            include_str!("../../shaders/propagate_giroud.wgsl"),
-            &giroud_layout,
-        );
+        let inject = compute_pipeline(device, "inject", &[include_str!("../../shaders/inject.wgsl")], &inject_layout);
+        let propagator = Propagator::new(device);
         let march_layout = bind_group_layout(
             device,
             "march",
@@ -182,14 +165,13 @@ impl FogPipeline {
                 Slot::StorageWrite,
             ],
         );
-        let march = compute_pipeline(device, "march", include_str!("../../shaders/march.wgsl"), &march_layout);
+        let march = compute_pipeline(device, "march", &[include_str!("../../shaders/march.wgsl")], &march_layout);
         let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
         Self {
             ctx,
             inject_layout,
             inject,
-            giroud_layout,
-            giroud,
+            propagator,
             march_layout,
             march,
             counters_buf,
@@ -285,8 +267,14 @@ impl FogPipeline {
         report.timings_ms.propagate = ms(t);
 
         let image_key = format!(
-            "{:?}{:?}{:?}{:?}{:?}{}",
-            project.camera, project.render, project.medium, project.lights, request, self.baked.ev_generation
+            "{:?}{:?}{:?}{:?}{}x{}{}",
+            project.camera,
+            project.render,
+            project.medium,
+            project.lights,
+            request.width,
+            request.height,
+            self.baked.ev_generation
         );
         if self.baked.image_inputs.as_deref() != Some(image_key.as_str()) || report.counters.lights_propagated > 0 {
             let t = Instant::now();
@@ -409,7 +397,7 @@ impl FogPipeline {
         self.baked.opv_inputs.resize(project.lights.len(), None);
         let mut active = Vec::new();
         for (i, light) in project.lights.iter().enumerate() {
-            let key = (light.position, generation, scheme);
+            let key = (light.position, generation, scheme, project.propagation.sweep_stride);
             if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
                 counters.lights_skipped += 1;
             } else {
@@ -420,56 +408,20 @@ impl FogPipeline {
         if active.is_empty() {
             return Ok(());
         }
-        match scheme {
-            Scheme::Giroud => {
-                let iterations = active
-                    .iter()
-                    .map(|&l| giroud_iterations(&project.grid, project.lights[l as usize].position))
-                    .max()
-                    .unwrap_or(1);
-                // An even count leaves the result in buffer A, where every other light's OPV is.
-                let iterations = iterations + iterations % 2;
-                let device = &self.ctx.device;
-                let active_buf = storage_buffer(device, "active lights", bytemuck::cast_slice(&active));
-                let make = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
-                    bind_group(
-                        device,
-                        "propagate_giroud",
-                        &self.giroud_layout,
-                        &[
-                            g.grid_buf.as_entire_binding(),
-                            wgpu::BindingResource::TextureView(&g.ev_view),
-                            g.lights_buf.as_entire_binding(),
-                            active_buf.as_entire_binding(),
-                            src.as_entire_binding(),
-                            dst.as_entire_binding(),
-                        ],
-                    )
-                };
-                let ab = make(&g.opv[0], &g.opv[1]);
-                let ba = make(&g.opv[1], &g.opv[0]);
-                let r = project.grid.resolution;
-                let mut encoder = device.create_command_encoder(&Default::default());
-                // Lights not being updated must survive in B too, since B feeds back into A.
-                encoder.copy_buffer_to_buffer(&g.opv[0], 0, &g.opv[1], 0, None);
-                {
-                    let mut pass =
-                        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: None });
-                    pass.set_pipeline(&self.giroud);
-                    for it in 0..iterations {
-                        pass.set_bind_group(0, if it % 2 == 0 { &ab } else { &ba }, &[]);
-                        pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4) * active.len() as u32);
-                    }
-                }
-                self.ctx.queue.submit([encoder.finish()]);
-                self.ctx.wait()?;
-                counters.dispatches += iterations;
-                counters.propagation_iterations = iterations;
-                counters.cells_propagated += project.grid.cell_count() * active.len() as u64 * iterations as u64;
-            }
-        }
-        counters.lights_propagated += active.len() as u32;
-        Ok(())
+        let positions: Vec<glam::Vec3> = project.lights.iter().map(|l| l.position).collect();
+        let inputs = PropagationInputs {
+            grid: &g.spec,
+            grid_buf: &g.grid_buf,
+            ev_view: &g.ev_view,
+            lights_buf: &g.lights_buf,
+            opv: &g.opv,
+            positions: &positions,
+            sweep_stride: project.propagation.sweep_stride,
+        };
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        self.propagator.encode(&self.ctx.device, &mut encoder, &inputs, scheme, &active, counters);
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()
     }
 
     fn ensure_image(&mut self, width: u32, height: u32) {
@@ -597,27 +549,6 @@ fn particle_gpu(p: &Particle) -> ParticleGpu {
         cutoff2: r * r,
         _pad: [0.0; 2],
     }
-}
-
-/// Jacobi sweeps after which the `giroud` gather has converged exactly: one more than the
-/// largest Manhattan distance (in cells) from any cell to the light's slabs.
-pub fn giroud_iterations(grid: &GridSpec, light: glam::Vec3) -> u32 {
-    let cell = grid.cell_size();
-    let mut total = 0u32;
-    for a in 0..3 {
-        let n = grid.resolution[a] as i64;
-        let u = ((light[a] - grid.min[a]) / cell[a]) as f64;
-        let slab = u.floor() as i64;
-        let far = if slab < 0 {
-            n
-        } else if slab >= n {
-            n
-        } else {
-            slab.max(n - 1 - slab) as i64
-        };
-        total += far as u32;
-    }
-    total + 1
 }
 
 /// Camera basis scaled to the image plane, step and far distance for the march.

@@ -134,6 +134,10 @@ impl Project {
             return Err(err("render.step_factor", format!("must be within [0.01, 8], got {}", r.step_factor)));
         }
         at_least("render.exposure", r.exposure, 0.0)?;
+        let stride = self.propagation.sweep_stride;
+        if !(3..=16).contains(&stride) {
+            return Err(err("propagation.sweep_stride", format!("must be within 3..=16, got {stride}")));
+        }
         Ok(())
     }
 }
