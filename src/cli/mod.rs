@@ -42,6 +42,28 @@ enum Command {
     },
 }
 
+/// Mesa's Vulkan drivers warn on every start when XDG_RUNTIME_DIR is unset (as under CI or
+/// sudo): point it at a private directory. Call before any thread is started.
+pub fn ensure_runtime_dir() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("fogsmith-runtime-{}", user_tag()));
+    if std::fs::create_dir_all(&dir).is_ok() {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+        }
+        std::env::set_var("XDG_RUNTIME_DIR", &dir);
+    }
+}
+
+/// The user name or id, to keep per-user runtime directories apart.
+fn user_tag() -> String {
+    std::env::var("USER").or_else(|_| std::env::var("UID")).unwrap_or_else(|_| "user".into())
+}
+
 /// Runs the CLI with `args` (including the program name).
 pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
     let cli = Cli::parse_from(args);

@@ -48,6 +48,27 @@ pub struct MarchParams {
     pub size: [u32; 2],
     pub tr_cutoff: f32,
     pub far_distance: f32,
+    pub policy: u32,
+    pub near_steps: u32,
+    pub far_steps: u32,
+    pub skip_empty: u32,
+    pub tau_target: f32,
+    pub near_fraction: f32,
+    pub min_step: f32,
+    pub max_step: f32,
+    pub surface_count: u32,
+    pub _pad: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SurfaceGpu {
+    pub min: [f32; 3],
+    pub kind: u32,
+    pub max: [f32; 3],
+    pub _pad0: f32,
+    pub albedo: [f32; 3],
+    pub _pad1: f32,
 }
 
 #[repr(C)]

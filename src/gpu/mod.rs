@@ -26,4 +26,4 @@ pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::GpuContext;
 pub use error::GpuError;
 pub use propagate::{giroud_iterations, sweep_steps, EXACT_STEPS_PER_CELL};
-pub use pipeline::{Counters, FogPipeline, FrameReport, FrameRequest, Image, StageTimings, TRANSMITTANCE_CUTOFF};
+pub use pipeline::{Counters, FogPipeline, FrameReport, FrameRequest, Image, StageTimings};

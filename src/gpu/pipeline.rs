@@ -2,12 +2,12 @@
 //! resources, decides which stages a change requires, runs them and reads results back.
 
 use super::binning::{self, bin_particles};
-use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu};
+use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
 use super::readback::{read_buffer, read_texture};
 use super::propagate::{PropagationInputs, Propagator};
 use super::{GpuContext, GpuError};
-use crate::scene::{GridSpec, Light, Particle, Project, Scheme, Volume};
+use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
 use std::time::Instant;
 
 /// What to render this frame.
@@ -51,9 +51,13 @@ pub struct Counters {
     pub lights_propagated: u32,
     /// Lights whose OPV was up to date or that are hidden / have zero intensity.
     pub lights_skipped: u32,
-    /// Jacobi iterations of the `giroud` scheme.
+    /// Jacobi iterations (`giroud`) or wavefronts (`sweep`) per light.
     pub propagation_iterations: u32,
     pub samples_marched: u64,
+    /// Empty 8³ bricks camera rays jumped over.
+    pub bricks_skipped: u64,
+    /// Rays stopped early because their transmittance fell below the cutoff.
+    pub rays_terminated: u64,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -70,10 +74,6 @@ pub struct Image {
     pub rgba: Vec<[f32; 4]>,
 }
 
-/// Fraction of view transmittance below which a ray stops: the radiance it could still
-/// collect is at most this fraction of what an unattenuated ray behind it would add.
-pub const TRANSMITTANCE_CUTOFF: f32 = 1e-4;
-
 struct GridResources {
     spec: GridSpec,
     light_count: usize,
@@ -82,6 +82,8 @@ struct GridResources {
     ev_view: wgpu::TextureView,
     lights_buf: wgpu::Buffer,
     opv: [wgpu::Buffer; 2],
+    /// Largest σ_t seen by samples in each 8³ brick (see `shaders/occupancy.wgsl`).
+    brick_max: wgpu::Buffer,
 }
 
 struct ImageResources {
@@ -108,6 +110,8 @@ pub struct FogPipeline {
     ctx: GpuContext,
     inject_layout: wgpu::BindGroupLayout,
     inject: wgpu::ComputePipeline,
+    occupancy_layout: wgpu::BindGroupLayout,
+    occupancy: wgpu::ComputePipeline,
     propagator: Propagator,
     march_layout: wgpu::BindGroupLayout,
     march: wgpu::ComputePipeline,
@@ -150,6 +154,10 @@ impl FogPipeline {
             ],
         );
         let inject = compute_pipeline(device, "inject", &[include_str!("../../shaders/inject.wgsl")], &inject_layout);
+        let occupancy_layout =
+            bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
+        let occupancy =
+            compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
         let propagator = Propagator::new(device);
         let march_layout = bind_group_layout(
             device,
@@ -163,6 +171,8 @@ impl FogPipeline {
                 Slot::StorageTexture2d(wgpu::TextureFormat::Rgba32Float),
                 Slot::StorageTexture2d(wgpu::TextureFormat::Rgba8Unorm),
                 Slot::StorageWrite,
+                Slot::StorageRead,
+                Slot::StorageRead,
             ],
         );
         let march = compute_pipeline(device, "march", &[include_str!("../../shaders/march.wgsl")], &march_layout);
@@ -171,6 +181,8 @@ impl FogPipeline {
             ctx,
             inject_layout,
             inject,
+            occupancy_layout,
+            occupancy,
             propagator,
             march_layout,
             march,
@@ -267,8 +279,9 @@ impl FogPipeline {
         report.timings_ms.propagate = ms(t);
 
         let image_key = format!(
-            "{:?}{:?}{:?}{:?}{}x{}{}",
+            "{:?}{:?}{:?}{:?}{:?}{}x{}{}",
             project.camera,
+            project.surfaces,
             project.render,
             project.medium,
             project.lights,
@@ -331,7 +344,14 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv });
+        let bricks = spec.resolution.map(|n| n.div_ceil(binning::BRICK));
+        let brick_max = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("brick max extinction"),
+            size: (bricks.x * bricks.y * bricks.z) as u64 * 4,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
     }
 
@@ -382,10 +402,24 @@ impl FogPipeline {
             pass.set_pipeline(&self.inject);
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4));
+            let occ = bind_group(
+                device,
+                "occupancy",
+                &self.occupancy_layout,
+                &[
+                    g.grid_buf.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&g.ev_view),
+                    g.brick_max.as_entire_binding(),
+                ],
+            );
+            let b = r.map(|n| n.div_ceil(binning::BRICK));
+            pass.set_pipeline(&self.occupancy);
+            pass.set_bind_group(0, &occ, &[]);
+            pass.dispatch_workgroups(b.x.div_ceil(4), b.y.div_ceil(4), b.z.div_ceil(4));
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
-        counters.dispatches += 1;
+        counters.dispatches += 2;
         counters.cells_injected += project.grid.cell_count();
         counters.particle_overlaps += bins.overlaps() as u64 * (binning::BRICK as u64).pow(3);
         Ok(())
@@ -459,9 +493,12 @@ impl FogPipeline {
         self.ensure_image(request.width, request.height);
         let (Some(g), Some(img)) = (&self.grid, &self.image) else { return Ok(()) };
         let device = &self.ctx.device;
-        let params = march_params(project, request.width, request.height);
+        let surfaces = surfaces_gpu(project);
+        let surfaces_buf = storage_buffer(device, "surfaces", bytemuck::cast_slice(&surfaces));
+        let params = march_params(project, request.width, request.height, surfaces.len() as u32);
         self.ctx.queue.write_buffer(&img.params_buf, 0, bytemuck::bytes_of(&params));
         self.ctx.queue.write_buffer(&self.counters_buf, 0, &[0u8; 16]);
+        let counters_binding = self.counters_buf.as_entire_binding();
         let hdr_view = img.hdr.create_view(&Default::default());
         let bg = bind_group(
             device,
@@ -475,7 +512,9 @@ impl FogPipeline {
                 g.opv[0].as_entire_binding(),
                 wgpu::BindingResource::TextureView(&hdr_view),
                 wgpu::BindingResource::TextureView(&img.ldr_view),
-                self.counters_buf.as_entire_binding(),
+                counters_binding,
+                g.brick_max.as_entire_binding(),
+                surfaces_buf.as_entire_binding(),
             ],
         );
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -489,6 +528,8 @@ impl FogPipeline {
         self.ctx.wait()?;
         let c: Vec<u32> = read_buffer(&self.ctx, &self.counters_buf, 0, 4)?;
         counters.samples_marched += c[0] as u64;
+        counters.bricks_skipped += c[1] as u64;
+        counters.rays_terminated += c[2] as u64;
         counters.dispatches += 1;
         Ok(())
     }
@@ -551,13 +592,42 @@ fn particle_gpu(p: &Particle) -> ParticleGpu {
     }
 }
 
-/// Camera basis scaled to the image plane, step and far distance for the march.
-fn march_params(project: &Project, width: u32, height: u32) -> MarchParams {
+/// The project's surfaces in the layout of `shaders/march.wgsl`.
+fn surfaces_gpu(project: &Project) -> Vec<SurfaceGpu> {
+    let mut out: Vec<SurfaceGpu> = project
+        .surfaces
+        .boxes
+        .iter()
+        .map(|b| SurfaceGpu {
+            min: b.min.to_array(),
+            kind: 0,
+            max: b.max.to_array(),
+            _pad0: 0.0,
+            albedo: b.albedo.to_array(),
+            _pad1: 0.0,
+        })
+        .collect();
+    if let Some(g) = &project.surfaces.ground {
+        out.push(SurfaceGpu {
+            min: [0.0, g.height, 0.0],
+            kind: 1,
+            max: [0.0; 3],
+            _pad0: 0.0,
+            albedo: g.albedo.to_array(),
+            _pad1: 0.0,
+        });
+    }
+    out
+}
+
+/// Camera basis scaled to the image plane, step policy and far distance for the march.
+fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) -> MarchParams {
     let cam = &project.camera;
+    let r = &project.render;
     let (right, up, forward) = cam.basis();
     let tan_half = (cam.fov_y_deg.to_radians() * 0.5).tan();
     let aspect = width as f32 / height as f32;
-    let cell = project.grid.cell_size().min_element();
+    let step = r.step_factor * project.grid.cell_size().min_element();
     let base = project.medium.base_extinction;
     // Beyond the grid only base fog remains; march it until its transmittance is 1e-4,
     // or at most 20 grid diagonals.
@@ -565,16 +635,30 @@ fn march_params(project: &Project, width: u32, height: u32) -> MarchParams {
     let far_distance = if base > 0.0 { (9.21 / base).min(20.0 * diag) } else { 0.0 };
     MarchParams {
         origin: cam.position.to_array(),
-        step: project.render.step_factor * cell,
+        step,
         right: (right * tan_half * aspect).to_array(),
         albedo: project.medium.albedo,
         up: (up * tan_half).to_array(),
         anisotropy: project.medium.anisotropy,
         forward: forward.to_array(),
-        exposure: project.render.exposure,
+        exposure: r.exposure,
         size: [width, height],
-        tr_cutoff: TRANSMITTANCE_CUTOFF,
+        tr_cutoff: r.transmittance_cutoff,
         far_distance,
+        policy: match r.step_policy {
+            StepPolicy::Fixed => 0,
+            StepPolicy::TwoLevel => 1,
+            StepPolicy::Adaptive => 2,
+        },
+        near_steps: r.near_steps,
+        far_steps: r.far_steps,
+        skip_empty: r.skip_empty as u32,
+        tau_target: r.tau_target,
+        near_fraction: r.near_fraction,
+        min_step: 0.25 * step,
+        max_step: 4.0 * step,
+        surface_count,
+        _pad: [0; 3],
     }
 }
 

@@ -33,6 +33,7 @@ pub struct Project {
     pub camera: Camera,
     pub render: RenderSettings,
     pub propagation: PropagationSettings,
+    pub surfaces: Surfaces,
 }
 
 impl Default for Project {
@@ -46,6 +47,7 @@ impl Default for Project {
             camera: Camera::default(),
             render: RenderSettings::default(),
             propagation: PropagationSettings::default(),
+            surfaces: Surfaces::default(),
         }
     }
 }
@@ -209,6 +211,22 @@ impl Camera {
     }
 }
 
+/// How samples are placed along camera rays inside the grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum StepPolicy {
+    /// Uniform steps of `step_factor` cells.
+    Fixed,
+    /// Tan et al.: `near_steps` uniform steps over the first `near_fraction` of the ray's path
+    /// through the grid, then `far_steps` linearly growing steps.
+    TwoLevel,
+    /// Steps of `tau_target` / (largest σ_t in the 8³ brick) and at most half the distance
+    /// to the nearest light, between ¼ and 4× `step_factor` cells, so each step's optical
+    /// thickness and the change of incoming light across it stay bounded.
+    #[default]
+    Adaptive,
+}
+
 /// How the preview image is rendered.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -218,14 +236,80 @@ pub struct RenderSettings {
     pub height: u32,
     /// Ray-march step as a fraction of the smallest cell edge. Default 0.5.
     pub step_factor: f32,
-    /// Multiplier on linear radiance before tone mapping (PNG only). Default 1.
+    /// Multiplier on linear radiance before tone mapping (PNG and display). Default 1.
     pub exposure: f32,
+    /// Default `adaptive`.
+    pub step_policy: StepPolicy,
+    /// Optical thickness per step of the adaptive policy. Default 0.05.
+    pub tau_target: f32,
+    /// Two-level policy: uniform near steps (default 48), growing far steps (default 24) and
+    /// the fraction of the path covered by the near level (default 0.35).
+    pub near_steps: u32,
+    pub far_steps: u32,
+    pub near_fraction: f32,
+    /// Jump over bricks with no extinction at all (exact). Default true.
+    pub skip_empty: bool,
+    /// A ray stops once its transmittance is below this: the radiance still to come is at
+    /// most this fraction of what the rest of the ray would add unattenuated. Default 1e-4.
+    pub transmittance_cutoff: f32,
 }
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        Self { width: 640, height: 360, step_factor: 0.5, exposure: 1.0 }
+        Self {
+            width: 640,
+            height: 360,
+            step_factor: 0.5,
+            exposure: 1.0,
+            step_policy: StepPolicy::default(),
+            tau_target: 0.05,
+            near_steps: 48,
+            far_steps: 24,
+            near_fraction: 0.35,
+            skip_empty: true,
+            transmittance_cutoff: 1e-4,
+        }
     }
+}
+
+/// Opaque diffuse surfaces that stop camera rays and receive light through the fog.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Surfaces {
+    /// An infinite ground plane. Default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ground: Option<Ground>,
+    /// Axis-aligned boxes (walls, blocks). Default none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub boxes: Vec<SurfaceBox>,
+}
+
+impl Surfaces {
+    pub fn is_empty(&self) -> bool {
+        self.ground.is_none() && self.boxes.is_empty()
+    }
+}
+
+/// The plane y = `height`, lit from above.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ground {
+    pub height: f32,
+    /// Diffuse albedo per channel in [0, 1]. Default 0.5 grey.
+    #[serde(default = "grey")]
+    pub albedo: Vec3,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceBox {
+    pub min: Vec3,
+    pub max: Vec3,
+    /// Diffuse albedo per channel in [0, 1]. Default 0.5 grey.
+    #[serde(default = "grey")]
+    pub albedo: Vec3,
+}
+
+fn grey() -> Vec3 {
+    Vec3::splat(0.5)
 }
 
 /// How optical depth towards each light is propagated through the grid.
