@@ -146,6 +146,7 @@ fn render(
             "grid": project.grid.resolution.to_array(),
             "scheme": request.scheme.to_string(),
             "timings_ms": report.timings_ms,
+            "timing_source": if report.gpu_timestamps { "gpu_timestamps" } else { "wall_clock" },
             "counters": report.counters,
             "adapter": adapter,
         });

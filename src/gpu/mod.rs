@@ -21,6 +21,7 @@ mod layout;
 mod pipeline;
 mod propagate;
 mod readback;
+mod timer;
 
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::GpuContext;

@@ -6,6 +6,7 @@ use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGp
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
 use super::readback::{read_buffer, read_texture};
 use super::propagate::{PropagationInputs, Propagator};
+use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
 use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
 use std::time::Instant;
@@ -32,7 +33,8 @@ impl FrameRequest {
     }
 }
 
-/// Wall time per stage in milliseconds (queue drained after each stage).
+/// Time per stage in milliseconds: GPU timestamps where the adapter has them (see
+/// [`FrameReport::gpu_timestamps`]), else wall time around submit and a drained queue.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct StageTimings {
     pub inject: f64,
@@ -63,6 +65,8 @@ pub struct Counters {
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct FrameReport {
     pub timings_ms: StageTimings,
+    /// Whether `timings_ms` comes from GPU timestamp queries.
+    pub gpu_timestamps: bool,
     pub counters: Counters,
 }
 
@@ -116,6 +120,7 @@ pub struct FogPipeline {
     march_layout: wgpu::BindGroupLayout,
     march: wgpu::ComputePipeline,
     counters_buf: wgpu::Buffer,
+    timer: Option<StageTimer>,
     grid: Option<GridResources>,
     image: Option<ImageResources>,
     baked: Baked,
@@ -177,6 +182,7 @@ impl FogPipeline {
         );
         let march = compute_pipeline(device, "march", &[include_str!("../../shaders/march.wgsl")], &march_layout);
         let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
+        let timer = StageTimer::new(&ctx);
         Self {
             ctx,
             inject_layout,
@@ -187,6 +193,7 @@ impl FogPipeline {
             march_layout,
             march,
             counters_buf,
+            timer,
             grid: None,
             image: None,
             baked: Baked::default(),
@@ -269,14 +276,16 @@ impl FogPipeline {
         if self.baked.ev_inputs.as_ref() != Some(&ev_inputs) {
             let t = Instant::now();
             self.run_inject(project, &mut report.counters)?;
-            report.timings_ms.inject = ms(t);
+            report.timings_ms.inject = self.stage_ms(timer::INJECT, t)?;
             self.baked.ev_inputs = Some(ev_inputs);
             self.baked.ev_generation += 1;
         }
 
         let t = Instant::now();
         self.run_propagation(project, request.scheme, &mut report.counters)?;
-        report.timings_ms.propagate = ms(t);
+        if report.counters.lights_propagated > 0 {
+            report.timings_ms.propagate = self.stage_ms(timer::PROPAGATE, t)?;
+        }
 
         let image_key = format!(
             "{:?}{:?}{:?}{:?}{:?}{}x{}{}",
@@ -292,12 +301,21 @@ impl FogPipeline {
         if self.baked.image_inputs.as_deref() != Some(image_key.as_str()) || report.counters.lights_propagated > 0 {
             let t = Instant::now();
             self.run_march(project, request, &mut report.counters)?;
-            report.timings_ms.march = ms(t);
+            report.timings_ms.march = self.stage_ms(timer::MARCH, t)?;
             self.baked.image_inputs = Some(image_key);
         }
         scope.pop("update")?;
+        report.gpu_timestamps = self.timer.is_some();
         self.last_report = report;
         Ok(report)
+    }
+
+    /// GPU time of a completed stage, or wall time since `started` without timestamps.
+    fn stage_ms(&self, stage: u32, started: Instant) -> Result<f64, GpuError> {
+        match &self.timer {
+            Some(t) => t.read_ms(&self.ctx, stage),
+            None => Ok(ms(started)),
+        }
     }
 
     fn ensure_grid(&mut self, project: &Project) {
@@ -398,7 +416,10 @@ impl FogPipeline {
         let r = project.grid.resolution;
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("inject"),
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::INJECT)),
+            });
             pass.set_pipeline(&self.inject);
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4));
@@ -416,6 +437,9 @@ impl FogPipeline {
             pass.set_pipeline(&self.occupancy);
             pass.set_bind_group(0, &occ, &[]);
             pass.dispatch_workgroups(b.x.div_ceil(4), b.y.div_ceil(4), b.z.div_ceil(4));
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::INJECT);
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
@@ -453,7 +477,11 @@ impl FogPipeline {
             sweep_stride: project.propagation.sweep_stride,
         };
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.propagator.encode(&self.ctx.device, &mut encoder, &inputs, scheme, &active, counters);
+        let timestamps = self.timer.as_ref().map(|t| t.writes(timer::PROPAGATE));
+        self.propagator.encode(&self.ctx.device, &mut encoder, &inputs, scheme, &active, timestamps, counters);
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::PROPAGATE);
+        }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()
     }
@@ -519,10 +547,16 @@ impl FogPipeline {
         );
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("march"),
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::MARCH)),
+            });
             pass.set_pipeline(&self.march);
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups(request.width.div_ceil(8), request.height.div_ceil(8), 1);
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::MARCH);
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;

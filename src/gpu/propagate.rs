@@ -77,15 +77,16 @@ impl Propagator {
         inputs: &PropagationInputs,
         scheme: Scheme,
         active: &[u32],
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
         counters: &mut Counters,
     ) {
         if active.is_empty() {
             return;
         }
         match scheme {
-            Scheme::Giroud => self.encode_giroud(device, encoder, inputs, active, counters),
-            Scheme::Sweep => self.encode_sweep(device, encoder, inputs, active, counters),
-            Scheme::Exact => self.encode_exact(device, encoder, inputs, active, counters),
+            Scheme::Giroud => self.encode_giroud(device, encoder, inputs, active, timestamps, counters),
+            Scheme::Sweep => self.encode_sweep(device, encoder, inputs, active, timestamps, counters),
+            Scheme::Exact => self.encode_exact(device, encoder, inputs, active, timestamps, counters),
         }
         counters.lights_propagated += active.len() as u32;
     }
@@ -96,6 +97,7 @@ impl Propagator {
         encoder: &mut wgpu::CommandEncoder,
         inputs: &PropagationInputs,
         active: &[u32],
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
         counters: &mut Counters,
     ) {
         let iterations = active
@@ -127,7 +129,7 @@ impl Propagator {
         let r = inputs.grid.resolution;
         // Lights not being updated must survive in B too, since B feeds back into A.
         encoder.copy_buffer_to_buffer(a, 0, b, 0, None);
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate giroud"), timestamp_writes: None });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate giroud"), timestamp_writes: timestamps });
         pass.set_pipeline(&self.giroud);
         for it in 0..iterations {
             pass.set_bind_group(0, if it % 2 == 0 { &ab } else { &ba }, &[]);
@@ -182,13 +184,14 @@ impl Propagator {
         encoder: &mut wgpu::CommandEncoder,
         inputs: &PropagationInputs,
         active: &[u32],
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
         counters: &mut Counters,
     ) {
         let steps: Vec<SweepStep> =
             active.iter().flat_map(|&l| sweep_steps(inputs.grid, inputs.positions[l as usize], l, inputs.sweep_stride)).collect();
         let (bg, _buf) = self.per_dispatch_bind_group(device, inputs, &steps);
         let stride = (std::mem::size_of::<SweepStep>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate sweep"), timestamp_writes: None });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate sweep"), timestamp_writes: timestamps });
         pass.set_pipeline(&self.sweep);
         for (i, s) in steps.iter().enumerate() {
             pass.set_bind_group(0, &bg, &[(i as u64 * stride) as u32]);
@@ -205,6 +208,7 @@ impl Propagator {
         encoder: &mut wgpu::CommandEncoder,
         inputs: &PropagationInputs,
         active: &[u32],
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
         counters: &mut Counters,
     ) {
         let params: Vec<ExactParams> =
@@ -212,7 +216,7 @@ impl Propagator {
         let (bg, _buf) = self.per_dispatch_bind_group(device, inputs, &params);
         let stride = (std::mem::size_of::<ExactParams>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
         let r = inputs.grid.resolution;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate exact"), timestamp_writes: None });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate exact"), timestamp_writes: timestamps });
         pass.set_pipeline(&self.exact);
         for i in 0..params.len() {
             pass.set_bind_group(0, &bg, &[(i as u64 * stride) as u32]);
