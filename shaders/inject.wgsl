@@ -1,6 +1,7 @@
 // Injection: particles -> extinction volume (EV).
 // Each cell sums the gaussians binned into its 8³ brick; a particle is binned only into the
-// bricks its cut-off sphere reaches, so cost follows particle-cell overlaps.
+// bricks its cut-off sphere reaches, so cost follows particle-cell overlaps. One workgroup
+// pair per listed brick: a full bake lists every brick, an edit only the bricks it touched.
 
 struct ParticleGpu {
     center: vec3f,
@@ -15,18 +16,20 @@ struct ParticleGpu {
 @group(0) @binding(2) var<storage, read> brick_offsets: array<u32>;
 @group(0) @binding(3) var<storage, read> brick_items: array<u32>;
 @group(0) @binding(4) var ev: texture_storage_3d<r32float, write>;
+@group(0) @binding(5) var<storage, read> dirty_bricks: array<u32>;
 
 const BRICK: u32 = 8u;
 
-@compute @workgroup_size(4, 4, 4)
-fn main(@builtin(global_invocation_id) id: vec3u) {
+@compute @workgroup_size(8, 8, 4)
+fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
+    let brick = dirty_bricks[wg.x];
+    let bdims = (grid.dims + BRICK - 1u) / BRICK;
+    let b = vec3u(brick % bdims.x, (brick / bdims.x) % bdims.y, brick / (bdims.x * bdims.y));
+    let id = b * BRICK + lid + vec3u(0u, 0u, 4u * wg.y);
     if any(id >= grid.dims) {
         return;
     }
     let x = cell_center(id);
-    let bdims = (grid.dims + BRICK - 1u) / BRICK;
-    let b = id / BRICK;
-    let brick = b.x + bdims.x * (b.y + bdims.y * b.z);
     var sum = 0.0;
     for (var n = brick_offsets[brick]; n < brick_offsets[brick + 1u]; n++) {
         let p = particles[brick_items[n]];

@@ -164,3 +164,46 @@ fn schemes_are_finite_and_close_to_exact_march() {
         }
     }
 }
+
+#[test]
+fn moving_one_particle_reinjects_only_its_bricks() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(48, &[Vec3::new(0.9, 0.9, 0.9)]);
+    // Many small particles, so one of them touches few of the 6³ bricks.
+    for i in 0..200 {
+        let f = i as f32 / 200.0;
+        let pos = Vec3::new((f * 37.0).sin(), (f * 23.0).cos(), (f * 51.0).sin()) * 0.85;
+        p.particles.push(fogsmith::scene::Particle::new(pos, 0.04, 2.0));
+    }
+    let full = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    assert_eq!(full.counters.cells_injected, p.grid.cell_count());
+
+    p.particles[10].center.x += 0.05;
+    p.particles[20].name = Some("renamed".into());
+    let edit = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    assert!(edit.counters.cells_injected > 0);
+    assert!(
+        edit.counters.cells_injected * 8 < p.grid.cell_count(),
+        "moving one small particle re-injected {} of {} cells",
+        edit.counters.cells_injected,
+        p.grid.cell_count()
+    );
+    let incremental = gpu.read_ev().unwrap();
+
+    p.particles.remove(5);
+    gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    let after_remove = gpu.read_ev().unwrap();
+
+    let mut forced = request(&p, Scheme::Sweep);
+    forced.force = true;
+    gpu.update(&p, &forced).unwrap();
+    assert_eq!(max_difference(&gpu.read_ev().unwrap().data, &after_remove.data), 0.0, "partial injection equals a full one");
+    assert!(max_difference(&incremental.data, &after_remove.data) > 0.0, "removing a particle changed the EV");
+
+    let rename_only = {
+        p.particles[0].name = Some("again".into());
+        gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap()
+    };
+    assert_eq!(rename_only.counters.cells_injected, 0, "renaming does not touch the EV");
+    assert_eq!(rename_only.counters.lights_propagated, 0);
+}

@@ -20,66 +20,110 @@ pub fn cutoff_radius(p: &Particle) -> f32 {
     p.cutoff_radius(cutoff_epsilon(p.density))
 }
 
+/// Indices of the bricks a particle's cut-off sphere overlaps, or None if it misses the grid.
+pub fn brick_range(grid: &GridSpec, p: &Particle) -> Option<(UVec3, UVec3)> {
+    if p.hidden || p.density <= 0.0 {
+        return None;
+    }
+    let brick_dims = (grid.resolution + UVec3::splat(BRICK - 1)) / BRICK;
+    let brick_size = grid.cell_size() * BRICK as f32;
+    let r = cutoff_radius(p);
+    let lo = ((p.center - r - grid.min) / brick_size).floor();
+    let hi = ((p.center + r - grid.min) / brick_size).floor();
+    let max = (brick_dims - 1).as_vec3();
+    if hi.cmplt(Vec3::ZERO).any() || lo.cmpgt(max).any() {
+        return None;
+    }
+    Some((lo.clamp(Vec3::ZERO, max).as_uvec3(), hi.clamp(Vec3::ZERO, max).as_uvec3()))
+}
+
+pub fn brick_dims(grid: &GridSpec) -> UVec3 {
+    (grid.resolution + UVec3::splat(BRICK - 1)) / BRICK
+}
+
+/// Calls `f` with the linear index of every brick in the inclusive range.
+pub fn for_each_brick(dims: UVec3, (lo, hi): (UVec3, UVec3), mut f: impl FnMut(usize)) {
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                f((x + dims.x * (y + dims.y * z)) as usize);
+            }
+        }
+    }
+}
+
 pub struct Bins {
     pub offsets: Vec<u32>,
     pub items: Vec<u32>,
 }
 
-impl Bins {
-    pub fn overlaps(&self) -> usize {
-        self.items.len()
-    }
-}
-
 /// Bins visible particles (indices into `particles`) into the bricks of `grid`.
 pub fn bin_particles(grid: &GridSpec, particles: &[Particle]) -> Bins {
-    let brick_dims = (grid.resolution + UVec3::splat(BRICK - 1)) / BRICK;
-    let brick_count = (brick_dims.x * brick_dims.y * brick_dims.z) as usize;
-    let brick_size = grid.cell_size() * BRICK as f32;
-    let ranges: Vec<Option<(UVec3, UVec3)>> = particles
-        .iter()
-        .map(|p| {
-            if p.hidden || p.density <= 0.0 {
-                return None;
-            }
-            let r = cutoff_radius(p);
-            let lo = ((p.center - r - grid.min) / brick_size).floor();
-            let hi = ((p.center + r - grid.min) / brick_size).floor();
-            let max = (brick_dims - 1).as_vec3();
-            if hi.cmplt(Vec3::ZERO).any() || lo.cmpgt(max).any() {
-                return None;
-            }
-            Some((lo.clamp(Vec3::ZERO, max).as_uvec3(), hi.clamp(Vec3::ZERO, max).as_uvec3()))
-        })
-        .collect();
-    let brick_index = |b: UVec3| (b.x + brick_dims.x * (b.y + brick_dims.y * b.z)) as usize;
-    let mut counts = vec![0u32; brick_count + 1];
-    for (lo, hi) in ranges.iter().flatten() {
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    counts[brick_index(UVec3::new(x, y, z)) + 1] += 1;
-                }
-            }
-        }
+    let dims = brick_dims(grid);
+    let brick_count = (dims.x * dims.y * dims.z) as usize;
+    let ranges: Vec<Option<(UVec3, UVec3)>> = particles.iter().map(|p| brick_range(grid, p)).collect();
+    let mut offsets = vec![0u32; brick_count + 1];
+    for range in ranges.iter().flatten() {
+        for_each_brick(dims, *range, |b| offsets[b + 1] += 1);
     }
-    for i in 1..counts.len() {
-        counts[i] += counts[i - 1];
+    for i in 1..offsets.len() {
+        offsets[i] += offsets[i - 1];
     }
-    let offsets = counts;
     let mut cursor = offsets.clone();
     let mut items = vec![0u32; offsets[brick_count] as usize];
     for (pi, range) in ranges.iter().enumerate() {
-        let Some((lo, hi)) = range else { continue };
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    let b = brick_index(UVec3::new(x, y, z));
-                    items[cursor[b] as usize] = pi as u32;
-                    cursor[b] += 1;
-                }
-            }
+        if let Some(range) = range {
+            for_each_brick(dims, *range, |b| {
+                items[cursor[b] as usize] = pi as u32;
+                cursor[b] += 1;
+            });
         }
     }
     Bins { offsets, items }
+}
+
+/// Bricks whose EV changes when the particle list goes from `old` to `new`: those overlapped
+/// by particles in one list and not the other, counted with multiplicity and compared by
+/// value, so reordering or renaming costs nothing.
+pub fn dirty_bricks(grid: &GridSpec, old: &[Particle], new: &[Particle]) -> Vec<u32> {
+    type Key = ([u32; 3], u32, u32, bool);
+    let key = |p: &Particle| -> Key {
+        (p.center.to_array().map(f32::to_bits), p.radius.to_bits(), p.density.to_bits(), p.hidden)
+    };
+    let sorted = |list: &[Particle]| {
+        let mut v: Vec<(Key, usize)> = list.iter().enumerate().map(|(i, p)| (key(p), i)).collect();
+        v.sort_unstable();
+        v
+    };
+    let (a, b) = (sorted(old), sorted(new));
+    let dims = brick_dims(grid);
+    let mut dirty = vec![false; (dims.x * dims.y * dims.z) as usize];
+    let mut mark = |p: &Particle| {
+        if let Some(range) = brick_range(grid, p) {
+            for_each_brick(dims, range, |i| dirty[i] = true);
+        }
+    };
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < b.len() {
+        match (a.get(i), b.get(j)) {
+            (Some(x), Some(y)) if x.0 == y.0 => {
+                i += 1;
+                j += 1;
+            }
+            (Some(x), Some(y)) if x.0 < y.0 => {
+                mark(&old[x.1]);
+                i += 1;
+            }
+            (Some(x), None) => {
+                mark(&old[x.1]);
+                i += 1;
+            }
+            (_, Some(y)) => {
+                mark(&new[y.1]);
+                j += 1;
+            }
+            (None, None) => break,
+        }
+    }
+    dirty.iter().enumerate().filter(|(_, d)| **d).map(|(i, _)| i as u32).collect()
 }

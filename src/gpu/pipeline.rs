@@ -156,6 +156,7 @@ impl FogPipeline {
                 Slot::StorageRead,
                 Slot::StorageRead,
                 Slot::StorageTexture3d(wgpu::TextureFormat::R32Float),
+                Slot::StorageRead,
             ],
         );
         let inject = compute_pipeline(device, "inject", &[include_str!("../../shaders/inject.wgsl")], &inject_layout);
@@ -272,14 +273,14 @@ impl FogPipeline {
         self.ensure_grid(project);
         self.write_lights(project);
 
-        let ev_inputs = (project.grid, project.medium.base_extinction, project.particles.clone());
-        if self.baked.ev_inputs.as_ref() != Some(&ev_inputs) {
+        let bricks = self.bricks_to_inject(project);
+        if !bricks.is_empty() {
             let t = Instant::now();
-            self.run_inject(project, &mut report.counters)?;
+            self.run_inject(project, &bricks, &mut report.counters)?;
             report.timings_ms.inject = self.stage_ms(timer::INJECT, t)?;
-            self.baked.ev_inputs = Some(ev_inputs);
             self.baked.ev_generation += 1;
         }
+        self.baked.ev_inputs = Some((project.grid, project.medium.base_extinction, project.particles.clone()));
 
         let t = Instant::now();
         self.run_propagation(project, request.scheme, &mut report.counters)?;
@@ -393,7 +394,23 @@ impl FogPipeline {
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
     }
 
-    fn run_inject(&mut self, project: &Project, counters: &mut Counters) -> Result<(), GpuError> {
+    /// Every brick after a change of grid or base fog, else only those whose particles changed.
+    fn bricks_to_inject(&self, project: &Project) -> Vec<u32> {
+        let dims = binning::brick_dims(&project.grid);
+        let all = || (0..dims.x * dims.y * dims.z).collect();
+        match &self.baked.ev_inputs {
+            Some((grid, base, particles)) if *grid == project.grid && *base == project.medium.base_extinction => {
+                if *particles == project.particles {
+                    Vec::new()
+                } else {
+                    binning::dirty_bricks(grid, particles, &project.particles)
+                }
+            }
+            _ => all(),
+        }
+    }
+
+    fn run_inject(&mut self, project: &Project, bricks: &[u32], counters: &mut Counters) -> Result<(), GpuError> {
         let Some(g) = &self.grid else { return Ok(()) };
         let device = &self.ctx.device;
         let bins = bin_particles(&project.grid, &project.particles);
@@ -401,6 +418,7 @@ impl FogPipeline {
         let particles_buf = storage_buffer(device, "particles", bytemuck::cast_slice(&particles));
         let offsets_buf = storage_buffer(device, "brick offsets", bytemuck::cast_slice(&bins.offsets));
         let items_buf = storage_buffer(device, "brick items", bytemuck::cast_slice(&bins.items));
+        let bricks_buf = storage_buffer(device, "dirty bricks", bytemuck::cast_slice(bricks));
         let bg = bind_group(
             device,
             "inject",
@@ -411,6 +429,7 @@ impl FogPipeline {
                 offsets_buf.as_entire_binding(),
                 items_buf.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&g.ev_view),
+                bricks_buf.as_entire_binding(),
             ],
         );
         let r = project.grid.resolution;
@@ -422,7 +441,7 @@ impl FogPipeline {
             });
             pass.set_pipeline(&self.inject);
             pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4));
+            pass.dispatch_workgroups(bricks.len() as u32, 2, 1);
             let occ = bind_group(
                 device,
                 "occupancy",
@@ -444,8 +463,11 @@ impl FogPipeline {
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
         counters.dispatches += 2;
-        counters.cells_injected += project.grid.cell_count();
-        counters.particle_overlaps += bins.overlaps() as u64 * (binning::BRICK as u64).pow(3);
+        let cells_per_brick = (binning::BRICK as u64).pow(3);
+        counters.cells_injected += (bricks.len() as u64 * cells_per_brick).min(project.grid.cell_count());
+        counters.particle_overlaps +=
+            bricks.iter().map(|&b| (bins.offsets[b as usize + 1] - bins.offsets[b as usize]) as u64).sum::<u64>()
+                * cells_per_brick;
         Ok(())
     }
 
