@@ -105,7 +105,7 @@ impl Gaussian64 {
             // exact to rounding for an interval this narrow.
             const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
             const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
-            let (c, h) = (0.5 * (z0 + z1), 0.5 * (z1 - z0));
+            let (c, h) = ((0.5 * len - t_star) / r, 0.5 * len / r);
             let sum: f64 = (0..2)
                 .map(|i| W[i] * ((-q - (c - h * X[i]).powi(2)).exp() + (-q - (c + h * X[i]).powi(2)).exp()))
                 .sum();
@@ -206,7 +206,7 @@ mod tests {
         let mut pts = Vec::new();
         for g in &m.gaussians {
             let t = dir.dot(g.center - a);
-            pts.extend([t - 2.0 * g.radius, t - g.radius, t, t + g.radius, t + 2.0 * g.radius]);
+            pts.extend((-6..=6).map(|k| t + k as f64 * g.radius));
         }
         let pts = quad::breakpoints(pts, 0.0, len);
         quad::integrate(|t| m.extinction(a + dir * t), &pts, 1e-13, 0.0, 20_000).0
