@@ -136,7 +136,11 @@ fn unmap_x(x: f64) -> f64 {
 pub const K_SCALE: f64 = 1.0;
 
 fn remap_y(k: f64) -> f64 {
-    k / (K_SCALE + k)
+    if k < 1e30 {
+        k / (K_SCALE + k)
+    } else {
+        1.0
+    }
 }
 
 fn unmap_y(y: f64) -> f64 {
@@ -254,12 +258,22 @@ impl FTable {
                 if u == 0.0 {
                     return v;
                 }
+                if v >= FRAC_PI_2 - 1e-6 {
+                    return self.r(u, FRAC_PI_2, 0.0, interp);
+                }
                 let k = u * v.tan();
                 self.r(u, FRAC_PI_2, 0.0, interp) - (-k).exp() * self.r(u, FRAC_PI_2 - v, k, interp)
             }
         }
     }
 }
+
+/// See [`sun_la_table`]: the far term is skipped where T_vp > T_sv + FAR_SKIP.
+pub const FAR_SKIP: f64 = 40.0;
+
+/// Size of the table the GPU reads: `FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE)`,
+/// matching `SUN_NU`/`SUN_NV` in `shaders/sun.wgsl`.
+pub const GPU_TABLE_SIZE: usize = 64;
 
 /// Where the far term exceeds this fraction of the near one, the Remapped evaluation
 /// integrates the short bracket directly instead of subtracting.
@@ -292,7 +306,9 @@ pub fn sun_la_table(table: &FTable, interp: Interp, gamma: f64, d_sv: f64, d_vp:
             let (t_sv, t_vp) = (beta * d_sv, beta * d_vp);
             let k_a = 2.0 * t_sv * (0.5 * gamma.clamp(GAMMA_MIN, PI - GAMMA_MIN)).sin().powi(2);
             let near = (-t_sv).exp() * table.r(a1, a, k_a, interp);
-            if !t_vp.is_finite() {
+            // T_vp + T_sp − T_sv ≥ 2(T_vp − T_sv): beyond this the far term is below 1e-34 of
+            // the near one (and T_vp = ∞ needs no special case on the GPU).
+            if !(t_vp <= t_sv + FAR_SKIP) {
                 return scale * near;
             }
             let t_sp = (t_vp * t_vp + t_sv * t_sv - 2.0 * t_vp * c).max(0.0).sqrt();
@@ -470,5 +486,23 @@ mod tests {
             assert!(max <= strict_bound, "{layout:?} {interp:?}: max relative error {max}");
             assert!(pmean <= paper_mean_bound, "{layout:?} {interp:?}: mean paper-metric error {pmean}");
         }
+    }
+}
+
+#[cfg(test)]
+mod wgsl_tests {
+    /// shaders/sun.wgsl parses and validates once the including shader declares the table.
+    #[test]
+    fn sun_wgsl_validates() {
+        let source = format!(
+            "@group(0) @binding(0) var<storage, read> sun_table: array<f32>;\n{}\n\
+             @group(0) @binding(1) var<storage, read_write> out: array<f32>;\n\
+             @compute @workgroup_size(1) fn main() {{ out[0] = sun_la(0.3, 5.0, 20.0, 0.1, 1.0) + sun_f(1.0, 0.5); }}",
+            include_str!("../../shaders/sun.wgsl")
+        );
+        let module = wgpu::naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+        wgpu::naga::valid::Validator::new(wgpu::naga::valid::ValidationFlags::all(), wgpu::naga::valid::Capabilities::empty())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{e:?}"));
     }
 }
