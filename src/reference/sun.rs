@@ -506,3 +506,73 @@ mod wgsl_tests {
             .unwrap_or_else(|e| panic!("{e:?}"));
     }
 }
+
+/// An f32 transliteration of shaders/sun.wgsl, to measure what single precision costs.
+#[cfg(test)]
+mod f32_port {
+    use super::*;
+
+    fn sample(t: &[f32], x: f32, y: f32) -> f32 {
+        let n = GPU_TABLE_SIZE;
+        let fx = x.clamp(0.0, 1.0) * (n - 1) as f32;
+        let fy = y.clamp(0.0, 1.0) * (n - 1) as f32;
+        let (i, j) = ((fx as usize).min(n - 2), (fy as usize).min(n - 2));
+        let (tx, ty) = (fx - i as f32, fy - j as f32);
+        let (r0, r1) = (j * n + i, (j + 1) * n + i);
+        let bottom = t[r0] + (t[r0 + 1] - t[r0]) * tx;
+        let top = t[r1] + (t[r1 + 1] - t[r1]) * tx;
+        bottom + (top - bottom) * ty
+    }
+
+    fn r(t: &[f32], u: f32, eta: f32, k: f32) -> f32 {
+        let x = (u / (U_SCALE as f32 + u)).sqrt();
+        let y = if k < 1e30 { k / (K_SCALE as f32 + k) } else { 1.0 };
+        let norm = if eta <= 0.0 { 0.0 } else { eta * eta.sin().powi(2) / (u * eta + eta.sin().powi(2)) };
+        sample(t, x, y) * norm
+    }
+
+    fn sun_la32(t: &[f32], gamma: f32, d_sv: f32, d_vp: f32, beta: f32, i0: f32) -> f32 {
+        use std::f32::consts::PI;
+        if beta <= 0.0 || d_vp <= 0.0 || d_sv <= 0.0 {
+            return 0.0;
+        }
+        let g = gamma.clamp(GAMMA_MIN as f32, PI - GAMMA_MIN as f32);
+        let (t_sv, t_vp) = (beta * d_sv, beta * d_vp);
+        let (a1, a, c) = (t_sv * g.sin(), 0.5 * (PI - g), t_sv * g.cos());
+        let scale = beta * beta * i0 / (2.0 * PI * a1);
+        let k_a = 2.0 * t_sv * (0.5 * g).sin().powi(2);
+        let near = (-t_sv).exp() * r(t, a1, a, k_a);
+        if t_vp > t_sv + FAR_SKIP as f32 {
+            return scale * near;
+        }
+        let t_sp = (t_vp * t_vp + t_sv * t_sv - 2.0 * t_vp * c).max(0.0).sqrt();
+        let b = 0.5 * a1.atan2(t_vp - c);
+        let far = (-(t_vp + t_sp)).exp() * r(t, a1, b, t_vp + t_sp - c);
+        if far < SHORT_RATIO as f32 * near {
+            return scale * (near - far);
+        }
+        let f = |eta: f32| (-(c + a1 / eta.tan())).exp();
+        let (mid, h) = (0.5 * (a + b), 0.5 * (a - b));
+        let (x0, x1) = (0.339_981_04_f32, 0.861_136_3_f32);
+        scale * h * (0.652_145_15 * (f(mid - h * x0) + f(mid + h * x0)) + 0.347_854_85 * (f(mid - h * x1) + f(mid + h * x1)))
+    }
+
+    #[test]
+    fn single_precision_shader_path_stays_within_the_bound() {
+        let table = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
+        let (mut sum, mut max, mut n) = (0.0, 0.0_f64, 0);
+        for (t_sv, t_vp, gammas) in sweep(2000, PI) {
+            for g in gammas {
+                let exact = sun_la(g, t_sv, t_vp, 1.0, 1.0);
+                let got = sun_la32(&table.data, g as f32, t_sv as f32, t_vp as f32, 1.0, 1.0) as f64;
+                let e = ((got - exact) / exact).abs();
+                assert!(got.is_finite(), "γ {g} T_sv {t_sv} T_vp {t_vp}");
+                sum += e;
+                max = max.max(e);
+                n += 1;
+            }
+        }
+        println!("f32 remapped 64x64 bilinear: relative mean {:.2e} max {:.2e}", sum / n as f64, max);
+        assert!(max < 0.003, "{max}");
+    }
+}
