@@ -135,6 +135,7 @@ pub fn cell_center64(grid: &GridSpec, i: u32, j: u32, k: u32) -> DVec3 {
 }
 
 /// Exact optical depth T(cell centre, light) for every cell of `project.grid`, x fastest.
+/// `light` indexes `project.lights`, hidden or not; hidden particles are left out.
 ///
 /// # Panics
 /// If `light` is not an index into `project.lights`.
@@ -277,6 +278,38 @@ mod tests {
             assert_eq!(sampled[n], volume[project.grid.index(i, j, k)]);
             let x = cell_center64(&project.grid, i, j, k);
             assert_eq!(sampled[n], medium.optical_depth(x, DVec3::new(1.0, 3.5, -1.0)));
+        }
+    }
+}
+
+#[cfg(test)]
+mod timings {
+    use super::*;
+    use std::time::Instant;
+
+    /// `cargo test --lib reference::timings -- --ignored --nocapture`: rough costs on the demos.
+    #[test]
+    #[ignore]
+    fn demo_project_timings() {
+        for name in ["cloud", "cornell", "street"] {
+            let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("projects/{name}.ron"));
+            let project = match crate::scene::load_project(&path) {
+                Ok(p) => p,
+                Err(e) => panic!("{e}"),
+            };
+            let t = Instant::now();
+            let opv = optical_depth_volume(&project, 0);
+            let opv_s = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let image = render_reference(&project, 32, 18, &RefRenderOptions::default());
+            let render_s = t.elapsed().as_secs_f64();
+            let max_t = opv.iter().copied().fold(0.0, f64::max);
+            let mean_l = image.iter().map(|p| p[0]).sum::<f64>() / image.len() as f64;
+            println!(
+                "{name}: OPV {} cells in {opv_s:.2} s (max T {max_t:.2}); reference 32x18 in {render_s:.2} s (mean R {mean_l:.3e}); {} threads",
+                opv.len(),
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            );
         }
     }
 }

@@ -242,14 +242,14 @@ pub fn in_scatter_adaptive(
             points.iter().copied().filter(|p| p.is_finite()).fold(dom.t0, f64::max) + 1.0 / medium.base
         };
         let points = quad::breakpoints(points, dom.t0, finite_end);
-        let (mut value, _) = quad::integrate(integrand, &points, rel_tol, 0.0, 100_000);
+        let (mut value, _) = quad::integrate(integrand, &points, rel_tol, 0.0, 5_000);
         if !dom.t1.is_finite() {
             let scale = 1.0 / medium.base;
             let tail = |s: f64| {
                 let t = finite_end + scale * s / (1.0 - s);
                 integrand(t) * scale / ((1.0 - s) * (1.0 - s))
             };
-            value += quad::integrate(tail, &[0.0, 1.0], rel_tol, rel_tol * value.abs(), 100_000).0;
+            value += quad::integrate(tail, &[0.0, 1.0], rel_tol, rel_tol * value.abs(), 5_000).0;
         }
         radiance += light.rgb * value;
     }
