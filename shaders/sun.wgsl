@@ -90,15 +90,18 @@ fn sun_la(gamma: f32, d_sv: f32, d_vp: f32, beta: f32, i0: f32) -> f32 {
         return scale * near;
     }
     let t_sp = sqrt(max(t_vp * t_vp + t_sv * t_sv - 2.0 * t_vp * c, 0.0));
-    let b = 0.5 * atan2(a1, t_vp - c);
+    // psi = 2(a − b), the angle the ray segment subtends at the light, computed without
+    // subtracting angles near π (that would cancel for short rays).
+    let psi = min(atan2(a1 * t_vp, t_sv * (t_sv - cos(g) * t_vp)), 2.0 * a);
+    let b = a - 0.5 * psi;
     let k_b = t_vp + t_sp - c;
     let far = exp(-(t_vp + t_sp)) * sun_r(a1, b, k_b);
     if (far < SUN_SHORT_RATIO * near) {
         return scale * (near - far);
     }
     // A short ray: integrate the bracket over [b, a] with 4-point Gauss–Legendre.
-    let mid = 0.5 * (a + b);
-    let h = 0.5 * (a - b);
+    let h = 0.25 * psi;
+    let mid = a - h;
     let x0 = 0.3399810435848563;
     let x1 = 0.8611363115940526;
     let sum = 0.6521451548625461 * (sun_bracket_integrand(mid - h * x0, c, a1) + sun_bracket_integrand(mid + h * x0, c, a1))

@@ -74,8 +74,15 @@ fn half_angles(gamma: f64, d_sv: f64, d_vp: f64, beta: f64) -> Option<(f64, f64,
     let (t_sv, t_vp) = (beta * d_sv, beta * d_vp);
     let a1 = t_sv * g.sin();
     let a = 0.5 * (PI - g);
-    let b = 0.5 * a1.atan2(t_vp - t_sv * g.cos());
+    let b = if t_vp.is_finite() { a - 0.5 * subtended(t_sv, t_vp, g) } else { 0.0 };
     Some((a1, a, b, t_sv * g.cos()))
+}
+
+/// The angle ψ = 2(a − b) that the ray segment [0, T_vp] subtends at the light, from the
+/// triangle's cross and dot products rather than as a difference of angles near π, which
+/// would cancel for short rays. Clamped to [0, π − γ].
+fn subtended(t_sv: f64, t_vp: f64, gamma: f64) -> f64 {
+    (t_sv * gamma.sin() * t_vp).atan2(t_sv * (t_sv - gamma.cos() * t_vp)).min(PI - gamma)
 }
 
 /// Airlight L_a (eq. 9/11) from a light of intensity `i0` at distance `d_sv`, angle `gamma`
@@ -546,13 +553,14 @@ mod f32_port {
             return scale * near;
         }
         let t_sp = (t_vp * t_vp + t_sv * t_sv - 2.0 * t_vp * c).max(0.0).sqrt();
-        let b = 0.5 * a1.atan2(t_vp - c);
+        let psi = (a1 * t_vp).atan2(t_sv * (t_sv - g.cos() * t_vp)).min(2.0 * a);
+        let b = a - 0.5 * psi;
         let far = (-(t_vp + t_sp)).exp() * r(t, a1, b, t_vp + t_sp - c);
         if far < SHORT_RATIO as f32 * near {
             return scale * (near - far);
         }
         let f = |eta: f32| (-(c + a1 / eta.tan())).exp();
-        let (mid, h) = (0.5 * (a + b), 0.5 * (a - b));
+        let (mid, h) = (a - 0.25 * psi, 0.25 * psi);
         let (x0, x1) = (0.339_981_04_f32, 0.861_136_3_f32);
         scale * h * (0.652_145_15 * (f(mid - h * x0) + f(mid + h * x0)) + 0.347_854_85 * (f(mid - h * x1) + f(mid + h * x1)))
     }
