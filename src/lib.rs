@@ -6,6 +6,7 @@
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 
+pub mod reference;
 pub mod scene;
 pub mod cli;
 pub mod gpu;
