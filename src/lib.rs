@@ -10,4 +10,5 @@ pub mod reference;
 pub mod scene;
 pub mod cli;
 pub mod gpu;
+pub mod measure;
 pub mod output;

@@ -7,6 +7,8 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 use std::path::PathBuf;
 
+mod verify;
+
 #[derive(Parser)]
 #[command(name = "fogsmith", version, about = "Author, preview and bake volumetric fog.")]
 struct Cli {
@@ -32,6 +34,22 @@ enum Command {
         #[arg(long)]
         scheme: Option<Scheme>,
         /// Print a JSON summary on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Compare a project's GPU bake and render against the exact CPU reference.
+    Verify {
+        project: PathBuf,
+        /// Propagation scheme (default: the project's propagation.scheme).
+        #[arg(long)]
+        scheme: Option<Scheme>,
+        /// Width of the compared image; the height follows the project's aspect ratio.
+        #[arg(long, default_value_t = 96)]
+        width: u32,
+        /// Largest number of cells compared per volume; larger grids are sampled.
+        #[arg(long, default_value_t = 100_000)]
+        cells: usize,
+        /// Print one JSON object on stdout.
         #[arg(long)]
         json: bool,
     },
@@ -74,6 +92,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
         Some(Command::Info { json }) => info(json),
+        Some(Command::Verify { project, scheme, width, cells, json }) => verify::run(&project, scheme, width, cells, json),
         Some(Command::Render { project, output, width, height, scheme, json }) => {
             render(&project, &output, width, height, scheme, json)
         }
