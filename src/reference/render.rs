@@ -153,7 +153,7 @@ pub fn radiance_along_ray(
     let view = medium.along_line(origin, dir);
     let albedo = project.medium.albedo.clamp(0.0, 1.0) as f64;
     let phase = Phase { g: project.medium.anisotropy as f64 };
-    let step = opts.step.unwrap_or_else(|| default_step(project));
+    let step = opts.step.filter(|s| *s > 0.0).unwrap_or_else(|| default_step(project));
     let min_step = step * 1e-4;
     let (b0, b1) = dom.in_box.unwrap_or((f64::INFINITY, f64::INFINITY));
     let bound_scale = albedo * phase.max();
@@ -184,10 +184,8 @@ pub fn radiance_along_ray(
         tau += seg;
         t = t_next;
         let tv = (-tau).exp();
-        let rest: f64 = lights
-            .iter()
-            .map(|l| l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2))
-            .sum();
+        let rest: f64 =
+            lights.iter().map(|l| l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2)).sum();
         if tv == 0.0 || tv * bound_scale * rest <= opts.tolerance * radiance.element_sum() {
             break;
         }
@@ -328,7 +326,11 @@ mod tests {
                 assert!(((march[c] - exact) / exact).abs() < 1e-3, "march γ {gamma}: {} vs {exact}", march[c]);
                 assert!(((adaptive[c] - exact) / exact).abs() < 1e-8, "adaptive γ {gamma}: {} vs {exact}", adaptive[c]);
             }
-            println!("γ {gamma}: march rel err {:.2e}, adaptive rel err {:.2e}", march[0] / exact - 1.0, adaptive[0] / exact - 1.0);
+            println!(
+                "γ {gamma}: march rel err {:.2e}, adaptive rel err {:.2e}",
+                march[0] / exact - 1.0,
+                adaptive[0] / exact - 1.0
+            );
         }
     }
 
