@@ -309,22 +309,22 @@ mod tests {
     fn marching_and_adaptive_reproduce_sun_reference_values() {
         for (gamma, d_sv, d_vp, beta, want) in REFERENCE_VALUES {
             let (mut project, light) = sun_scene(gamma, d_sv, beta);
-            // The light position goes through f32 in the project; recompute the ray direction
-            // for exactly the stored position so that γ and D_sv are exact.
+            // The project stores f32: compare against the closed form for exactly the stored
+            // β and light distance, with the ray turned so that γ is exact.
             let stored = project.lights[0].position.as_dvec3();
             let rot_gamma = stored.y.atan2(stored.x);
             let d = stored.length();
             assert!((rot_gamma - gamma).abs() < 1e-6 && (d - d_sv).abs() < 1e-5 * d_sv, "{light}");
             project.lights[0].position = stored.as_vec3();
             let dir = DVec3::new((rot_gamma - gamma).cos(), (rot_gamma - gamma).sin(), 0.0);
-            let exact = crate::reference::sun::sun_la(gamma, d, d_vp, beta, 1.0);
+            let exact = crate::reference::sun::sun_la(gamma, d, d_vp, project.medium.base_extinction as f64, 1.0);
             assert!(((exact - want) / want).abs() < 1e-6);
             let medium = Medium64::from_project(&project);
             let march = radiance_along_ray(&medium, &project, DVec3::ZERO, dir, d_vp, &RefRenderOptions::default());
             let adaptive = in_scatter_adaptive(&medium, &project, DVec3::ZERO, dir, d_vp, 1e-10);
             for c in 0..3 {
                 assert!(((march[c] - exact) / exact).abs() < 1e-3, "march γ {gamma}: {} vs {exact}", march[c]);
-                assert!(((adaptive[c] - exact) / exact).abs() < 1e-8, "adaptive γ {gamma}: {} vs {exact}", adaptive[c]);
+                assert!(((adaptive[c] - exact) / exact).abs() < 1e-9, "adaptive γ {gamma}: {} vs {exact}", adaptive[c]);
             }
             println!(
                 "γ {gamma}: march rel err {:.2e}, adaptive rel err {:.2e}",
@@ -360,6 +360,7 @@ mod tests {
             for c in 0..3 {
                 assert!(((march[c] - adaptive[c]) / adaptive[c]).abs() < 1e-3, "{target}: {march:?} vs {adaptive:?}");
             }
+            println!("{target}: march vs adaptive rel {:.2e}", march[0] / adaptive[0] - 1.0);
         }
     }
 
