@@ -23,7 +23,8 @@ const WGK: [f64; 8] = [
     0.209_482_141_084_727_83,
 ];
 /// Gauss weights for the Kronrod nodes with odd index (1, 3, 5, 7).
-const WG: [f64; 4] = [0.129_484_966_168_869_7, 0.279_705_391_489_276_7, 0.381_830_050_505_118_9, 0.417_959_183_673_469_4];
+const WG: [f64; 4] =
+    [0.129_484_966_168_869_7, 0.279_705_391_489_276_7, 0.381_830_050_505_118_9, 0.417_959_183_673_469_4];
 
 /// One 15-point Kronrod estimate and its difference to the embedded 7-point Gauss rule.
 fn gk15(f: &mut impl FnMut(f64) -> f64, a: f64, b: f64) -> (f64, f64) {
@@ -67,10 +68,8 @@ pub fn integrate(
         if parts.is_empty() || err <= abs_tol.max(rel_tol * total.abs()) || parts.len() >= max_intervals {
             return (total, err);
         }
-        let (worst, _) = parts
-            .iter()
-            .enumerate()
-            .fold((0, -1.0), |best, (i, p)| if p.3 > best.1 { (i, p.3) } else { best });
+        let (worst, _) =
+            parts.iter().enumerate().fold((0, -1.0), |best, (i, p)| if p.3 > best.1 { (i, p.3) } else { best });
         let (a, b, _, _) = parts[worst];
         let m = 0.5 * (a + b);
         if m <= a || m >= b {

@@ -9,7 +9,7 @@
 //! carrying base fog only.
 
 use super::{par_fill, quad, Medium64};
-use crate::scene::{Camera, GridSpec, Project};
+use crate::scene::{Camera, Project};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -19,10 +19,10 @@ const MAX_STEPS: usize = 100_000_000;
 /// How finely [`radiance_along_ray`] and [`render_reference`] integrate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefRenderOptions {
-    /// Step inside the grid box in metres; `None`: the smallest cell edge / 16.
+    /// Step inside the grid box in metres; `None`: [`default_step`].
     pub step: Option<f64>,
     /// Upper bound on a step as a fraction of the distance to the nearest light and, outside
-    /// the box, of the base fog's mean free path. Default 0.02.
+    /// the box, of the base fog's mean free path. Default 0.01.
     pub rel_step: f64,
     /// The march stops once what remains is provably below this fraction of the radiance
     /// gathered so far. Default 1e-9.
@@ -31,13 +31,17 @@ pub struct RefRenderOptions {
 
 impl Default for RefRenderOptions {
     fn default() -> Self {
-        Self { step: None, rel_step: 0.02, tolerance: 1e-9 }
+        Self { step: None, rel_step: 0.01, tolerance: 1e-9 }
     }
 }
 
-/// The smallest cell edge / 16.
-pub fn default_step(grid: &GridSpec) -> f64 {
-    (grid.size().as_dvec3() / grid.resolution.as_dvec3()).min_element() / 16.0
+/// The smallest cell edge / 16, or 1/16 of the preview's step where that is finer
+/// (physics.md §8: at least 16× finer than the preview).
+pub fn default_step(project: &Project) -> f64 {
+    let grid = &project.grid;
+    let cell = (grid.size().as_dvec3() / grid.resolution.as_dvec3()).min_element();
+    let preview = cell * project.render.step_factor as f64;
+    cell.min(if preview > 0.0 { preview } else { cell }) / 16.0
 }
 
 struct Light64 {
@@ -142,14 +146,14 @@ pub fn radiance_along_ray(
 ) -> [f64; 3] {
     let dir = dir.normalize();
     let lights = lights64(project);
-    let Some(dom) = domain(project, medium.base, origin, dir, t_max) else { return [0.0; 3] };
+    let Some(dom) = domain(project, medium.base(), origin, dir, t_max) else { return [0.0; 3] };
     if lights.is_empty() || !dir.is_finite() {
         return [0.0; 3];
     }
     let view = medium.along_line(origin, dir);
     let albedo = project.medium.albedo.clamp(0.0, 1.0) as f64;
     let phase = Phase { g: project.medium.anisotropy as f64 };
-    let step = opts.step.unwrap_or_else(|| default_step(&project.grid));
+    let step = opts.step.filter(|s| *s > 0.0).unwrap_or_else(|| default_step(project));
     let min_step = step * 1e-4;
     let (b0, b1) = dom.in_box.unwrap_or((f64::INFINITY, f64::INFINITY));
     let bound_scale = albedo * phase.max();
@@ -160,7 +164,7 @@ pub fn radiance_along_ray(
         }
         let x = origin + dir * t;
         let inside = t >= b0 && t < b1;
-        let mut h = if inside || medium.base <= 0.0 { step } else { opts.rel_step / medium.base };
+        let mut h = if inside || medium.base() <= 0.0 { step } else { opts.rel_step / medium.base() };
         let near = lights.iter().map(|l| (x - l.position).length()).fold(f64::INFINITY, f64::min);
         h = h.min((opts.rel_step * near).max(min_step));
         if t < b0 {
@@ -180,10 +184,8 @@ pub fn radiance_along_ray(
         tau += seg;
         t = t_next;
         let tv = (-tau).exp();
-        let rest: f64 = lights
-            .iter()
-            .map(|l| l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2))
-            .sum();
+        let rest: f64 =
+            lights.iter().map(|l| l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2)).sum();
         if tv == 0.0 || tv * bound_scale * rest <= opts.tolerance * radiance.element_sum() {
             break;
         }
@@ -206,7 +208,7 @@ pub fn in_scatter_adaptive(
 ) -> [f64; 3] {
     let dir = dir.normalize();
     let lights = lights64(project);
-    let Some(dom) = domain(project, medium.base, origin, dir, t_max) else { return [0.0; 3] };
+    let Some(dom) = domain(project, medium.base(), origin, dir, t_max) else { return [0.0; 3] };
     if !dir.is_finite() {
         return [0.0; 3];
     }
@@ -217,7 +219,7 @@ pub fn in_scatter_adaptive(
     if let Some((a, b)) = dom.in_box {
         split.extend([a, b]);
     }
-    for g in &view.gaussians {
+    for g in view.gaussians() {
         let t = dir.dot(g.center - origin);
         split.extend([-2.0, -1.0, 0.0, 1.0, 2.0].map(|k| t + k * g.radius));
     }
@@ -239,12 +241,12 @@ pub fn in_scatter_adaptive(
         let finite_end = if dom.t1.is_finite() {
             dom.t1
         } else {
-            points.iter().copied().filter(|p| p.is_finite()).fold(dom.t0, f64::max) + 1.0 / medium.base
+            points.iter().copied().filter(|p| p.is_finite()).fold(dom.t0, f64::max) + 1.0 / medium.base()
         };
         let points = quad::breakpoints(points, dom.t0, finite_end);
         let (mut value, _) = quad::integrate(integrand, &points, rel_tol, 0.0, 5_000);
         if !dom.t1.is_finite() {
-            let scale = 1.0 / medium.base;
+            let scale = 1.0 / medium.base();
             let tail = |s: f64| {
                 let t = finite_end + scale * s / (1.0 - s);
                 integrand(t) * scale / ((1.0 - s) * (1.0 - s))
@@ -307,24 +309,28 @@ mod tests {
     fn marching_and_adaptive_reproduce_sun_reference_values() {
         for (gamma, d_sv, d_vp, beta, want) in REFERENCE_VALUES {
             let (mut project, light) = sun_scene(gamma, d_sv, beta);
-            // The light position goes through f32 in the project; recompute the ray direction
-            // for exactly the stored position so that γ and D_sv are exact.
+            // The project stores f32: compare against the closed form for exactly the stored
+            // β and light distance, with the ray turned so that γ is exact.
             let stored = project.lights[0].position.as_dvec3();
             let rot_gamma = stored.y.atan2(stored.x);
             let d = stored.length();
             assert!((rot_gamma - gamma).abs() < 1e-6 && (d - d_sv).abs() < 1e-5 * d_sv, "{light}");
             project.lights[0].position = stored.as_vec3();
             let dir = DVec3::new((rot_gamma - gamma).cos(), (rot_gamma - gamma).sin(), 0.0);
-            let exact = crate::reference::sun::sun_la(gamma, d, d_vp, beta, 1.0);
+            let exact = crate::reference::sun::sun_la(gamma, d, d_vp, project.medium.base_extinction as f64, 1.0);
             assert!(((exact - want) / want).abs() < 1e-6);
             let medium = Medium64::from_project(&project);
             let march = radiance_along_ray(&medium, &project, DVec3::ZERO, dir, d_vp, &RefRenderOptions::default());
             let adaptive = in_scatter_adaptive(&medium, &project, DVec3::ZERO, dir, d_vp, 1e-10);
             for c in 0..3 {
                 assert!(((march[c] - exact) / exact).abs() < 1e-3, "march γ {gamma}: {} vs {exact}", march[c]);
-                assert!(((adaptive[c] - exact) / exact).abs() < 1e-8, "adaptive γ {gamma}: {} vs {exact}", adaptive[c]);
+                assert!(((adaptive[c] - exact) / exact).abs() < 1e-9, "adaptive γ {gamma}: {} vs {exact}", adaptive[c]);
             }
-            println!("γ {gamma}: march rel err {:.2e}, adaptive rel err {:.2e}", march[0] / exact - 1.0, adaptive[0] / exact - 1.0);
+            println!(
+                "γ {gamma}: march rel err {:.2e}, adaptive rel err {:.2e}",
+                march[0] / exact - 1.0,
+                adaptive[0] / exact - 1.0
+            );
         }
     }
 
@@ -354,6 +360,7 @@ mod tests {
             for c in 0..3 {
                 assert!(((march[c] - adaptive[c]) / adaptive[c]).abs() < 1e-3, "{target}: {march:?} vs {adaptive:?}");
             }
+            println!("{target}: march vs adaptive rel {:.2e}", march[0] / adaptive[0] - 1.0);
         }
     }
 

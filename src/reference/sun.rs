@@ -10,6 +10,13 @@
 //! F(A1, v1) − F(A1, γ/2) = ∫_b^a exp(−A1 cot η) dη with a = (π − γ)/2 and
 //! b = ½·atan2(T_sv sinγ, T_vp − T_sv cosγ). Along the ray, A1 cot η + T_sv cosγ is the optical
 //! length of the light path viewer→x→light, which is T_sv at η = a and T_vp + T_sp at η = b.
+//!
+//! Why a second table layout: the paper's evaluation subtracts two table values of F and
+//! multiplies by A0 ∝ exp(−T_sv cosγ). Looking away from a light through thick fog the
+//! difference is many orders below F itself and the factor is up to exp(T_sv), so f32
+//! rounding and interpolation error dominate (relative errors far above 100 % in
+//! [`table_error`]'s sweep). [`TableLayout::Remapped`] keeps every exponential exact and
+//! tabulates only a bounded smooth remainder.
 
 use super::quad;
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -55,9 +62,7 @@ pub fn f_between(u: f64, v0: f64, v1: f64) -> f64 {
 }
 
 /// Exponent offsets 2^k at which the integrands exp(−u tan ξ) and exp(−u cot η) are split.
-const KNEES: [f64; 14] = [
-    1.0 / 64.0, 1.0 / 16.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0, 512.0,
-];
+const KNEES: [f64; 14] = [1.0 / 64.0, 1.0 / 16.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0, 512.0];
 
 /// Angles η where u·(cot η − cot0) equals each of [`KNEES`].
 fn knees_cot(u: f64, cot0: f64) -> Vec<f64> {
@@ -106,7 +111,7 @@ pub enum TableLayout {
     /// The paper's: F itself on a uniform grid over u in [0, PAPER_U_MAX], v in [0, π/2];
     /// beyond PAPER_U_MAX an asymptotic tail.
     Paper,
-    /// A smooth ratio q(u, η) on remapped axes; see [`FTable::remapped`].
+    /// A smooth ratio q(u, k) on remapped axes, what the GPU reads; see [`FTable::remapped`].
     Remapped,
 }
 
@@ -194,10 +199,12 @@ impl FTable {
     /// Fogsmith's layout. With η = π/2 − v, F(u, v) = G(u, π/2) − G(u, η) where
     /// G(u, η) = ∫_0^η exp(−u cot η') dη' = exp(−k)·R(u, η), k = u·cot η. The exponential
     /// carries G's fast variation, R is smooth and bounded, and the table holds q = R / N
-    /// (see `norm_r`), which tends to 1 for u → ∞ and k → ∞ and stays within [0.8, 1]
+    /// (see `norm_r`), which tends to 1 for u → ∞ and k → ∞ and stays within [0.8, 1.07]
     /// elsewhere. Indexing by (u, k) rather than (u, η) keeps q continuous at u, η → 0
     /// (looking away from the light), where it depends on k alone. Axes:
-    /// x = sqrt(u/(1+u)) and y = k/(K_SCALE+k), both covering [0, ∞) on [0, 1], so no tail.
+    /// x = sqrt(u/(U_SCALE+u)) and y = k/(K_SCALE+k), both covering [0, ∞) on [0, 1], so
+    /// there is no tail. Short rays, where the two G terms would cancel, are integrated
+    /// directly by [`sun_la_table`].
     pub fn remapped(nu: usize, nv: usize) -> Self {
         let (nu, nv) = (nu.max(2), nv.max(2));
         let mut data = Vec::with_capacity(nu * nv);
@@ -485,6 +492,10 @@ mod tests {
             (TableLayout::Remapped, Interp::Nearest, f64::INFINITY, f64::INFINITY),
         ] {
             let table = FTable::new(layout, 64, 64);
+            if layout == TableLayout::Remapped {
+                let (lo, hi) = table.data.iter().fold((f32::MAX, f32::MIN), |(l, h), &q| (l.min(q), h.max(q)));
+                assert!(lo > 0.8 && hi < 1.07, "q in [{lo}, {hi}]");
+            }
             let (mean, max) = table_error(&table, interp, samples);
             let (pmean, pmax) = table_error_paper_metric(&table, interp, samples);
             println!(
@@ -507,10 +518,14 @@ mod wgsl_tests {
              @compute @workgroup_size(1) fn main() {{ out[0] = sun_la(0.3, 5.0, 20.0, 0.1, 1.0) + sun_f(1.0, 0.5); }}",
             include_str!("../../shaders/sun.wgsl")
         );
-        let module = wgpu::naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
-        wgpu::naga::valid::Validator::new(wgpu::naga::valid::ValidationFlags::all(), wgpu::naga::valid::Capabilities::empty())
-            .validate(&module)
-            .unwrap_or_else(|e| panic!("{e:?}"));
+        let module =
+            wgpu::naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+        wgpu::naga::valid::Validator::new(
+            wgpu::naga::valid::ValidationFlags::all(),
+            wgpu::naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{e:?}"));
     }
 }
 
@@ -562,7 +577,9 @@ mod f32_port {
         let f = |eta: f32| (-(c + a1 / eta.tan())).exp();
         let (mid, h) = (a - 0.25 * psi, 0.25 * psi);
         let (x0, x1) = (0.339_981_04_f32, 0.861_136_3_f32);
-        scale * h * (0.652_145_15 * (f(mid - h * x0) + f(mid + h * x0)) + 0.347_854_85 * (f(mid - h * x1) + f(mid + h * x1)))
+        scale
+            * h
+            * (0.652_145_15 * (f(mid - h * x0) + f(mid + h * x0)) + 0.347_854_85 * (f(mid - h * x1) + f(mid + h * x1)))
     }
 
     #[test]
