@@ -1,7 +1,8 @@
 // Ray march: camera rays through the medium, single scattering from every light
 // (physics.md §4). Each step holds σ_t and the in-scattered radiance constant and is
 // integrated exactly: radiance += Tr·albedo·S'·(1 − exp(−σ_t Δ)), Tr *= exp(−σ_t Δ), where
-// S' is the phase-weighted light reaching the sample. Inside the grid σ_t and each light's
+// S' is the phase-weighted light reaching the sample, with the inverse-square falloff
+// averaged exactly over the step (so a ray passing close to a light stays accurate). Inside the grid σ_t and each light's
 // optical depth come from trilinear lookups in the EV and OPVs; outside it only the base fog
 // exists (optical depth to a light = β·distance).
 //
@@ -108,13 +109,23 @@ fn ev_at(t: Trilinear) -> f32 {
     return lerp3(c, t.f);
 }
 
-fn opv_at(t: Trilinear, light: u32) -> f32 {
+// Optical depth from x to light l: |x − S| times the trilinear mean extinction T/|c − S| of
+// the eight surrounding cells. The mean extinction is smooth where T itself has a kink (at
+// the light) and constant in homogeneous fog, so this is exact there and accurate near lights.
+fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
     let base = light * cell_count();
+    let s = lights[light].position;
     var c: array<f32, 8>;
     for (var n = 0u; n < 8u; n++) {
-        c[n] = opv[base + linear_index(corner(t, n))];
+        let p = corner(t, n);
+        let d = length(grid.min + (vec3f(p) + 0.5) * grid.cell - s);
+        if d < 1e-6 * grid.cell.x {
+            c[n] = textureLoad(ev, p, 0).r;
+        } else {
+            c[n] = opv[base + linear_index(p)] / d;
+        }
     }
-    return lerp3(c, t.f);
+    return lerp3(c, t.f) * length(x - s);
 }
 
 fn inside_grid(x: vec3f) -> bool {
@@ -124,7 +135,7 @@ fn inside_grid(x: vec3f) -> bool {
 // Optical depth from x to light l.
 fn light_depth(x: vec3f, l: u32, d: f32) -> f32 {
     if inside_grid(x) {
-        return opv_at(trilinear_at(x), l);
+        return opv_at(trilinear_at(x), l, x);
     }
     return grid.base_extinction * d;
 }
@@ -146,6 +157,23 @@ fn one_minus_exp_neg(tau: f32) -> f32 {
     return 1.0 - exp(-tau);
 }
 
+// Mean of 1/|y − s|² over the step [x − dt/2·dir, x + dt/2·dir]: the exact integral of the
+// inverse-square falloff (an arctangent), so a ray grazing a light is not under-sampled.
+fn mean_inverse_square(x: vec3f, dir: vec3f, dt: f32, s: vec3f) -> f32 {
+    let v = x - s;
+    let d2 = dot(v, v);
+    let mid = -dot(v, dir);
+    let h = sqrt(max(d2 - mid * mid, 0.0));
+    let a = -0.5 * dt - mid;
+    let b = 0.5 * dt - mid;
+    // Far from the light relative to the step the midpoint value is exact to f32 precision.
+    if dt * dt < 1e-4 * d2 {
+        return 1.0 / max(d2, 1e-30);
+    }
+    let hh = max(h, 1e-4 * dt);
+    return (atan2(b, hh) - atan2(a, hh)) / (hh * dt);
+}
+
 // One step of length `dt` centred at `x`.
 fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
     var sigma = grid.base_extinction;
@@ -165,15 +193,15 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
             continue;
         }
         let to_x = x - light.position;
-        let d2 = max(dot(to_x, to_x), 1e-12);
+        let d = max(length(to_x), 1e-12);
         var depth: f32;
         if inside {
-            depth = opv_at(tri, l);
+            depth = opv_at(tri, l, x);
         } else {
-            depth = grid.base_extinction * sqrt(d2);
+            depth = grid.base_extinction * d;
         }
-        let cos_theta = dot(to_x * inverseSqrt(d2), -dir);
-        inscatter += light.rgb * (phase(cos_theta) * exp(-depth) / d2);
+        let cos_theta = dot(to_x / d, -dir);
+        inscatter += light.rgb * (phase(cos_theta) * exp(-depth) * mean_inverse_square(x, dir, dt, light.position));
     }
     radiance += transmittance * params.albedo * inscatter * one_minus_exp_neg(sigma * dt);
     transmittance *= exp(-sigma * dt);
