@@ -2,9 +2,10 @@
 // (physics.md §4). Each step holds σ_t and the in-scattered radiance constant and is
 // integrated exactly: radiance += Tr·albedo·S'·(1 − exp(−σ_t Δ)), Tr *= exp(−σ_t Δ), where
 // S' is the phase-weighted light reaching the sample, with the inverse-square falloff
-// averaged exactly over the step (so a ray passing close to a light stays accurate). Inside the grid σ_t and each light's
-// optical depth come from trilinear lookups in the EV and OPVs; outside it only the base fog
-// exists (optical depth to a light = β·distance).
+// averaged exactly over the step (so a ray passing close to a light stays accurate). Inside
+// the grid σ_t and each light's optical depth come from trilinear lookups in the EV and
+// OPVs; outside it σ_t is the base fog, and light paths that cross the grid still pick up
+// its optical depth from the OPV where they leave it.
 //
 // Step policies inside the grid: FIXED (uniform steps), TWO_LEVEL (Tan et al.: uniform near
 // steps, then linearly growing far steps) and ADAPTIVE (step = τ_target / local max σ_t from
@@ -132,12 +133,25 @@ fn inside_grid(x: vec3f) -> bool {
     return all(x >= grid.min) && all(x <= grid.max);
 }
 
-// Optical depth from x to light l.
+// Optical depth from x to light l, d = |x − S|. Inside the grid it comes from the OPV. Outside,
+// the segment from the light to x may still cross the grid: then it is the OPV where the
+// segment leaves the grid (everything between there and the light) plus the base fog beyond.
 fn light_depth(x: vec3f, l: u32, d: f32) -> f32 {
     if inside_grid(x) {
         return opv_at(trilinear_at(x), l, x);
     }
-    return grid.base_extinction * d;
+    let s = lights[l].position;
+    let u = (x - s) / max(d, 1e-30);
+    let inv = 1.0 / u;
+    let ta = (grid.min - s) * inv;
+    let tb = (grid.max - s) * inv;
+    let t_in = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), max(min(ta.z, tb.z), 0.0));
+    let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), min(max(ta.z, tb.z), d));
+    if t_out <= t_in {
+        return grid.base_extinction * d;
+    }
+    let p = s + u * t_out;
+    return opv_at(trilinear_at(p), l, p) + grid.base_extinction * (d - t_out);
 }
 
 fn phase(cos_theta: f32) -> f32 {
@@ -198,7 +212,7 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
         if inside {
             depth = opv_at(tri, l, x);
         } else {
-            depth = grid.base_extinction * d;
+            depth = light_depth(x, l, d);
         }
         let cos_theta = dot(to_x / d, -dir);
         inscatter += light.rgb * (phase(cos_theta) * exp(-depth) * mean_inverse_square(x, dir, dt, light.position));

@@ -272,17 +272,43 @@ pub fn camera_ray64(camera: &Camera, px: u32, py: u32, width: u32, height: u32) 
 }
 
 /// Linear RGB radiance of every pixel, row-major with row 0 at the top, from the project's
-/// camera (no surfaces: rays run to infinity), rows shared among all cores.
+/// camera, rows shared among all cores. A ray stops at the first surface (the rules of
+/// [`Surfaces::first_hit`](crate::scene::Surfaces::first_hit)), which adds its Lambertian
+/// radiance lit through the fog, attenuated by the exact view transmittance.
 pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRenderOptions) -> Vec<[f64; 3]> {
     let medium = Medium64::from_project(project);
+    let lights = lights64(project);
     let origin = project.camera.position.as_dvec3();
     let mut out = vec![[0.0; 3]; width as usize * height as usize];
     par_fill(&mut out, width as usize, |n| {
         let (px, py) = ((n % width as usize) as u32, (n / width as usize) as u32);
         let dir = camera_ray64(&project.camera, px, py, width, height);
-        radiance_along_ray(&medium, project, origin, dir, f64::INFINITY, opts)
+        let hit = project.surfaces.first_hit(origin, dir);
+        let t_max = hit.map_or(f64::INFINITY, |h| h.t);
+        let mut l = DVec3::from(radiance_along_ray(&medium, project, origin, dir, t_max, opts));
+        if let Some(h) = hit {
+            let x = origin + dir * h.t;
+            l += (-medium.optical_depth(origin, x)).exp() * surface_radiance(&medium, &lights, x, h.normal, h.albedo);
+        }
+        l.to_array()
     });
     out
+}
+
+/// Lambertian radiance leaving a surface point lit by every light through the fog.
+fn surface_radiance(medium: &Medium64, lights: &[Light64], x: DVec3, normal: DVec3, albedo: DVec3) -> DVec3 {
+    lights
+        .iter()
+        .map(|l| {
+            let to_light = l.position - x;
+            let d2 = to_light.length_squared();
+            let cos = normal.dot(to_light) / d2.sqrt();
+            if d2 == 0.0 || cos <= 0.0 {
+                return DVec3::ZERO;
+            }
+            albedo / PI * l.rgb * (cos / d2 * (-medium.optical_depth(x, l.position)).exp())
+        })
+        .sum()
 }
 
 #[cfg(test)]

@@ -284,9 +284,50 @@ pub struct Surfaces {
     pub boxes: Vec<SurfaceBox>,
 }
 
+/// Where a ray first meets a surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    pub t: f64,
+    pub normal: glam::DVec3,
+    pub albedo: glam::DVec3,
+}
+
 impl Surfaces {
     pub fn is_empty(&self) -> bool {
         self.ground.is_none() && self.boxes.is_empty()
+    }
+
+    /// The first surface along `origin + t·dir` (t > 0), by the rules the GPU march uses:
+    /// boxes are hit only from outside, the ground only from above.
+    pub fn first_hit(&self, origin: glam::DVec3, dir: glam::DVec3) -> Option<SurfaceHit> {
+        use glam::DVec3;
+        let mut best: Option<SurfaceHit> = None;
+        let mut consider = |hit: SurfaceHit| {
+            if best.is_none_or(|b| hit.t < b.t) {
+                best = Some(hit);
+            }
+        };
+        if let Some(g) = &self.ground {
+            let h = g.height as f64;
+            if dir.y < 0.0 && origin.y > h {
+                consider(SurfaceHit { t: (h - origin.y) / dir.y, normal: DVec3::Y, albedo: g.albedo.as_dvec3() });
+            }
+        }
+        for b in &self.boxes {
+            let inv = dir.recip();
+            let ta = (b.min.as_dvec3() - origin) * inv;
+            let tb = (b.max.as_dvec3() - origin) * inv;
+            let (tn, tf) = (ta.min(tb), ta.max(tb));
+            let t_in = tn.max_element();
+            let t_out = tf.min_element();
+            if t_in > 0.0 && t_in <= t_out {
+                let axis = if t_in == tn.x { 0 } else if t_in == tn.y { 1 } else { 2 };
+                let mut normal = DVec3::ZERO;
+                normal[axis] = -dir[axis].signum();
+                consider(SurfaceHit { t: t_in, normal, albedo: b.albedo.as_dvec3() });
+            }
+        }
+        best
     }
 }
 
