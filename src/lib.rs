@@ -6,4 +6,5 @@
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 
+pub mod export;
 pub mod scene;
