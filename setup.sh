@@ -9,6 +9,7 @@ PACKAGES=(
   xvfb                  # a virtual display for the editor's window tests
   xauth
   python3-openvdb       # OpenVDB itself, to check exported .vdb files
+  libopenvdb-tools      # vdb_tool: writes zip / uncompressed .vdb files for the import tests
   openexr               # exrheader / exrinfo, to check exported .exr files
   pkg-config
   libxkbcommon-x11-0    # winit on X11
@@ -26,6 +27,15 @@ if [ ${#missing[@]} -gt 0 ]; then
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -y
   $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
+fi
+
+# OpenEXR's own Python bindings (PyPI `openexr`; Debian has none), to check exported .exr
+# values with a reader independent of the `exr` crate. Best effort: the EXR tests say loudly
+# when they are missing and still check headers with exrheader.
+if ! python3 -c "import OpenEXR" >/dev/null 2>&1; then
+  python3 -m pip install --quiet openexr >/dev/null 2>&1 \
+    || python3 -m pip install --quiet --break-system-packages openexr >/dev/null 2>&1 \
+    || echo "setup.sh: could not pip install openexr (EXR values will be checked by the exr crate only)" >&2
 fi
 
 if ! command -v cargo >/dev/null 2>&1; then

@@ -179,7 +179,7 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
         let act = o["active_mask"].as_array().unwrap();
         for (n, v) in g.values.iter().enumerate() {
             let (want, on) = expected(*v, g.background, &opts);
-            assert_eq!(f(&values[n]) as f32, want, "{tag} {} OpenVDB value at cell {n}", g.name);
+            assert_eq!(values[n].as_u64().unwrap() as u32, want.to_bits(), "{tag} {} OpenVDB value at cell {n}: {} vs {want}", g.name, f32::from_bits(values[n].as_u64().unwrap() as u32));
             assert_eq!(act[n].as_bool().unwrap(), on, "{tag} {} OpenVDB active at cell {n}", g.name);
         }
     }
@@ -210,4 +210,175 @@ fn openvdb_reads_half_zip_and_half_uncompressed() {
 fn openvdb_reads_threshold_no_tiles_and_non_cubic_cells() {
     check_against_openvdb("threshold", CUBE_MIN, cube_max(), VdbOptions { threshold: 0.05, tiles: false, ..Default::default() });
     check_against_openvdb("non_cubic", Vec3::new(-3.0, 0.0, 1.0), Vec3::new(1.0, 2.5, 2.0), VdbOptions::default());
+}
+
+// ---------------------------------------------------------------------------------------
+// Import: files written by OpenVDB itself.
+
+fn ints(v: &Value) -> Vec<i64> {
+    v.as_array().unwrap().iter().map(|x| x.as_i64().unwrap()).collect()
+}
+
+#[test]
+fn imports_files_written_by_openvdb() {
+    if !openvdb_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(PY).arg(tests_dir().join("vdb_make.py")).arg(dir.path()).output().expect("run vdb_make.py");
+    assert!(out.status.success(), "vdb_make.py failed: {}", String::from_utf8_lossy(&out.stderr));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    if !report["vdb_tool"].as_bool().unwrap() {
+        eprintln!("\n\n!!!!!!!! vdb_tool (libopenvdb-tools) is missing: zip and uncompressed OpenVDB files NOT tested; run setup.sh !!!!!!!!\n\n");
+    }
+    let mut checked = 0;
+    for (file, grids) in report["files"].as_object().unwrap() {
+        let path = dir.path().join(file);
+        let listed = list_vdb_grids(&path).unwrap();
+        assert_eq!(listed.len(), grids.as_array().unwrap().len(), "{file}");
+        for g in grids.as_array().unwrap() {
+            let name = g["name"].as_str().unwrap();
+            let result = read_vdb_grid(&path, Some(name));
+            if g["value_type"] != "float" {
+                let err = result.expect_err("non-float grids are refused").to_string();
+                assert!(err.contains("only float grids") && err.contains(file.as_str()), "{file} {name}: {err}");
+                assert!(!listed.iter().find(|l| l.name == name).unwrap().importable);
+                continue;
+            }
+            if file == "rotated.vdb" {
+                let err = result.expect_err("rotated grids are refused").to_string();
+                assert!(err.contains("not axis-aligned") && err.contains("rotated.vdb"), "{err}");
+                continue;
+            }
+            if file == "frustum.vdb" {
+                let err = result.expect_err("frustum grids are refused").to_string();
+                assert!(err.contains("frustum") && err.contains("frustum.vdb"), "{err}");
+                continue;
+            }
+            let ours = result.unwrap_or_else(|e| panic!("{file} {name}: {e}"));
+            assert_eq!(ours.half, g["half"].as_bool().unwrap(), "{file}");
+            assert_eq!(ours.background as f64, f(&g["background"]));
+            assert_eq!(ours.active_voxel_count(), g["active"].as_u64().unwrap(), "{file} {name} active voxels");
+            let (lo, hi) = ours.active_bbox().unwrap();
+            let bbox = g["bbox"].as_array().unwrap();
+            assert_eq!(lo.map(i64::from).to_vec(), ints(&bbox[0]), "{file} {name} bbox");
+            assert_eq!(hi.map(i64::from).to_vec(), ints(&bbox[1]), "{file} {name} bbox");
+            let vs: Vec<f64> = g["voxel_size"].as_array().unwrap().iter().map(f).collect();
+            assert_eq!(ours.transform.scale.to_vec(), vs, "{file} {name} voxel size");
+            let origin: Vec<f64> = g["origin"].as_array().unwrap().iter().map(f).collect();
+            assert_eq!(ours.transform.index_to_world([0.0; 3]).to_vec(), origin, "{file} {name} translation");
+            for s in g["samples"].as_array().unwrap() {
+                let p = [s[0].as_i64().unwrap() as i32, s[1].as_i64().unwrap() as i32, s[2].as_i64().unwrap() as i32];
+                assert_eq!(ours.value_at(p).to_bits() as u64, s[5].as_u64().unwrap(), "{file} {name} value at {p:?}");
+                assert_eq!(ours.is_active(p), s[4].as_bool().unwrap(), "{file} {name} active at {p:?}");
+            }
+
+            // Resampled into a project grid whose cell centres are the voxel centres of the
+            // active bbox (plus a margin): exactly OpenVDB's values.
+            let h = ours.transform.scale;
+            let t = ours.transform.translation;
+            let margin = 2;
+            let lo_w = [0, 1, 2].map(|a| (t[a] + (lo[a] - margin) as f64 * h[a] - 0.5 * h[a]) as f32);
+            let res = [0, 1, 2].map(|a| (hi[a] - lo[a] + 1 + 2 * margin) as u32);
+            if res.iter().map(|r| *r as u64).product::<u64>() <= 2_000_000 {
+                let spec = GridSpec {
+                    min: Vec3::from_array(lo_w),
+                    max: Vec3::from_array([0, 1, 2].map(|a| lo_w[a] + (res[a] as f64 * h[a]) as f32)),
+                    resolution: UVec3::from_array(res),
+                };
+                let dense = resample_into(&spec, &ours, 2.0);
+                for s in g["samples"].as_array().unwrap() {
+                    let p = [0, 1, 2].map(|a| s[a].as_i64().unwrap() - (lo[a] - margin) as i64);
+                    if (0..3).all(|a| p[a] >= 0 && p[a] < res[a] as i64) {
+                        let v = dense[spec.index(p[0] as u32, p[1] as u32, p[2] as u32)];
+                        assert_eq!(v.to_bits(), (2.0 * f32::from_bits(s[5].as_u64().unwrap() as u32)).to_bits(), "{file} {name} resampled at {p:?}");
+                    }
+                }
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked >= 6, "only {checked} grids checked");
+    // With no name, `density` is picked.
+    let two = read_vdb_grid(&dir.path().join("two_grids.vdb"), None).unwrap();
+    assert_eq!(two.name, "density");
+    let err = read_vdb_grid(&dir.path().join("two_grids.vdb"), Some("smoke")).unwrap_err().to_string();
+    assert!(err.contains("no grid named \"smoke\"") && err.contains("temperature"), "{err}");
+
+    // Truncated copies of OpenVDB's blosc file: an error naming the file, never a panic.
+    let bytes = std::fs::read(dir.path().join("blob_blosc.vdb")).unwrap();
+    for cut in (0..bytes.len()).step_by(97) {
+        let r = fogsmith::export::vdb_read::read_vdb_grid_from_bytes(Path::new("cut.vdb"), &bytes[..cut], None);
+        let err = r.expect_err("a truncated file is refused").to_string();
+        assert!(err.starts_with("cut.vdb"), "{err}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Damaged files: clear errors, no panics, no huge allocations.
+
+fn our_file(opts: VdbOptions) -> Vec<u8> {
+    let ev = test_volume(CUBE_MIN, cube_max());
+    let grids = vec![VdbGrid::from_volume("density", &ev)];
+    fogsmith::export::vdb::encode_vdb(Path::new("x.vdb"), &grids, &opts).unwrap().0
+}
+
+#[test]
+fn damaged_files_give_errors_not_panics() {
+    use fogsmith::export::vdb_read::read_vdb_grid_from_bytes as read;
+    let p = Path::new("damaged.vdb");
+    for opts in [VdbOptions::default(), VdbOptions { compression: VdbCompression::None, half: true, ..Default::default() }] {
+        let good = our_file(opts);
+        assert!(read(p, &good, None).is_ok());
+        // Every truncation.
+        for cut in 0..good.len() {
+            if cut % 7 != 0 && cut > 400 {
+                continue;
+            }
+            let err = read(p, &good[..cut], None).expect_err("truncated").to_string();
+            assert!(err.starts_with("damaged.vdb: "), "{err}");
+        }
+        // Flipped bytes anywhere: Ok or Err, never a panic.
+        let mut x: u64 = 0x1234_5678;
+        for _ in 0..3000 {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let mut bad = good.clone();
+            let at = (x >> 33) as usize % bad.len();
+            bad[at] ^= 1 << ((x >> 20) % 8);
+            let _ = read(p, &bad, None);
+            bad[at] = 0xFF;
+            let _ = read(p, &bad, None);
+        }
+    }
+
+    // Huge declared sizes are refused before anything is allocated.
+    let good = our_file(VdbOptions::default());
+    let grid_count_at = 8 + 4 + 8 + 1 + 36 + 4 + 4 + "creator".len() + 4 + "string".len() + 4 + "fogsmith".len();
+    assert_eq!(&good[grid_count_at..grid_count_at + 4], &1u32.to_le_bytes());
+    let mut bad = good.clone();
+    bad[grid_count_at..grid_count_at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+    let err = read(p, &bad, None).unwrap_err().to_string();
+    assert!(err.contains("grid count") && err.contains("damaged.vdb"), "{err}");
+    // The grid name's length.
+    let mut bad = good.clone();
+    bad[grid_count_at + 4..grid_count_at + 8].copy_from_slice(&0xFFFF_FFF0u32.to_le_bytes());
+    let err = read(p, &bad, None).unwrap_err().to_string();
+    assert!(err.contains("are left") && err.contains("a grid name"), "{err}");
+    // A zip block claiming i64::MAX bytes: find the first zip block of a leaf (block pos).
+    let name_len = 4 + "density".len() + 4 + "Tree_float_5_4_3".len() + 4;
+    let offsets = grid_count_at + 4 + name_len;
+    let block_pos = i64::from_le_bytes(good[offsets + 8..offsets + 16].try_into().unwrap()) as usize;
+    let mut bad = good.clone();
+    let size_at = block_pos + 64 + 1;
+    bad[size_at..size_at + 8].copy_from_slice(&i64::MAX.to_le_bytes());
+    let err = read(p, &bad, None).unwrap_err().to_string();
+    assert!(err.contains("compressed block") && err.contains(&format!("at byte {size_at}")), "{err}");
+    // Offsets past the end.
+    let mut bad = good.clone();
+    bad[offsets..offsets + 8].copy_from_slice(&(1i64 << 50).to_le_bytes());
+    let err = read(p, &bad, None).unwrap_err().to_string();
+    assert!(err.contains("do not fit"), "{err}");
+    // Not a VDB at all.
+    let err = read(p, b"hello world, not a vdb", None).unwrap_err().to_string();
+    assert!(err.contains("not an OpenVDB file"), "{err}");
 }

@@ -3,9 +3,10 @@
 Usage: /usr/bin/python3 tests/vdb_check.py FILE.vdb NX NY NZ
 For every grid: name, value type, half flag, class, creator, light metadata, active voxel
 count (tiles included), leaf count, active bbox, voxel size, index->world of a few voxels,
-and the value OpenVDB's accessor returns at every voxel of [0,NX)x[0,NY)x[0,NZ), x fastest.
+and the float32 bit pattern of the value OpenVDB's accessor returns at every voxel of [0,NX)x[0,NY)x[0,NZ), x fastest.
 """
 import json
+import struct
 import sys
 
 import pyopenvdb as vdb
@@ -26,7 +27,7 @@ for g in grids:
     for k in range(nz):
         for j in range(ny):
             for i in range(nx):
-                values.append(acc.getValue((i, j, k)))
+                values.append(struct.unpack("<I", struct.pack("<f", acc.getValue((i, j, k))))[0])
                 active.append(acc.isValueOn((i, j, k)))
     out["grids"].append({
         "name": g.name,

@@ -35,7 +35,7 @@ use exr::prelude::*;
 use std::path::Path;
 
 /// Writes a linear RGBA image (row 0 at the top) as f32, or f16 when `half`.
-pub fn write_render_exr(path: &Path, width: usize, height: usize, rgba: &[[f32; 4]], half: bool) -> Result<(), ExportError> {
+pub fn write_render_exr(path: &Path, width: usize, height: usize, rgba: &[[f32; 4]], half: bool) -> std::result::Result<(), ExportError> {
     if width == 0 || height == 0 || rgba.len() != width.saturating_mul(height) {
         return Err(ExportError::invalid(
             path,
@@ -78,7 +78,7 @@ pub fn slice_channel_name(name: &str, k: u32, slices: u32) -> String {
 
 /// Writes every volume's z-slices into one multi-layer EXR (see the module doc for the
 /// naming). All volumes must share one grid.
-pub fn write_slices_exr(path: &Path, volumes: &[(&str, &Volume)]) -> Result<(), ExportError> {
+pub fn write_slices_exr(path: &Path, volumes: &[(&str, &Volume)]) -> std::result::Result<(), ExportError> {
     let Some((_, first)) = volumes.first() else {
         return Err(ExportError::invalid(path, "no volume to export", "pass at least one volume"));
     };
@@ -163,7 +163,7 @@ impl std::fmt::Display for AtlasLayout {
 
 /// Writes the z-slices of `volume` tiled in a 2D atlas (see the module doc) and returns the
 /// layout, which is also stored in the header.
-pub fn write_atlas_exr(path: &Path, volume: &Volume) -> Result<AtlasLayout, ExportError> {
+pub fn write_atlas_exr(path: &Path, volume: &Volume) -> std::result::Result<AtlasLayout, ExportError> {
     let grid = volume.grid;
     if volume.data.len() as u64 != grid.cell_count() {
         return Err(ExportError::invalid(path, "the volume's data does not match its grid", "pass a complete volume"));
@@ -207,7 +207,7 @@ fn text_or_empty(s: &str) -> Text {
     Text::new_or_none(s).unwrap_or_else(|| Text::new_or_panic(""))
 }
 
-fn check_name(path: &Path, name: &str) -> Result<(), ExportError> {
+fn check_name(path: &Path, name: &str) -> std::result::Result<(), ExportError> {
     let ok = !name.is_empty() && name.len() <= 200 && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
     if ok {
         Ok(())
@@ -216,7 +216,7 @@ fn check_name(path: &Path, name: &str) -> Result<(), ExportError> {
     }
 }
 
-fn check_size(path: &Path, w: usize, h: usize) -> Result<(), ExportError> {
+fn check_size(path: &Path, w: usize, h: usize) -> std::result::Result<(), ExportError> {
     if w == 0 || h == 0 || w > i32::MAX as usize / 2 || h > i32::MAX as usize / 2 {
         return Err(ExportError::invalid(path, format!("an image of {w}×{h} pixels cannot be written"), "use a grid with a positive, smaller resolution"));
     }

@@ -578,10 +578,11 @@ fn read_internal(
         let n = n as i32;
         let l = log2 as i32;
         let dim = (1i32 << l) - 1;
+        // Wrapping, as OpenVDB's coordinates do, so that no origin in a file can overflow.
         [
-            origin[0] + (((n >> (2 * l)) & dim) << child_total),
-            origin[1] + (((n >> l) & dim) << child_total),
-            origin[2] + ((n & dim) << child_total),
+            origin[0].wrapping_add(((n >> (2 * l)) & dim) << child_total),
+            origin[1].wrapping_add(((n >> l) & dim) << child_total),
+            origin[2].wrapping_add((n & dim) << child_total),
         ]
     };
     for n in 0..size {
@@ -674,25 +675,28 @@ fn read_data(cur: &mut Cursor, compression: u32, expected: usize) -> Result<Vec<
     if compression & (COMPRESS_BLOSC | COMPRESS_ZIP) == 0 {
         return Ok(cur.take(expected, "a value block")?.to_vec());
     }
+    let size_at = cur.pos;
     let n = cur.i64("a compressed block's size")?;
     if n <= 0 {
-        let raw = n.unsigned_abs() as usize;
-        if raw != expected {
+        let raw = n.unsigned_abs();
+        if raw != expected as u64 {
+            cur.pos = size_at;
             return Err(cur.corrupt(format!("an uncompressed block holds {raw} bytes, expected {expected}")));
         }
-        return Ok(cur.take(raw, "a value block")?.to_vec());
+        return Ok(cur.take(expected, "a value block")?.to_vec());
     }
     let n = n as u64;
     if n > cur.remaining() as u64 {
-        return Err(cur.corrupt(format!("a compressed block of {n} bytes is longer than the {} bytes left", cur.remaining())));
+        let left = cur.remaining();
+        cur.pos = size_at;
+        return Err(cur.corrupt(format!("a compressed block of {n} bytes is longer than the {left} bytes left")));
     }
     let start = cur.pos;
     let src = cur.take(n as usize, "a compressed block")?;
     let result = if compression & COMPRESS_BLOSC != 0 { blosc_decompress(src, expected) } else { zlib_decompress(src, expected) };
     result.map_err(|problem| {
-        let mut c = Cursor { path: cur.path, bytes: cur.bytes, pos: start, version: cur.version, grid: cur.grid.clone() };
-        c.pos = start;
-        c.corrupt(problem)
+        cur.pos = start;
+        cur.corrupt(problem)
     })
 }
 
