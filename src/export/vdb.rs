@@ -246,13 +246,33 @@ pub struct VdbGridStats {
 
 /// Writes `grids` to `path` as an OpenVDB file, atomically (temporary file + rename).
 pub fn write_vdb(path: &Path, grids: &[VdbGrid], opts: &VdbOptions) -> Result<VdbStats, ExportError> {
-    let (bytes, stats) = encode_vdb(path, grids, opts)?;
+    write_vdb_with_progress(path, grids, opts, &mut |_| {})
+}
+
+/// [`write_vdb`] reporting progress in [0, 1] (for the editor's background export).
+pub fn write_vdb_with_progress(
+    path: &Path,
+    grids: &[VdbGrid],
+    opts: &VdbOptions,
+    progress: &mut dyn FnMut(f32),
+) -> Result<VdbStats, ExportError> {
+    let (bytes, stats) = encode_vdb_with_progress(path, grids, opts, progress)?;
     write_bytes_atomic(path, &bytes)?;
+    progress(1.0);
     Ok(stats)
 }
 
 /// Encodes the file in memory (what [`write_vdb`] writes); `path` only names errors.
 pub fn encode_vdb(path: &Path, grids: &[VdbGrid], opts: &VdbOptions) -> Result<(Vec<u8>, VdbStats), ExportError> {
+    encode_vdb_with_progress(path, grids, opts, &mut |_| {})
+}
+
+fn encode_vdb_with_progress(
+    path: &Path,
+    grids: &[VdbGrid],
+    opts: &VdbOptions,
+    progress: &mut dyn FnMut(f32),
+) -> Result<(Vec<u8>, VdbStats), ExportError> {
     if !(opts.threshold >= 0.0) {
         return Err(ExportError::invalid(path, format!("threshold {} is negative or NaN", opts.threshold), "use a threshold >= 0"));
     }
@@ -293,9 +313,16 @@ pub fn encode_vdb(path: &Path, grids: &[VdbGrid], opts: &VdbOptions) -> Result<(
     put_u32(&mut out, grids.len() as u32);
 
     let mut stats = VdbStats::default();
+    // Progress counts 8-cell slabs of z, over all grids.
+    let total: u64 = grids.iter().map(|g| g.spec.resolution.z.div_ceil(8) as u64).sum::<u64>().max(1);
+    let mut done = 0u64;
     for g in grids {
         let start = out.len();
-        let mut s = encode_grid(&mut out, g, opts);
+        let mut tick = || {
+            done += 1;
+            progress(done as f32 / total as f32 * 0.99);
+        };
+        let mut s = encode_grid(&mut out, g, opts, &mut tick);
         s.bytes = (out.len() - start) as u64;
         stats.grids.push(s);
     }
@@ -336,7 +363,7 @@ struct Tree {
     bbox: Option<([i32; 3], [i32; 3])>,
 }
 
-fn build_tree(g: &VdbGrid, opts: &VdbOptions) -> Tree {
+fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
     let r = g.spec.resolution;
     let (nx, ny, nz) = (r.x as i32, r.y as i32, r.z as i32);
     let mut tree = Tree { roots: BTreeMap::new(), active: 0, leaves: 0, tiles: 0, bbox: None };
@@ -411,6 +438,7 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions) -> Tree {
             oy += 8;
         }
         oz += 8;
+        tick();
     }
     tree
 }
@@ -418,8 +446,8 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions) -> Tree {
 // ---------------------------------------------------------------------------------------
 // Encoding
 
-fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions) -> VdbGridStats {
-    let tree = build_tree(g, opts);
+fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> VdbGridStats {
+    let tree = build_tree(g, opts, tick);
     let half = opts.half;
     let mut flags = COMPRESS_ACTIVE_MASK;
     if opts.compression == VdbCompression::Zip {
@@ -635,4 +663,50 @@ fn make_uuid() -> String {
         b >> 48,
         b & 0xFFFF_FFFF_FFFF
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{UVec3, Vec3};
+
+    #[test]
+    fn uuid_looks_like_a_uuid_and_differs() {
+        let a = make_uuid();
+        let b = make_uuid();
+        assert_eq!(a.len(), 36);
+        assert_ne!(a, b);
+        assert_eq!(a.as_bytes()[14], b'4');
+    }
+
+    #[test]
+    fn transform_maps_index_to_cell_centres() {
+        let spec = GridSpec { min: Vec3::new(-1.0, 0.0, 2.0), max: Vec3::new(1.0, 1.0, 2.5), resolution: UVec3::new(8, 4, 2) };
+        let (s, t) = transform_of(&spec);
+        assert_eq!(s, [0.25; 3]);
+        assert_eq!(t, [-0.875, 0.125, 2.125]);
+        let spec = GridSpec { resolution: UVec3::new(8, 8, 2), ..spec };
+        assert_eq!(transform_of(&spec).0, [0.25, 0.125, 0.25]);
+    }
+
+    #[test]
+    fn progress_reaches_one_and_bad_input_is_refused() {
+        let spec = GridSpec { min: Vec3::ZERO, max: Vec3::ONE, resolution: UVec3::new(4, 4, 20) };
+        let v = Volume::new(spec, vec![1.0; 320]);
+        let dir = std::env::temp_dir().join(format!("fogsmith-vdb-unit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("p.vdb");
+        let mut seen = Vec::new();
+        write_vdb_with_progress(&path, &[VdbGrid::from_volume("density", &v)], &VdbOptions::default(), &mut |p| seen.push(p)).unwrap();
+        assert_eq!(seen.last(), Some(&1.0));
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]));
+        let twice = [VdbGrid::from_volume("density", &v), VdbGrid::from_volume("density", &v)];
+        let err = write_vdb(&dir.join("q.vdb"), &twice, &VdbOptions::default()).unwrap_err().to_string();
+        assert!(err.contains("q.vdb") && err.contains("two grids"), "{err}");
+        assert!(!dir.join("q.vdb").exists());
+        // A folder that does not exist: an error naming the file, and no partial file.
+        let err = write_vdb(&dir.join("missing/r.vdb"), &twice[..1], &VdbOptions::default()).unwrap_err().to_string();
+        assert!(err.contains("r.vdb") && err.contains("cannot write"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

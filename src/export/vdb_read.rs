@@ -33,7 +33,7 @@
 
 use super::vdb::{COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP, VDB_MAGIC};
 use super::ExportError;
-use crate::scene::GridSpec;
+use crate::scene::{GridSpec, Volume};
 use std::collections::HashMap;
 use std::io::Read;
 use std::path::Path;
@@ -217,6 +217,16 @@ fn sample(vdb: &VdbFloatGrid, p: [f64; 3]) -> f32 {
         }
     }
     acc as f32
+}
+
+/// Imports a density grid as a base layer: reads grid `name` (see [`read_vdb_grid`]) and
+/// resamples it into `target`'s cells, times `scale` (what a project's `base_volume` does).
+pub fn import_density(path: &Path, name: Option<&str>, target: &GridSpec, scale: f32) -> Result<Volume, ExportError> {
+    if !scale.is_finite() || scale < 0.0 {
+        return Err(ExportError::invalid(path, format!("import scale {scale} is negative or not finite"), "use a scale >= 0"));
+    }
+    let grid = read_vdb_grid(path, name)?;
+    Ok(Volume { grid: *target, data: resample_into(target, &grid, scale) })
 }
 
 /// Lists the grids of a VDB file.
@@ -811,4 +821,89 @@ fn blosc_decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A blosc chunk as c-blosc lays it out, built by hand: one block, LZ4, byte shuffle.
+    fn blosc_chunk(data: &[u8], typesize: usize, split: bool, flags_extra: u8) -> Vec<u8> {
+        let n = data.len() / typesize;
+        let mut shuffled = vec![0u8; data.len()];
+        for i in 0..n {
+            for b in 0..typesize {
+                shuffled[b * n + i] = data[i * typesize + b];
+            }
+        }
+        let mut out = vec![2u8, 1, 0x01 | (1 << 5) | flags_extra | if split { 0 } else { 0x10 }, typesize as u8];
+        out.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        out.extend_from_slice(&(data.len() as u32).to_le_bytes()); // one block
+        out.extend_from_slice(&0u32.to_le_bytes()); // cbytes, patched below
+        out.extend_from_slice(&20u32.to_le_bytes()); // block 0 starts after the table
+        let streams = if split { typesize } else { 1 };
+        let len = data.len() / streams;
+        for s in 0..streams {
+            let c = lz4_flex::block::compress(&shuffled[s * len..(s + 1) * len]);
+            out.extend_from_slice(&(c.len() as i32).to_le_bytes());
+            out.extend_from_slice(&c);
+        }
+        let total = out.len() as u32;
+        out[12..16].copy_from_slice(&total.to_le_bytes());
+        out
+    }
+
+    fn floats() -> Vec<u8> {
+        (0..512).flat_map(|i| ((i / 7) as f32 * 0.25).to_le_bytes()).collect()
+    }
+
+    #[test]
+    fn blosc_lz4_shuffled_split_and_unsplit() {
+        let data = floats();
+        for split in [false, true] {
+            let chunk = blosc_chunk(&data, 4, split, 0);
+            assert_eq!(blosc_decompress(&chunk, data.len()).unwrap(), data, "split {split}");
+        }
+    }
+
+    #[test]
+    fn blosc_memcpyed_and_errors() {
+        let data = floats();
+        let mut raw = vec![2u8, 1, 0x02 | 0x01, 4];
+        raw.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        raw.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        raw.extend_from_slice(&((data.len() + 16) as u32).to_le_bytes());
+        raw.extend_from_slice(&data);
+        assert_eq!(blosc_decompress(&raw, data.len()).unwrap(), data);
+        // Wrong size, truncation, bitshuffle, other codecs: errors.
+        assert!(blosc_decompress(&raw, 16).unwrap_err().contains("expected 16"));
+        let chunk = blosc_chunk(&data, 4, true, 0);
+        for cut in 0..chunk.len() {
+            assert!(blosc_decompress(&chunk[..cut], data.len()).is_err());
+        }
+        assert!(blosc_decompress(&blosc_chunk(&data, 4, true, 0x04), data.len()).unwrap_err().contains("bitshuffle"));
+        let mut zstd = blosc_chunk(&data, 4, true, 0);
+        zstd[2] = (zstd[2] & 0x1f) | (4 << 5);
+        assert!(blosc_decompress(&zstd, data.len()).unwrap_err().contains("zstd"));
+    }
+
+    #[test]
+    fn trilinear_between_voxel_centres() {
+        let mut g = VdbFloatGrid {
+            name: "t".into(),
+            background: 0.0,
+            transform: VdbTransform { scale: [0.5; 3], translation: [0.0; 3] },
+            half: false,
+            metadata: Vec::new(),
+            leaves: HashMap::new(),
+            tiles: HashMap::new(),
+        };
+        g.tiles.insert((1, [0, 0, 0]), (2.0, true));
+        // Between voxel 7 (inside the tile) and 8 (background): the mean.
+        assert_eq!(sample(&g, [7.5, 3.0, 3.0]), 1.0);
+        assert_eq!(sample(&g, [3.0, 3.0, 3.0]), 2.0);
+        assert_eq!(sample(&g, [f64::NAN, 0.0, 0.0]), 0.0);
+        assert_eq!(g.active_voxel_count(), 512);
+        assert_eq!(g.active_bbox(), Some(([0; 3], [7; 3])));
+    }
 }
