@@ -5,6 +5,7 @@
 //!   readback, timings.
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
+//! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
 
 pub mod export;
 pub mod scene;

@@ -85,8 +85,8 @@ fn render_exr_float_and_half() {
                 FlatSamples::F32(v) if !half => v.clone(),
                 other => panic!("{name}: wrong sample type {other:?}"),
             };
-            for n in 0..w * h {
-                assert_eq!(values[n], want(n, c), "{name} pixel {n}");
+            for (n, v) in values.iter().enumerate() {
+                assert_eq!(*v, want(n, c), "{name} pixel {n}");
             }
         }
         if let Some(header) = exrheader(&path) {
@@ -99,8 +99,9 @@ fn render_exr_float_and_half() {
                 let ch = &o["channels"][*name];
                 assert_eq!(ch["type"], if half { "float16" } else { "float32" });
                 let values = ch["values"].as_array().unwrap();
-                for n in 0..w * h {
-                    assert_eq!(values[n].as_f64().unwrap() as f32, want(n, c), "OpenEXR {name} pixel {n}");
+                assert_eq!(values.len(), w * h);
+                for (n, v) in values.iter().enumerate() {
+                    assert_eq!(v.as_f64().unwrap() as f32, want(n, c), "OpenEXR {name} pixel {n}");
                 }
             }
         }

@@ -80,7 +80,7 @@ fn f(v: &Value) -> f64 {
 
 /// What a voxel reads back as after export with `opts`.
 fn expected(v: f32, bg: f32, opts: &VdbOptions) -> (f32, bool) {
-    let active = !((v - bg).abs() <= opts.threshold);
+    let active = (v - bg).abs() > opts.threshold || (v - bg).is_nan();
     let stored = if active { v } else { bg };
     (if opts.half { half_round(stored) } else { stored }, active)
 }

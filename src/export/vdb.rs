@@ -273,7 +273,7 @@ fn encode_vdb_with_progress(
     opts: &VdbOptions,
     progress: &mut dyn FnMut(f32),
 ) -> Result<(Vec<u8>, VdbStats), ExportError> {
-    if !(opts.threshold >= 0.0) {
+    if opts.threshold.is_nan() || opts.threshold < 0.0 {
         return Err(ExportError::invalid(path, format!("threshold {} is negative or NaN", opts.threshold), "use a threshold >= 0"));
     }
     for (n, g) in grids.iter().enumerate() {
@@ -295,7 +295,7 @@ fn encode_vdb_with_progress(
             return Err(ExportError::invalid(path, format!("grid {:?} resolution {r} is too large for a VDB index", g.name), "use a smaller grid"));
         }
         let h = g.spec.cell_size();
-        if !(h.x > 0.0 && h.y > 0.0 && h.z > 0.0) || !h.is_finite() || !g.spec.min.is_finite() {
+        if !(h.x > 0.0 && h.y > 0.0 && h.z > 0.0 && h.is_finite() && g.spec.min.is_finite()) {
             return Err(ExportError::invalid(path, format!("grid {:?} has a degenerate box (cell size {h})", g.name), "give the grid a box with max > min"));
         }
     }
@@ -368,7 +368,8 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
     let (nx, ny, nz) = (r.x as i32, r.y as i32, r.z as i32);
     let mut tree = Tree { roots: BTreeMap::new(), active: 0, leaves: 0, tiles: 0, bbox: None };
     let bg = g.background;
-    let is_active = |v: f32| !((v - bg).abs() <= opts.threshold);
+    // NaN differences compare false: NaN voxels are active.
+    let is_active = |v: f32| (v - bg).abs() > opts.threshold || (v - bg).is_nan();
     let mut oz = 0;
     while oz < nz {
         let mut oy = 0;
