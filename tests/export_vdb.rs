@@ -185,6 +185,44 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
     }
 }
 
+/// A grid longer than one root node (4096 voxels) and an empty grid: several root children
+/// in OpenVDB's order, and a tree with none.
+#[test]
+fn openvdb_reads_several_root_nodes_and_an_empty_grid() {
+    let grid = GridSpec { min: Vec3::new(-100.0, 0.0, 0.0), max: Vec3::new(105.0, 0.1, 0.05), resolution: UVec3::new(4100, 2, 1) };
+    let mut data = vec![0.0f32; grid.cell_count() as usize];
+    for (n, i) in [0u32, 7, 8, 4095, 4096, 4099].into_iter().enumerate() {
+        data[grid.index(i, 1, 0)] = 1.0 + n as f32;
+    }
+    let long = Volume::new(grid, data);
+    let empty = Volume::new(grid, vec![0.0; grid.cell_count() as usize]);
+    let grids = vec![VdbGrid::from_volume("density", &long), VdbGrid::from_volume("empty", &empty)];
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("long.vdb");
+    let stats = write_vdb(&path, &grids, &VdbOptions::default()).unwrap();
+    assert_eq!(stats.grids[0].active_voxels, 6);
+    assert_eq!(stats.grids[0].leaves, 4); // leaves at x = 0, 8, 4088, 4096
+    assert_eq!(stats.grids[1].active_voxels, 0);
+    let back = read_vdb_grid(&path, Some("density")).unwrap();
+    assert_eq!(back.value_at([4099, 1, 0]), 6.0);
+    assert_eq!(back.active_bbox(), Some(([0, 1, 0], [4099, 1, 0])));
+    let e = read_vdb_grid(&path, Some("empty")).unwrap();
+    assert_eq!((e.active_voxel_count(), e.active_bbox(), e.value_at([5, 1, 0])), (0, None, 0.0));
+    if !openvdb_available() {
+        return;
+    }
+    let report = run_check(&path, &grid);
+    let g = &report["grids"].as_array().unwrap().iter().find(|g| g["name"] == "density").unwrap();
+    assert_eq!(g["active"], 6);
+    let values = g["values"].as_array().unwrap();
+    for (n, v) in long.data.iter().enumerate() {
+        assert_eq!(values[n].as_u64().unwrap() as u32, v.to_bits(), "cell {n}");
+    }
+    let e = &report["grids"].as_array().unwrap().iter().find(|g| g["name"] == "empty").unwrap();
+    assert_eq!(e["active"], 0);
+    assert_eq!(e["leaves"], 0);
+}
+
 const CUBE_MIN: Vec3 = Vec3::new(-1.0, 0.5, 2.0);
 fn cube_max() -> Vec3 {
     CUBE_MIN + 0.125 * Vec3::new(37.0, 20.0, 17.0)

@@ -184,6 +184,27 @@ impl Default for GridSelection {
     }
 }
 
+impl std::str::FromStr for GridSelection {
+    type Err = String;
+    /// Parses the CLI's `--grids density,optical_depth,transmittance` (any subset, in any
+    /// order, at least one).
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut sel = GridSelection { density: false, optical_depth: false, transmittance: false };
+        for word in s.split(',').map(str::trim).filter(|w| !w.is_empty()) {
+            match word {
+                "density" => sel.density = true,
+                "optical_depth" => sel.optical_depth = true,
+                "transmittance" => sel.transmittance = true,
+                other => return Err(format!("unknown grid {other:?}: use density, optical_depth and/or transmittance, comma-separated")),
+            }
+        }
+        if sel == (GridSelection { density: false, optical_depth: false, transmittance: false }) {
+            return Err("no grid selected: use density, optical_depth and/or transmittance, comma-separated".into());
+        }
+        Ok(sel)
+    }
+}
+
 /// The standard grid list: `density` from the EV, and per light `optical_depth_<i>` and
 /// (optionally) `transmittance_<i>` = exp(−T) with background 1, each light grid carrying
 /// the light's metadata.
@@ -670,6 +691,16 @@ fn make_uuid() -> String {
 mod tests {
     use super::*;
     use glam::{UVec3, Vec3};
+
+    #[test]
+    fn grid_selection_parses() {
+        let all: GridSelection = "density, optical_depth,transmittance".parse().unwrap();
+        assert!(all.density && all.optical_depth && all.transmittance);
+        let t: GridSelection = "transmittance".parse().unwrap();
+        assert!(!t.density && !t.optical_depth && t.transmittance);
+        assert!("density,smoke".parse::<GridSelection>().unwrap_err().contains("\"smoke\""));
+        assert!("".parse::<GridSelection>().is_err());
+    }
 
     #[test]
     fn uuid_looks_like_a_uuid_and_differs() {
