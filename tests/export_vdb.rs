@@ -350,6 +350,18 @@ fn imports_files_written_by_openvdb() {
         let err = r.expect_err("a truncated file is refused").to_string();
         assert!(err.starts_with("cut.vdb"), "{err}");
     }
+    // Flipped bytes in OpenVDB's blosc and half files: Ok or Err, never a panic.
+    for file in ["blob_blosc.vdb", "blob_half.vdb"] {
+        let bytes = std::fs::read(dir.path().join(file)).unwrap();
+        let mut x: u64 = 99;
+        for _ in 0..1500 {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let mut bad = bytes.clone();
+            let at = (x >> 33) as usize % bad.len();
+            bad[at] ^= 1 << ((x >> 20) % 8);
+            let _ = fogsmith::export::vdb_read::read_vdb_grid_from_bytes(Path::new(file), &bad, None);
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------

@@ -72,7 +72,7 @@ use std::path::Path;
 
 /// OpenVDB's file magic, " BDV" as an i64.
 pub const VDB_MAGIC: i64 = 0x5644_4220;
-/// The file format version written (OpenVDB 6 to 12 write 224).
+/// The file format version written: 224, what OpenVDB 10 (and every release since 4.0) writes.
 pub const VDB_FILE_VERSION: u32 = 224;
 /// Compression flag: zlib.
 pub const COMPRESS_ZIP: u32 = 1;

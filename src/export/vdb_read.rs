@@ -26,7 +26,7 @@
 //!
 //! # What it reads
 //!
-//! File format versions 222 to 224 (OpenVDB 3 to 12), grids of type `Tree_float_5_4_3`
+//! File format versions 222 to 224 (OpenVDB 3.0 and later; OpenVDB 10 writes 224), grids of type `Tree_float_5_4_3`
 //! (float) and `Tree_float_5_4_3_HalfFloat`; value blocks uncompressed, zip, or blosc with the
 //! LZ4 or zlib codec and byte shuffle (what OpenVDB writes). Transforms: uniform scale, scale,
 //! translation, scale+translate and axis-aligned affine maps. Everything else — other value
@@ -39,7 +39,7 @@
 //! The whole file is read into memory (bounded by its real size); every count and size read
 //! from it is checked against the bytes left before anything is allocated, decompressed blocks
 //! have a fixed expected size (at most 32768 values) and a grid may hold at most
-//! [`MAX_LEAVES`] leaves. Nothing here panics on any input.
+//! [`MAX_LEAVES`] leaves and [`MAX_TILES`] tiles. Nothing here panics on any input.
 
 use super::vdb::{COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP, VDB_MAGIC};
 use super::ExportError;
@@ -48,8 +48,10 @@ use std::collections::HashMap;
 use std::io::Read;
 use std::path::Path;
 
-/// Most leaves (8³ voxels) one imported grid may have: 2²⁰ leaves = 512 M voxels (2 GiB).
-pub const MAX_LEAVES: usize = 1 << 20;
+/// Most leaves (8³ voxels) one imported grid may have: 2¹⁹ leaves = 268 M voxels (1 GiB).
+pub const MAX_LEAVES: usize = 1 << 19;
+/// Most tiles (constant blocks) one imported grid may keep: 2²² (about 200 MB of table).
+pub const MAX_TILES: usize = 1 << 22;
 
 /// A grid's entry in a file's table of contents.
 #[derive(Clone, Debug, PartialEq)]
@@ -406,7 +408,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<FileHeader, ExportError> {
     if !(222..=224).contains(&version) {
         return Err(ExportError::unsupported(
             path,
-            format!("OpenVDB file format version {version} is not supported (this reader knows versions 222 to 224, written by OpenVDB 3 to 12)"),
+            format!("OpenVDB file format version {version} is not supported (this reader knows versions 222 to 224, written by OpenVDB 3.0 and later)"),
             "re-save the file with a current OpenVDB, Houdini or Blender",
         ));
     }
@@ -612,6 +614,13 @@ fn read_internal(
         }
         let active = value_mask[n >> 6] >> (n & 63) & 1 == 1;
         if active || values[n] != ctx.background {
+            if tiles.len() >= MAX_TILES {
+                return Err(ExportError::unsupported(
+                    cur.path,
+                    format!("grid {:?} has more than {MAX_TILES} tiles, too many to import", cur.grid),
+                    "prune or resample the grid before importing it",
+                ));
+            }
             tiles.insert((level, offset(n)), (values[n], active));
         }
     }
