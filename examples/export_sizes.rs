@@ -118,6 +118,12 @@ fn main() {
             "| {name} | {grid} | 1 | VDB density only, float, zip | {} | {} | {} | {} | {:.1} |",
             stats.bytes, stats.grids[0].active_voxels, stats.grids[0].leaves, stats.grids[0].tiles, t0.elapsed().as_secs_f64() * 1e3
         );
+        // Import it back as a base layer (read + resample onto the same grid).
+        let t0 = Instant::now();
+        let imported = fogsmith::export::vdb_read::import_density(&out, Some("density"), &project.grid, 1.0).expect("import");
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        assert_eq!(imported.data, ev.data, "import gives the EV back exactly");
+        println!("| {name} | {grid} | 1 | import density (read + resample, exact) | {} | | | | {ms:.1} |", stats.bytes);
         let mut named: Vec<(String, &Volume)> = vec![("density".into(), &ev)];
         named.extend(opvs.iter().enumerate().map(|(i, v)| (format!("optical_depth_{i}"), v)));
         let named_refs: Vec<(&str, &Volume)> = named.iter().map(|(n, v)| (n.as_str(), *v)).collect();

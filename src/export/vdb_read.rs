@@ -408,7 +408,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<FileHeader, ExportError> {
     if !(222..=224).contains(&version) {
         return Err(ExportError::unsupported(
             path,
-            format!("OpenVDB file format version {version} is not supported (this reader knows versions 222 to 224, written by OpenVDB 3.0 and later)"),
+            format!("OpenVDB file format version {version} is not supported (this reader knows versions 222 to 224)"),
             "re-save the file with a current OpenVDB, Houdini or Blender",
         ));
     }
