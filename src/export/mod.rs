@@ -69,7 +69,10 @@ pub(crate) fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<(), 
         _ => PathBuf::from("."),
     };
     let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "export".into());
-    let tmp = dir.join(format!(".{}.{}.tmp", file_name, std::process::id()));
+    // Unique per process and per call, so that two exports to one destination never share it.
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = dir.join(format!(".{}.{}-{}.tmp", file_name, std::process::id(), n));
     let result = write(&tmp).and_then(|()| {
         std::fs::rename(&tmp, path).map_err(|source| ExportError::Write { path: path.to_path_buf(), source })
     });

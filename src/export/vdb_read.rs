@@ -792,7 +792,8 @@ fn blosc_decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         return Err("blosc block table is truncated".into());
     }
     let mut out = vec![0u8; nbytes];
-    let mut tmp = vec![0u8; blocksize];
+    // No block is larger than the buffer (a larger declared block size means one leftover block).
+    let mut tmp = vec![0u8; blocksize.min(nbytes)];
     for b in 0..nblocks {
         let is_leftover = b == nblocks - 1 && leftover > 0;
         let bsize = if is_leftover { leftover } else { blocksize };
@@ -896,6 +897,11 @@ mod tests {
         assert_eq!(blosc_decompress(&raw, data.len()).unwrap(), data);
         // Wrong size, truncation, bitshuffle, other codecs: errors.
         assert!(blosc_decompress(&raw, 16).unwrap_err().contains("expected 16"));
+        // A huge declared block size allocates nothing big: here it makes the data one
+        // unsplit leftover block, which does not decode.
+        let mut big = blosc_chunk(&data, 4, true, 0);
+        big[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(blosc_decompress(&big, data.len()).is_err());
         let chunk = blosc_chunk(&data, 4, true, 0);
         for cut in 0..chunk.len() {
             assert!(blosc_decompress(&chunk[..cut], data.len()).is_err());
