@@ -6,7 +6,7 @@ struct GridParams {
     max: vec3f,
     light_count: u32,
     cell: vec3f,
-    cutoff_epsilon: f32,
+    has_base_layer: u32,
     dims: vec3u,
     _pad: u32,
 }

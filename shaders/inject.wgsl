@@ -17,6 +17,8 @@ struct ParticleGpu {
 @group(0) @binding(3) var<storage, read> brick_items: array<u32>;
 @group(0) @binding(4) var ev: texture_storage_3d<r32float, write>;
 @group(0) @binding(5) var<storage, read> dirty_bricks: array<u32>;
+// An imported density layer (e.g. from a VDB file) under the particles, when has_base_layer.
+@group(0) @binding(6) var<storage, read> base_layer: array<f32>;
 
 const BRICK: u32 = 8u;
 
@@ -39,5 +41,9 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
             sum += p.density * exp(-d2 * p.inv_r2);
         }
     }
-    textureStore(ev, id, vec4f(grid.base_extinction + sum, 0.0, 0.0, 0.0));
+    var layer = 0.0;
+    if grid.has_base_layer != 0u {
+        layer = base_layer[linear_index(id)];
+    }
+    textureStore(ev, id, vec4f(grid.base_extinction + layer + sum, 0.0, 0.0, 0.0));
 }

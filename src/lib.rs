@@ -5,10 +5,12 @@
 //!   readback, timings.
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
+//! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
 
-pub mod reference;
-pub mod scene;
 pub mod cli;
+pub mod export;
 pub mod gpu;
 pub mod measure;
 pub mod output;
+pub mod reference;
+pub mod scene;

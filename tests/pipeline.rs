@@ -207,3 +207,34 @@ fn moving_one_particle_reinjects_only_its_bricks() {
     assert_eq!(rename_only.counters.cells_injected, 0, "renaming does not touch the EV");
     assert_eq!(rename_only.counters.lights_propagated, 0);
 }
+
+#[test]
+fn an_imported_base_layer_adds_under_the_particles() {
+    use fogsmith::export::vdb::{write_vdb, VdbGrid, VdbOptions};
+    let mut gpu = pipeline();
+    let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9)]);
+    gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    let without = gpu.read_ev().unwrap();
+
+    // A layer written as a VDB on the project's own grid, read back through the importer.
+    let layer: Vec<f32> = (0..p.grid.cell_count()).map(|i| (i % 7) as f32 * 0.25).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = dir.path().join("layer.vdb");
+    let volume = fogsmith::scene::Volume::new(p.grid, layer.clone());
+    write_vdb(&vdb, &[VdbGrid::from_volume("density", &volume)], &VdbOptions::default()).unwrap();
+    p.base_volume = Some(fogsmith::scene::BaseVolume { path: "layer.vdb".into(), grid: "density".into(), scale: 2.0 });
+    let project_file = dir.path().join("fog.ron");
+    let loaded = fogsmith::export::load_base_layer(&p, Some(&project_file)).unwrap();
+    gpu.set_base_layer(loaded);
+    let report = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    assert_eq!(report.counters.cells_injected, p.grid.cell_count(), "a new layer re-injects everything");
+    let with = gpu.read_ev().unwrap();
+    for i in 0..layer.len() {
+        let want = without.data[i] + 2.0 * layer[i];
+        assert!((with.data[i] - want).abs() <= 1e-5 * want.max(1.0), "cell {i}: {} vs {want}", with.data[i]);
+    }
+
+    p.base_volume.as_mut().unwrap().path = "missing.vdb".into();
+    let err = fogsmith::export::load_base_layer(&p, Some(&project_file)).unwrap_err().to_string();
+    assert!(err.contains("missing.vdb"), "{err}");
+}

@@ -10,7 +10,7 @@ pub struct GridParams {
     pub max: [f32; 3],
     pub light_count: u32,
     pub cell: [f32; 3],
-    pub cutoff_epsilon: f32,
+    pub has_base_layer: u32,
     pub dims: [u32; 3],
     pub _pad: u32,
 }

@@ -101,8 +101,8 @@ struct ImageResources {
 /// What the GPU currently holds, to decide what a new project state invalidates.
 #[derive(Default)]
 struct Baked {
-    /// Grid, base extinction and particles of the EV on the GPU.
-    ev_inputs: Option<(GridSpec, f32, Vec<Particle>)>,
+    /// Grid, base extinction, base layer generation and particles of the EV on the GPU.
+    ev_inputs: Option<(GridSpec, f32, u64, Vec<Particle>)>,
     /// Per light: position baked into its OPV and the EV generation it used.
     opv_inputs: Vec<Option<(glam::Vec3, u64, Scheme, u32)>>,
     ev_generation: u64,
@@ -125,6 +125,9 @@ pub struct FogPipeline {
     image: Option<ImageResources>,
     baked: Baked,
     last_report: FrameReport,
+    /// Imported density added under the particles, and a counter bumped when it changes.
+    base_layer: Option<(Volume, wgpu::Buffer)>,
+    base_layer_generation: u64,
 }
 
 pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -156,6 +159,7 @@ impl FogPipeline {
                 Slot::StorageRead,
                 Slot::StorageRead,
                 Slot::StorageTexture3d(wgpu::TextureFormat::R32Float),
+                Slot::StorageRead,
                 Slot::StorageRead,
             ],
         );
@@ -199,6 +203,8 @@ impl FogPipeline {
             image: None,
             baked: Baked::default(),
             last_report: FrameReport::default(),
+            base_layer: None,
+            base_layer_generation: 0,
         }
     }
 
@@ -265,6 +271,13 @@ impl FogPipeline {
             .validate(self.ctx.max_grid_edge())
             .map_err(|e| GpuError::Invalid(e.to_string()))?;
         self.check_limits(project, request.width, request.height)?;
+        if let Some((v, _)) = &self.base_layer {
+            if v.grid != project.grid {
+                return Err(GpuError::Invalid(
+                    "the base layer was resampled for another grid; load it again for this grid".into(),
+                ));
+            }
+        }
         let scope = ErrorScope::push(&self.ctx.device);
         let mut report = FrameReport::default();
         if request.force {
@@ -280,7 +293,8 @@ impl FogPipeline {
             report.timings_ms.inject = self.stage_ms(timer::INJECT, t)?;
             self.baked.ev_generation += 1;
         }
-        self.baked.ev_inputs = Some((project.grid, project.medium.base_extinction, project.particles.clone()));
+        self.baked.ev_inputs =
+            Some((project.grid, project.medium.base_extinction, self.base_layer_generation, project.particles.clone()));
 
         let t = Instant::now();
         self.run_propagation(project, request.scheme, &mut report.counters)?;
@@ -387,19 +401,35 @@ impl FogPipeline {
             max: spec.max.to_array(),
             light_count: project.lights.len() as u32,
             cell: spec.cell_size().to_array(),
-            cutoff_epsilon: 0.0,
+            has_base_layer: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == spec) as u32,
             dims: spec.resolution.to_array(),
             _pad: 0,
         };
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
     }
 
-    /// Every brick after a change of grid or base fog, else only those whose particles changed.
+    /// Sets (or clears) a density layer added to every cell of the EV under the particles,
+    /// such as a VDB grid resampled into the project's grid. It must match the grid of the
+    /// projects passed to [`update`](Self::update).
+    pub fn set_base_layer(&mut self, layer: Option<Volume>) {
+        self.base_layer = layer.map(|v| {
+            let buf = storage_buffer(&self.ctx.device, "base layer", bytemuck::cast_slice(&v.data));
+            (v, buf)
+        });
+        self.base_layer_generation += 1;
+    }
+
+    /// Every brick after a change of grid, base fog or base layer, else only those whose
+    /// particles changed.
     fn bricks_to_inject(&self, project: &Project) -> Vec<u32> {
         let dims = binning::brick_dims(&project.grid);
         let all = || (0..dims.x * dims.y * dims.z).collect();
         match &self.baked.ev_inputs {
-            Some((grid, base, particles)) if *grid == project.grid && *base == project.medium.base_extinction => {
+            Some((grid, base, layer, particles))
+                if *grid == project.grid
+                    && *base == project.medium.base_extinction
+                    && *layer == self.base_layer_generation =>
+            {
                 if *particles == project.particles {
                     Vec::new()
                 } else {
@@ -419,6 +449,14 @@ impl FogPipeline {
         let offsets_buf = storage_buffer(device, "brick offsets", bytemuck::cast_slice(&bins.offsets));
         let items_buf = storage_buffer(device, "brick items", bytemuck::cast_slice(&bins.items));
         let bricks_buf = storage_buffer(device, "dirty bricks", bytemuck::cast_slice(bricks));
+        let no_layer;
+        let layer_buf = match &self.base_layer {
+            Some((v, buf)) if v.grid == project.grid => buf,
+            _ => {
+                no_layer = storage_buffer(device, "no base layer", &[]);
+                &no_layer
+            }
+        };
         let bg = bind_group(
             device,
             "inject",
@@ -430,6 +468,7 @@ impl FogPipeline {
                 items_buf.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&g.ev_view),
                 bricks_buf.as_entire_binding(),
+                layer_buf.as_entire_binding(),
             ],
         );
         let r = project.grid.resolution;

@@ -34,6 +34,41 @@ pub struct Project {
     pub render: RenderSettings,
     pub propagation: PropagationSettings,
     pub surfaces: Surfaces,
+    /// A density grid imported from a VDB file, resampled into the grid under the
+    /// particles. Default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base_volume: Option<BaseVolume>,
+}
+
+/// A VDB density grid used as a base layer of the extinction volume.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BaseVolume {
+    /// The .vdb file; a relative path is relative to the project file's directory.
+    pub path: std::path::PathBuf,
+    /// Name of the float grid to read. Default "density".
+    #[serde(default = "density_name")]
+    pub grid: String,
+    /// Multiplier turning the grid's values into extinction (1/m). Default 1.
+    #[serde(default = "one")]
+    pub scale: f32,
+}
+
+fn density_name() -> String {
+    "density".into()
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+impl BaseVolume {
+    /// The file to read, resolving a relative path against `project_dir`.
+    pub fn resolved_path(&self, project_dir: Option<&std::path::Path>) -> std::path::PathBuf {
+        match project_dir {
+            Some(dir) if self.path.is_relative() => dir.join(&self.path),
+            _ => self.path.clone(),
+        }
+    }
 }
 
 impl Default for Project {
@@ -48,6 +83,7 @@ impl Default for Project {
             render: RenderSettings::default(),
             propagation: PropagationSettings::default(),
             surfaces: Surfaces::default(),
+            base_volume: None,
         }
     }
 }

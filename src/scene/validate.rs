@@ -171,6 +171,12 @@ impl Project {
                 return Err(err(format!("surfaces.boxes[{i}].albedo"), "components must be within [0, 1]"));
             }
         }
+        if let Some(b) = &self.base_volume {
+            at_least("base_volume.scale", b.scale, 0.0)?;
+            if b.grid.is_empty() {
+                return Err(err("base_volume.grid", "must name a grid, e.g. \"density\""));
+            }
+        }
         let stride = self.propagation.sweep_stride;
         if !(3..=16).contains(&stride) {
             return Err(err("propagation.sweep_stride", format!("must be within 3..=16, got {stride}")));
