@@ -7,7 +7,9 @@
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 //! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
 
+pub mod bench;
 pub mod cli;
+pub mod demos;
 pub mod export;
 pub mod gpu;
 pub mod measure;

@@ -47,9 +47,13 @@ pub struct OpvError {
 }
 
 pub fn opv_error(project: &Project, light: usize, opv: &Volume, cells: &[[u32; 3]]) -> OpvError {
-    let exact = optical_depth_cells(project, light, cells);
+    opv_error_against(light, opv, cells, &optical_depth_cells(project, light, cells))
+}
+
+/// [`opv_error`] with the exact optical depths at `cells` already computed.
+pub fn opv_error_against(light: usize, opv: &Volume, cells: &[[u32; 3]], exact: &[f64]) -> OpvError {
     let (mut max, mut sum, mut rel, mut bad) = (0.0f64, 0.0f64, 0.0f64, false);
-    for (c, t_exact) in cells.iter().zip(&exact) {
+    for (c, t_exact) in cells.iter().zip(exact) {
         let t = opv.get(c[0], c[1], c[2]) as f64;
         let e = if t.is_finite() {
             ((-t).exp() - (-t_exact).exp()).abs()

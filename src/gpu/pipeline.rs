@@ -33,8 +33,9 @@ impl FrameRequest {
     }
 }
 
-/// Time per stage in milliseconds: GPU timestamps where the adapter has them (see
-/// [`FrameReport::gpu_timestamps`]), else wall time around submit and a drained queue.
+/// Time per stage in milliseconds: GPU timestamps on hardware adapters that have them (see
+/// [`FrameReport::gpu_timestamps`]), else wall time of the stage's host work, submit and a
+/// drained queue.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct StageTimings {
     pub inject: f64,
@@ -47,8 +48,8 @@ pub struct StageTimings {
 pub struct Counters {
     pub dispatches: u32,
     pub cells_injected: u64,
-    /// Particle–brick overlaps evaluated by injection.
-    pub particle_overlaps: u64,
+    /// Particle–cell pairs injection evaluated (list lengths × cells of the bins it read).
+    pub particle_evaluations: u64,
     pub cells_propagated: u64,
     pub lights_propagated: u32,
     /// Lights whose OPV was up to date or that are hidden / have zero intensity.
@@ -128,6 +129,9 @@ pub struct FogPipeline {
     /// Imported density added under the particles, and a counter bumped when it changes.
     base_layer: Option<(Volume, wgpu::Buffer)>,
     base_layer_generation: u64,
+    brute_force_injection: bool,
+    /// Bin edge of the last injection's particle lists (see `binning`).
+    bin_size: u32,
 }
 
 pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -205,6 +209,8 @@ impl FogPipeline {
             last_report: FrameReport::default(),
             base_layer: None,
             base_layer_generation: 0,
+            brute_force_injection: false,
+            bin_size: binning::BRICK,
         }
     }
 
@@ -403,9 +409,18 @@ impl FogPipeline {
             cell: spec.cell_size().to_array(),
             has_base_layer: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == spec) as u32,
             dims: spec.resolution.to_array(),
-            _pad: 0,
+            bin_size: self.bin_size,
         };
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
+    }
+
+    /// Makes every cell evaluate every particle instead of only those binned into its brick:
+    /// the brute-force injection, for measuring what binning saves. Off by default.
+    pub fn set_brute_force_injection(&mut self, on: bool) {
+        if on != self.brute_force_injection {
+            self.brute_force_injection = on;
+            self.baked.ev_inputs = None;
+        }
     }
 
     /// Sets (or clears) a density layer added to every cell of the EV under the particles,
@@ -441,9 +456,17 @@ impl FogPipeline {
     }
 
     fn run_inject(&mut self, project: &Project, bricks: &[u32], counters: &mut Counters) -> Result<(), GpuError> {
+        let bins = if self.brute_force_injection {
+            binning::bin_all(&project.grid, &project.particles)
+        } else {
+            bin_particles(&project.grid, &project.particles)
+        };
+        if bins.bin_size != self.bin_size {
+            self.bin_size = bins.bin_size;
+            self.write_lights(project);
+        }
         let Some(g) = &self.grid else { return Ok(()) };
         let device = &self.ctx.device;
-        let bins = bin_particles(&project.grid, &project.particles);
         let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
         let particles_buf = storage_buffer(device, "particles", bytemuck::cast_slice(&particles));
         let offsets_buf = storage_buffer(device, "brick offsets", bytemuck::cast_slice(&bins.offsets));
@@ -504,9 +527,7 @@ impl FogPipeline {
         counters.dispatches += 2;
         let cells_per_brick = (binning::BRICK as u64).pow(3);
         counters.cells_injected += (bricks.len() as u64 * cells_per_brick).min(project.grid.cell_count());
-        counters.particle_overlaps +=
-            bricks.iter().map(|&b| (bins.offsets[b as usize + 1] - bins.offsets[b as usize]) as u64).sum::<u64>()
-                * cells_per_brick;
+        counters.particle_evaluations += bins.evaluations(&project.grid, bricks);
         Ok(())
     }
 
