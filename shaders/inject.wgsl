@@ -1,6 +1,8 @@
 // Injection: particles -> extinction volume (EV).
-// Each cell sums the gaussians binned into its 8³ brick; a particle is binned only into the
-// bricks its cut-off sphere reaches, so cost follows particle-cell overlaps.
+// Each cell sums the gaussians listed in its bin (bin_size³ cells); a particle is listed
+// only in the bins its cut-off sphere reaches, so cost follows particle-cell overlaps. One
+// workgroup pair per listed 8³ brick: a full bake lists every brick, an edit only the bricks
+// it touched.
 
 struct ParticleGpu {
     center: vec3f,
@@ -12,29 +14,40 @@ struct ParticleGpu {
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var<storage, read> particles: array<ParticleGpu>;
-@group(0) @binding(2) var<storage, read> brick_offsets: array<u32>;
-@group(0) @binding(3) var<storage, read> brick_items: array<u32>;
+@group(0) @binding(2) var<storage, read> bin_offsets: array<u32>;
+@group(0) @binding(3) var<storage, read> bin_items: array<u32>;
 @group(0) @binding(4) var ev: texture_storage_3d<r32float, write>;
+@group(0) @binding(5) var<storage, read> dirty_bricks: array<u32>;
+// An imported density layer (e.g. from a VDB file) under the particles, when has_base_layer.
+@group(0) @binding(6) var<storage, read> base_layer: array<f32>;
 
 const BRICK: u32 = 8u;
 
-@compute @workgroup_size(4, 4, 4)
-fn main(@builtin(global_invocation_id) id: vec3u) {
+@compute @workgroup_size(8, 8, 4)
+fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
+    let brick = dirty_bricks[wg.x];
+    let bdims = (grid.dims + BRICK - 1u) / BRICK;
+    let b = vec3u(brick % bdims.x, (brick / bdims.x) % bdims.y, brick / (bdims.x * bdims.y));
+    let id = b * BRICK + lid + vec3u(0u, 0u, 4u * wg.y);
     if any(id >= grid.dims) {
         return;
     }
     let x = cell_center(id);
-    let bdims = (grid.dims + BRICK - 1u) / BRICK;
-    let b = id / BRICK;
-    let brick = b.x + bdims.x * (b.y + bdims.y * b.z);
+    let ndims = (grid.dims + grid.bin_size - 1u) / grid.bin_size;
+    let nb = id / grid.bin_size;
+    let bin = nb.x + ndims.x * (nb.y + ndims.y * nb.z);
     var sum = 0.0;
-    for (var n = brick_offsets[brick]; n < brick_offsets[brick + 1u]; n++) {
-        let p = particles[brick_items[n]];
+    for (var n = bin_offsets[bin]; n < bin_offsets[bin + 1u]; n++) {
+        let p = particles[bin_items[n]];
         let d = x - p.center;
         let d2 = dot(d, d);
         if d2 < p.cutoff2 {
             sum += p.density * exp(-d2 * p.inv_r2);
         }
     }
-    textureStore(ev, id, vec4f(grid.base_extinction + sum, 0.0, 0.0, 0.0));
+    var layer = 0.0;
+    if grid.has_base_layer != 0u {
+        layer = base_layer[linear_index(id)];
+    }
+    textureStore(ev, id, vec4f(grid.base_extinction + layer + sum, 0.0, 0.0, 0.0));
 }

@@ -1,9 +1,19 @@
 // Ray march: camera rays through the medium, single scattering from every light
 // (physics.md §4). Each step holds σ_t and the in-scattered radiance constant and is
 // integrated exactly: radiance += Tr·albedo·S'·(1 − exp(−σ_t Δ)), Tr *= exp(−σ_t Δ), where
-// S' is the phase-weighted light reaching the sample. Inside the grid σ_t and each light's
-// optical depth come from trilinear lookups in the EV and OPVs; outside it only the base fog
-// exists (optical depth to a light = β·distance). Marching stops once Tr < tr_cutoff.
+// S' is the phase-weighted light reaching the sample, with the inverse-square falloff
+// averaged exactly over the step (so a ray passing close to a light stays accurate). Inside
+// the grid σ_t and each light's optical depth come from trilinear lookups in the EV and
+// OPVs; outside it σ_t is the base fog, and light paths that cross the grid still pick up
+// its optical depth from the OPV where they leave it.
+//
+// Step policies inside the grid: FIXED (uniform steps), TWO_LEVEL (Tan et al.: uniform near
+// steps, then linearly growing far steps) and ADAPTIVE (step = τ_target / local max σ_t from
+// the brick occupancy grid and at most half the distance to the nearest light, clamped to
+// [¼, 4] × the fixed step). With skip_empty, bricks whose dilated maximum σ_t is 0
+// are jumped over (exact: every sample in them would add nothing). A ray stops once its
+// transmittance falls below tr_cutoff, and at the first surface, which is shaded by every
+// light through the fog (Lambert, no surface-to-surface shadows).
 
 struct MarchParams {
     origin: vec3f,
@@ -17,6 +27,28 @@ struct MarchParams {
     size: vec2u,
     tr_cutoff: f32,
     far_distance: f32,
+    policy: u32,
+    near_steps: u32,
+    far_steps: u32,
+    skip_empty: u32,
+    tau_target: f32,
+    near_fraction: f32,
+    min_step: f32,
+    max_step: f32,
+    surface_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// kind 0: an axis-aligned box [min, max]; kind 1: the ground plane y = min.y, facing +y.
+struct Surface {
+    min: vec3f,
+    kind: u32,
+    max: vec3f,
+    _pad0: f32,
+    albedo: vec3f,
+    _pad1: f32,
 }
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
@@ -27,12 +59,19 @@ struct MarchParams {
 @group(0) @binding(5) var out_hdr: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var out_ldr: texture_storage_2d<rgba8unorm, write>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(8) var<storage, read> brick_max: array<f32>;
+@group(0) @binding(9) var<storage, read> surfaces: array<Surface>;
 
 const PI: f32 = 3.14159265358979;
+const POLICY_FIXED: u32 = 0u;
+const POLICY_TWO_LEVEL: u32 = 1u;
+const POLICY_ADAPTIVE: u32 = 2u;
+const BRICK: u32 = 8u;
 
 var<private> radiance: vec3f;
 var<private> transmittance: f32;
 var<private> samples: u32;
+var<private> skipped: u32;
 
 struct Trilinear {
     i0: vec3u,
@@ -51,6 +90,10 @@ fn trilinear_at(x: vec3f) -> Trilinear {
     return t;
 }
 
+fn corner(t: Trilinear, n: u32) -> vec3u {
+    return select(t.i0, t.i1, vec3<bool>((n & 1u) != 0u, (n & 2u) != 0u, (n & 4u) != 0u));
+}
+
 fn lerp3(c: array<f32, 8>, f: vec3f) -> f32 {
     let x00 = mix(c[0], c[1], f.x);
     let x10 = mix(c[2], c[3], f.x);
@@ -62,20 +105,53 @@ fn lerp3(c: array<f32, 8>, f: vec3f) -> f32 {
 fn ev_at(t: Trilinear) -> f32 {
     var c: array<f32, 8>;
     for (var n = 0u; n < 8u; n++) {
-        let p = select(t.i0, t.i1, vec3<bool>((n & 1u) != 0u, (n & 2u) != 0u, (n & 4u) != 0u));
-        c[n] = textureLoad(ev, p, 0).r;
+        c[n] = textureLoad(ev, corner(t, n), 0).r;
     }
     return lerp3(c, t.f);
 }
 
-fn opv_at(t: Trilinear, light: u32) -> f32 {
+// Optical depth from x to light l: |x − S| times the trilinear mean extinction T/|c − S| of
+// the eight surrounding cells. The mean extinction is smooth where T itself has a kink (at
+// the light) and constant in homogeneous fog, so this is exact there and accurate near lights.
+fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
     let base = light * cell_count();
+    let s = lights[light].position;
     var c: array<f32, 8>;
     for (var n = 0u; n < 8u; n++) {
-        let p = select(t.i0, t.i1, vec3<bool>((n & 1u) != 0u, (n & 2u) != 0u, (n & 4u) != 0u));
-        c[n] = opv[base + linear_index(p)];
+        let p = corner(t, n);
+        let d = length(grid.min + (vec3f(p) + 0.5) * grid.cell - s);
+        if d < 1e-6 * grid.cell.x {
+            c[n] = textureLoad(ev, p, 0).r;
+        } else {
+            c[n] = opv[base + linear_index(p)] / d;
+        }
     }
-    return lerp3(c, t.f);
+    return lerp3(c, t.f) * length(x - s);
+}
+
+fn inside_grid(x: vec3f) -> bool {
+    return all(x >= grid.min) && all(x <= grid.max);
+}
+
+// Optical depth from x to light l, d = |x − S|. Inside the grid it comes from the OPV. Outside,
+// the segment from the light to x may still cross the grid: then it is the OPV where the
+// segment leaves the grid (everything between there and the light) plus the base fog beyond.
+fn light_depth(x: vec3f, l: u32, d: f32) -> f32 {
+    if inside_grid(x) {
+        return opv_at(trilinear_at(x), l, x);
+    }
+    let s = lights[l].position;
+    let u = (x - s) / max(d, 1e-30);
+    let inv = 1.0 / u;
+    let ta = (grid.min - s) * inv;
+    let tb = (grid.max - s) * inv;
+    let t_in = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), max(min(ta.z, tb.z), 0.0));
+    let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), min(max(ta.z, tb.z), d));
+    if t_out <= t_in {
+        return grid.base_extinction * d;
+    }
+    let p = s + u * t_out;
+    return opv_at(trilinear_at(p), l, p) + grid.base_extinction * (d - t_out);
 }
 
 fn phase(cos_theta: f32) -> f32 {
@@ -85,6 +161,31 @@ fn phase(cos_theta: f32) -> f32 {
     }
     let denom = max(1.0 + g * g - 2.0 * g * cos_theta, 1e-6);
     return (1.0 - g * g) / (4.0 * PI * denom * sqrt(denom));
+}
+
+// 1 − e^{−τ}, accurate for tiny τ too (σ_s·S·(1 − e^{−σ_t Δ})/σ_t with σ_s = albedo·σ_t).
+fn one_minus_exp_neg(tau: f32) -> f32 {
+    if tau < 1e-3 {
+        return tau * (1.0 - tau * (0.5 - tau / 6.0));
+    }
+    return 1.0 - exp(-tau);
+}
+
+// Mean of 1/|y − s|² over the step [x − dt/2·dir, x + dt/2·dir]: the exact integral of the
+// inverse-square falloff (an arctangent), so a ray grazing a light is not under-sampled.
+fn mean_inverse_square(x: vec3f, dir: vec3f, dt: f32, s: vec3f) -> f32 {
+    let v = x - s;
+    let d2 = dot(v, v);
+    let mid = -dot(v, dir);
+    let h = sqrt(max(d2 - mid * mid, 0.0));
+    let a = -0.5 * dt - mid;
+    let b = 0.5 * dt - mid;
+    // Far from the light relative to the step the midpoint value is exact to f32 precision.
+    if dt * dt < 1e-4 * d2 {
+        return 1.0 / max(d2, 1e-30);
+    }
+    let hh = max(h, 1e-4 * dt);
+    return (atan2(b, hh) - atan2(a, hh)) / (hh * dt);
 }
 
 // One step of length `dt` centred at `x`.
@@ -106,30 +207,21 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
             continue;
         }
         let to_x = x - light.position;
-        let d2 = max(dot(to_x, to_x), 1e-12);
+        let d = max(length(to_x), 1e-12);
         var depth: f32;
         if inside {
-            depth = opv_at(tri, l);
+            depth = opv_at(tri, l, x);
         } else {
-            depth = grid.base_extinction * sqrt(d2);
+            depth = light_depth(x, l, d);
         }
-        let cos_theta = dot(to_x * inverseSqrt(d2), -dir);
-        inscatter += light.rgb * (phase(cos_theta) * exp(-depth) / d2);
+        let cos_theta = dot(to_x / d, -dir);
+        inscatter += light.rgb * (phase(cos_theta) * exp(-depth) * mean_inverse_square(x, dir, dt, light.position));
     }
-    let tau = sigma * dt;
-    radiance += transmittance * params.albedo * inscatter * one_minus_exp_neg(tau);
-    transmittance *= exp(-tau);
+    radiance += transmittance * params.albedo * inscatter * one_minus_exp_neg(sigma * dt);
+    transmittance *= exp(-sigma * dt);
 }
 
-// 1 − e^{−τ}, accurate for tiny τ too (σ_s·S·(1 − e^{−σ_t Δ})/σ_t with σ_s = albedo·σ_t).
-fn one_minus_exp_neg(tau: f32) -> f32 {
-    if tau < 1e-3 {
-        return tau * (1.0 - tau * (0.5 - tau / 6.0));
-    }
-    return 1.0 - exp(-tau);
-}
-
-// Uniform steps of about `step` over [t0, t1].
+// Uniform steps of about `step` over [t0, t1], outside the grid.
 fn march_uniform(o: vec3f, dir: vec3f, t0: f32, t1: f32, step: f32, inside: bool) {
     if t1 <= t0 {
         return;
@@ -144,8 +236,11 @@ fn march_uniform(o: vec3f, dir: vec3f, t0: f32, t1: f32, step: f32, inside: bool
     }
 }
 
-// Steps growing linearly over [t0, t1] (Tan et al.'s far level), for base fog beyond the grid.
-fn march_growing(o: vec3f, dir: vec3f, t0: f32, t1: f32, n: u32) {
+// n steps growing linearly over [t0, t1] (Tan et al.'s far level).
+fn march_growing(o: vec3f, dir: vec3f, t0: f32, t1: f32, n: u32, inside: bool) {
+    if t1 <= t0 {
+        return;
+    }
     var t = t0;
     let scale = (t1 - t0) * 2.0 / f32(n * (n + 1u));
     for (var k = 0u; k < n; k++) {
@@ -153,9 +248,142 @@ fn march_growing(o: vec3f, dir: vec3f, t0: f32, t1: f32, n: u32) {
             return;
         }
         let dt = scale * f32(k + 1u);
-        integrate(o + dir * (t + 0.5 * dt), dir, dt, false);
+        integrate(o + dir * (t + 0.5 * dt), dir, dt, inside);
         t += dt;
     }
+}
+
+fn nearest_light(x: vec3f) -> f32 {
+    var d = 3.4e38;
+    for (var l = 0u; l < grid.light_count; l++) {
+        if any(lights[l].rgb != vec3f(0.0)) {
+            d = min(d, length(x - lights[l].position));
+        }
+    }
+    return d;
+}
+
+fn brick_of(x: vec3f) -> vec3u {
+    let c = clamp(vec3i(floor((x - grid.min) / grid.cell)), vec3i(0), vec3i(grid.dims) - 1);
+    return vec3u(c) / BRICK;
+}
+
+fn brick_max_at(b: vec3u) -> f32 {
+    let bdims = (grid.dims + BRICK - 1u) / BRICK;
+    return brick_max[b.x + bdims.x * (b.y + bdims.y * b.z)];
+}
+
+// Distance along the ray from o + dir·t to the exit of brick b.
+fn brick_exit(o: vec3f, dir: vec3f, b: vec3u) -> f32 {
+    let lo = grid.min + vec3f(b * BRICK) * grid.cell;
+    let hi = min(grid.min + vec3f((b + 1u) * BRICK) * grid.cell, grid.max);
+    let inv = 1.0 / dir;
+    let t_lo = (lo - o) * inv;
+    let t_hi = (hi - o) * inv;
+    let t_far = max(t_lo, t_hi);
+    return min(t_far.x, min(t_far.y, t_far.z));
+}
+
+// The in-grid part of the ray, [t0, t1], under the configured step policy.
+fn march_grid(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
+    if t1 <= t0 {
+        return;
+    }
+    if params.policy == POLICY_TWO_LEVEL {
+        let split = t0 + params.near_fraction * (t1 - t0);
+        march_uniform(o, dir, t0, split, (split - t0) / f32(max(params.near_steps, 1u)), true);
+        march_growing(o, dir, split, t1, max(params.far_steps, 1u), true);
+        return;
+    }
+    let eps = 1e-4 * min(grid.cell.x, min(grid.cell.y, grid.cell.z));
+    var t = t0;
+    loop {
+        if t >= t1 || transmittance < params.tr_cutoff {
+            break;
+        }
+        let x = o + dir * t;
+        let b = brick_of(x + dir * eps);
+        let bmax = brick_max_at(b);
+        if params.skip_empty != 0u && bmax <= 0.0 {
+            skipped += 1u;
+            t = max(brick_exit(o, dir, b), t) + eps;
+            continue;
+        }
+        var dt = params.step;
+        if params.policy == POLICY_ADAPTIVE {
+            dt = clamp(params.tau_target / max(bmax, 1e-12), params.min_step, params.max_step);
+            // Radiance varies like 1/d² near a light: keep steps below half the distance.
+            dt = max(min(dt, 0.5 * nearest_light(x)), params.min_step);
+            // Do not stride past the brick: its neighbour may be denser.
+            dt = min(dt, max(brick_exit(o, dir, b) - t, params.min_step));
+        }
+        dt = min(dt, t1 - t);
+        integrate(o + dir * (t + 0.5 * dt), dir, dt, true);
+        t += dt;
+    }
+}
+
+struct Hit {
+    t: f32,
+    normal: vec3f,
+    albedo: vec3f,
+}
+
+fn first_surface(o: vec3f, dir: vec3f) -> Hit {
+    var hit: Hit;
+    hit.t = 3.4e38;
+    for (var i = 0u; i < params.surface_count; i++) {
+        let s = surfaces[i];
+        if s.kind == 1u {
+            if dir.y < 0.0 && o.y > s.min.y {
+                let t = (s.min.y - o.y) / dir.y;
+                if t < hit.t {
+                    hit.t = t;
+                    hit.normal = vec3f(0.0, 1.0, 0.0);
+                    hit.albedo = s.albedo;
+                }
+            }
+        } else {
+            let inv = 1.0 / dir;
+            let ta = (s.min - o) * inv;
+            let tb = (s.max - o) * inv;
+            let tn = min(ta, tb);
+            let tf = max(ta, tb);
+            let t_in = max(tn.x, max(tn.y, tn.z));
+            let t_out = min(tf.x, min(tf.y, tf.z));
+            if t_in > 0.0 && t_in <= t_out && t_in < hit.t {
+                hit.t = t_in;
+                hit.albedo = s.albedo;
+                if t_in == tn.x {
+                    hit.normal = vec3f(-sign(dir.x), 0.0, 0.0);
+                } else if t_in == tn.y {
+                    hit.normal = vec3f(0.0, -sign(dir.y), 0.0);
+                } else {
+                    hit.normal = vec3f(0.0, 0.0, -sign(dir.z));
+                }
+            }
+        }
+    }
+    return hit;
+}
+
+fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
+    var l_out = vec3f(0.0);
+    for (var l = 0u; l < grid.light_count; l++) {
+        let light = lights[l];
+        if all(light.rgb == vec3f(0.0)) {
+            continue;
+        }
+        let to_light = light.position - x;
+        let d2 = max(dot(to_light, to_light), 1e-12);
+        let d = sqrt(d2);
+        let cos_i = dot(n, to_light / d);
+        if cos_i <= 0.0 {
+            continue;
+        }
+        l_out += albedo / PI * light.rgb * (cos_i / d2 * exp(-light_depth(x, l, d)));
+    }
+    return l_out;
 }
 
 fn tonemap(c: vec3f) -> vec3f {
@@ -179,28 +407,38 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     radiance = vec3f(0.0);
     transmittance = 1.0;
     samples = 0u;
+    skipped = 0u;
 
+    let hit = first_surface(o, dir);
     let inv = 1.0 / dir;
     let ta = (grid.min - o) * inv;
     let tb = (grid.max - o) * inv;
     let t_enter = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), max(min(ta.z, tb.z), 0.0));
     let t_exit = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
-    let hit = t_exit > t_enter;
+    let in_box = t_exit > t_enter;
     let fog = grid.base_extinction > 0.0;
 
-    if hit {
+    if in_box {
         if fog {
-            march_uniform(o, dir, 0.0, t_enter, max(params.step, t_enter / 64.0), false);
+            let t1 = min(t_enter, hit.t);
+            march_uniform(o, dir, 0.0, t1, max(params.step, t1 / 64.0), false);
         }
-        march_uniform(o, dir, t_enter, t_exit, params.step, true);
+        march_grid(o, dir, t_enter, min(t_exit, hit.t));
         if fog {
-            march_growing(o, dir, t_exit, t_exit + params.far_distance, 64u);
+            march_growing(o, dir, t_exit, min(t_exit + params.far_distance, hit.t), 64u, false);
         }
     } else if fog {
-        march_growing(o, dir, 0.0, params.far_distance, 96u);
+        march_growing(o, dir, 0.0, min(params.far_distance, hit.t), 96u, false);
     }
+    if hit.t < 3.4e38 && transmittance >= params.tr_cutoff {
+        let x = o + dir * hit.t;
+        radiance += transmittance * shade_surface(x, hit.normal, hit.albedo);
+    }
+    let terminated = select(0u, 1u, transmittance < params.tr_cutoff);
 
     atomicAdd(&counters[0], samples);
+    atomicAdd(&counters[1], skipped);
+    atomicAdd(&counters[2], terminated);
     textureStore(out_hdr, id.xy, vec4f(radiance, 1.0 - transmittance));
     textureStore(out_ldr, id.xy, vec4f(tonemap(radiance), 1.0));
 }

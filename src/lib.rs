@@ -6,9 +6,15 @@
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 //! - [`editor`]: the interactive editor window (eframe + egui_dock).
+//! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
 
-pub mod scene;
+pub mod bench;
 pub mod cli;
-pub mod gpu;
-pub mod output;
+pub mod demos;
 pub mod editor;
+pub mod export;
+pub mod gpu;
+pub mod measure;
+pub mod output;
+pub mod reference;
+pub mod scene;

@@ -31,12 +31,17 @@ pub fn tonemap(linear: f32, exposure: f32) -> f32 {
 pub fn write_image(path: &Path, image: &Image, exposure: f32) -> Result<(), OutputError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let werr = |message: String| OutputError::Write { path: path.to_owned(), message };
-    let bytes = match ext.as_deref() {
-        Some("png") => encode_png(image, exposure).map_err(werr)?,
-        Some("exr") => encode_exr(image).map_err(werr)?,
-        _ => return Err(OutputError::Format { path: path.to_owned() }),
-    };
-    write_atomic(path, &bytes, false).map_err(|e| werr(e.to_string()))
+    match ext.as_deref() {
+        Some("png") => {
+            let bytes = encode_png(image, exposure).map_err(werr)?;
+            write_atomic(path, &bytes, false).map_err(|e| werr(e.to_string()))
+        }
+        Some("exr") => {
+            crate::export::exr::write_render_exr(path, image.width as usize, image.height as usize, &image.rgba, false)
+                .map_err(|e| werr(e.to_string()))
+        }
+        _ => Err(OutputError::Format { path: path.to_owned() }),
+    }
 }
 
 fn encode_png(image: &Image, exposure: f32) -> Result<Vec<u8>, String> {
@@ -54,16 +59,3 @@ fn encode_png(image: &Image, exposure: f32) -> Result<Vec<u8>, String> {
 }
 
 use image::ImageEncoder;
-
-fn encode_exr(image: &Image) -> Result<Vec<u8>, String> {
-    use exr::prelude::*;
-    let (w, h) = (image.width as usize, image.height as usize);
-    let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
-        let p = image.rgba[y * w + x];
-        (p[0], p[1], p[2], p[3])
-    });
-    let img = Image::from_channels((w, h), channels);
-    let mut cursor = std::io::Cursor::new(Vec::new());
-    img.write().to_buffered(&mut cursor).map_err(|e| e.to_string())?;
-    Ok(cursor.into_inner())
-}

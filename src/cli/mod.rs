@@ -1,12 +1,16 @@
-//! Command-line interface: the editor (no subcommand), headless rendering and adapter
-//! information.
+//! Command-line interface: the editor (no subcommand), headless rendering, export,
+//! verification and adapter information.
 
-use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
+use crate::export::load_base_layer;
+use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::output::write_image;
-use crate::scene::{load_project, Scheme};
+use crate::scene::{load_project, Project, Scheme};
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+mod export;
+mod verify;
 
 #[derive(Parser)]
 #[command(
@@ -33,28 +37,119 @@ struct Cli {
 enum Command {
     /// Render a project headlessly to a PNG (tone-mapped) or EXR (linear HDR) image.
     Render {
-        project: PathBuf,
+        #[command(flatten)]
+        bake: BakeArgs,
         /// Output image: .png or .exr.
         #[arg(short, long)]
         output: PathBuf,
-        /// Image width in pixels (default: the project's render.width).
-        #[arg(long)]
-        width: Option<u32>,
-        /// Image height in pixels (default: the project's render.height).
-        #[arg(long)]
-        height: Option<u32>,
-        /// Propagation scheme (default: the project's propagation.scheme).
-        #[arg(long)]
-        scheme: Option<Scheme>,
         /// Print a JSON summary on stdout.
         #[arg(long)]
         json: bool,
+    },
+    /// Bake a project and export its grids as OpenVDB / OpenEXR and its render as EXR.
+    Export(export::ExportArgs),
+    /// Compare a project's GPU bake and render against the exact CPU reference.
+    Verify {
+        project: PathBuf,
+        /// Propagation scheme (default: the project's propagation.scheme).
+        #[arg(long)]
+        scheme: Option<Scheme>,
+        /// Width of the compared image; the height follows the project's aspect ratio.
+        #[arg(long, default_value_t = 96)]
+        width: u32,
+        /// Largest number of cells compared per volume; larger grids are sampled.
+        #[arg(long, default_value_t = 100_000)]
+        cells: usize,
+        /// Print one JSON object on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Measure run time against error for every scheme, step policy and table layout, and
+    /// how update time scales; writes bench.csv, bench.json and PNG plots.
+    Bench {
+        /// A reduced suite that finishes in about two minutes.
+        #[arg(long)]
+        quick: bool,
+        /// Output folder.
+        #[arg(long, default_value = "bench-out")]
+        out: PathBuf,
+        /// Suites to run (default: all).
+        #[arg(long, value_enum, value_delimiter = ',')]
+        suite: Vec<crate::bench::Suite>,
     },
     /// Print the GPU adapter Fogsmith would use and its limits.
     Info {
         #[arg(long)]
         json: bool,
     },
+}
+
+/// What every command that bakes a project takes.
+#[derive(clap::Args)]
+pub struct BakeArgs {
+    /// The project file (.ron).
+    pub project: PathBuf,
+    /// Image width in pixels (default: the project's render.width).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: the project's render.height).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Propagation scheme (default: the project's propagation.scheme).
+    #[arg(long)]
+    pub scheme: Option<Scheme>,
+}
+
+/// A project baked and rendered on the GPU.
+pub struct Baked {
+    pub project: Project,
+    pub pipeline: FogPipeline,
+    pub report: FrameReport,
+    pub request: FrameRequest,
+    pub adapter: String,
+}
+
+/// Loads the project (and its VDB base layer), opens the GPU and runs the whole pipeline.
+pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
+    let project = load_project(&args.project)?;
+    let mut request = FrameRequest::for_project(&project);
+    request.width = args.width.unwrap_or(request.width);
+    request.height = args.height.unwrap_or(request.height);
+    request.scheme = args.scheme.unwrap_or(request.scheme);
+    for (name, v) in [("--width", request.width), ("--height", request.height)] {
+        if v == 0 || v > 16384 {
+            return Err(format!("{name} must be within 1..=16384, got {v}").into());
+        }
+    }
+    let layer = load_base_layer(&project, Some(&args.project))?;
+    let ctx = GpuContext::new_headless()?;
+    let adapter = ctx.adapter_summary();
+    let mut pipeline = FogPipeline::new(ctx);
+    pipeline.set_base_layer(layer);
+    let report = pipeline.update(&project, &request)?;
+    Ok(Baked { project, pipeline, report, request, adapter })
+}
+
+/// Mesa's Vulkan drivers warn on every start when XDG_RUNTIME_DIR is unset (as under CI or
+/// sudo): point it at a private directory. Call before any thread is started.
+pub fn ensure_runtime_dir() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("fogsmith-runtime-{}", user_tag()));
+    if std::fs::create_dir_all(&dir).is_ok() {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+        }
+        std::env::set_var("XDG_RUNTIME_DIR", &dir);
+    }
+}
+
+/// The user name or id, to keep per-user runtime directories apart.
+fn user_tag() -> String {
+    std::env::var("USER").or_else(|_| std::env::var("UID")).unwrap_or_else(|_| "user".into())
 }
 
 /// Runs the CLI with `args` (including the program name).
@@ -67,8 +162,23 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
         Some(Command::Info { json }) => info(json),
-        Some(Command::Render { project, output, width, height, scheme, json }) => {
-            render(&project, &output, width, height, scheme, json)
+        Some(Command::Verify { project, scheme, width, cells, json }) => verify::run(&project, scheme, width, cells, json),
+        Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
+        Some(Command::Export(args)) => export::run(args),
+        Some(Command::Bench { quick, out, suite }) => {
+            use crate::bench::Suite;
+            let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };
+            let started = std::time::Instant::now();
+            let records = crate::bench::run(&crate::bench::BenchOptions { quick, out: out.clone(), suites }, &mut |line| {
+                println!("{line}")
+            })?;
+            println!(
+                "{} records in {:.0} s; wrote {}/bench.json, bench.csv and *.png",
+                records.len(),
+                started.elapsed().as_secs_f64(),
+                out.display()
+            );
+            Ok(())
         }
     }
 }
@@ -104,33 +214,13 @@ fn info(json: bool) -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-fn render(
-    project_path: &PathBuf,
-    output: &PathBuf,
-    width: Option<u32>,
-    height: Option<u32>,
-    scheme: Option<Scheme>,
-    json: bool,
-) -> Result<(), Box<dyn std::error::Error>> {
-    let project = load_project(project_path)?;
-    let mut request = FrameRequest::for_project(&project);
-    request.width = width.unwrap_or(request.width);
-    request.height = height.unwrap_or(request.height);
-    request.scheme = scheme.unwrap_or(request.scheme);
-    for (name, v) in [("--width", request.width), ("--height", request.height)] {
-        if v == 0 || v > 16384 {
-            return Err(format!("{name} must be within 1..=16384, got {v}").into());
-        }
-    }
-    let ctx = GpuContext::new_headless()?;
-    let adapter = ctx.adapter_summary();
-    let mut pipeline = FogPipeline::new(ctx);
-    let report = pipeline.update(&project, &request)?;
+fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std::error::Error>> {
+    let Baked { project, pipeline, report, request, adapter } = bake(args)?;
     let image = pipeline.read_image()?;
     write_image(output, &image, project.render.exposure)?;
     if json {
         let v = serde_json::json!({
-            "project": project_path,
+            "project": args.project,
             "output": output,
             "width": request.width,
             "height": request.height,
@@ -139,6 +229,7 @@ fn render(
             "grid": project.grid.resolution.to_array(),
             "scheme": request.scheme.to_string(),
             "timings_ms": report.timings_ms,
+            "timing_source": if report.gpu_timestamps { "gpu_timestamps" } else { "wall_clock" },
             "counters": report.counters,
             "adapter": adapter,
         });
@@ -146,13 +237,12 @@ fn render(
     } else {
         let t = report.timings_ms;
         eprintln!(
-            "rendered {} ({}×{}) on {adapter}: inject {:.1} ms, propagate {:.1} ms ({} iterations), march {:.1} ms",
+            "rendered {} ({}×{}) on {adapter}: inject {:.1} ms, propagate {:.1} ms, march {:.1} ms",
             output.display(),
             request.width,
             request.height,
             t.inject,
             t.propagate,
-            report.counters.propagation_iterations,
             t.march
         );
     }

@@ -10,9 +10,9 @@ pub struct GridParams {
     pub max: [f32; 3],
     pub light_count: u32,
     pub cell: [f32; 3],
-    pub cutoff_epsilon: f32,
+    pub has_base_layer: u32,
     pub dims: [u32; 3],
-    pub _pad: u32,
+    pub bin_size: u32,
 }
 
 #[repr(C)]
@@ -48,4 +48,45 @@ pub struct MarchParams {
     pub size: [u32; 2],
     pub tr_cutoff: f32,
     pub far_distance: f32,
+    pub policy: u32,
+    pub near_steps: u32,
+    pub far_steps: u32,
+    pub skip_empty: u32,
+    pub tau_target: f32,
+    pub near_fraction: f32,
+    pub min_step: f32,
+    pub max_step: f32,
+    pub surface_count: u32,
+    pub _pad: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SurfaceGpu {
+    pub min: [f32; 3],
+    pub kind: u32,
+    pub max: [f32; 3],
+    pub _pad0: f32,
+    pub albedo: [f32; 3],
+    pub _pad1: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SweepStep {
+    pub light_cell: [i32; 3],
+    pub level: i32,
+    pub lo: [i32; 2],
+    pub size: [u32; 2],
+    pub light: u32,
+    pub stride: u32,
+    pub _pad: [u32; 2],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ExactParams {
+    pub light: u32,
+    pub steps_per_cell: u32,
+    pub _pad: [u32; 2],
 }

@@ -6,6 +6,8 @@ use wgpu::{BindGroupLayoutEntry, BindingType, ShaderStages};
 #[derive(Clone, Copy)]
 pub enum Slot {
     Uniform,
+    /// A uniform bound with a dynamic offset, one entry per dispatch.
+    UniformDynamic,
     StorageRead,
     StorageWrite,
     /// A 3D f32 texture read with `textureLoad` only (no sampler, so r32float needs no
@@ -26,6 +28,11 @@ pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> 
                 Slot::Uniform => BindingType::Buffer {
                     ty: wgpu::BufferBindingType::Uniform,
                     has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                Slot::UniformDynamic => BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
                     min_binding_size: None,
                 },
                 Slot::StorageRead => BindingType::Buffer {
@@ -60,14 +67,21 @@ pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> 
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
 }
 
-/// A compute pipeline from `shaders/common.wgsl` followed by `source`, entry point `main`.
+/// `shaders/volume_lookup.wgsl`, for shaders that sample σ_t between cells.
+pub const VOLUME_LOOKUP: &str = include_str!("../../shaders/volume_lookup.wgsl");
+
+/// A compute pipeline from `shaders/common.wgsl` followed by `sources`, entry point `main`.
 pub fn compute_pipeline(
     device: &wgpu::Device,
     label: &str,
-    source: &str,
+    sources: &[&str],
     layout: &wgpu::BindGroupLayout,
 ) -> wgpu::ComputePipeline {
-    let code = format!("{}\n{}", include_str!("../../shaders/common.wgsl"), source);
+    let mut code = String::from(include_str!("../../shaders/common.wgsl"));
+    for s in sources {
+        code.push('\n');
+        code.push_str(s);
+    }
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(code.into()),

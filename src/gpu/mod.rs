@@ -4,8 +4,9 @@
 //! 1. **Injection** (`shaders/inject.wgsl`): particles, binned on the CPU into 8³ bricks by
 //!    their cut-off spheres, are summed with the base fog into the extinction volume (EV), an
 //!    r32float 3D texture of σ_t at cell centres.
-//! 2. **Opacity propagation** (`shaders/propagate_giroud.wgsl`): for each light, an optical
-//!    depth volume (OPV) of T(cell, light), all lights packed in one storage buffer.
+//! 2. **Opacity propagation** (`shaders/propagate_*.wgsl`): for each light, an optical
+//!    depth volume (OPV) of T(cell, light), all lights packed in one storage buffer, by
+//!    Giroud & Biri's iterated gather, an upwind wavefront sweep, or a brute-force march.
 //! 3. **Ray march** (`shaders/march.wgsl`): single scattering along camera rays with
 //!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
 //!
@@ -18,9 +19,12 @@ mod error;
 mod gpu_types;
 mod layout;
 mod pipeline;
+mod propagate;
 mod readback;
+mod timer;
 
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext};
 pub use error::GpuError;
-pub use pipeline::{giroud_iterations, Counters, FogPipeline, FrameReport, FrameRequest, Image, StageTimings, TRANSMITTANCE_CUTOFF};
+pub use propagate::{giroud_iterations, sweep_steps, EXACT_STEPS_PER_CELL};
+pub use pipeline::{Counters, FogPipeline, FrameReport, FrameRequest, Image, StageTimings};

@@ -2,11 +2,13 @@
 //! resources, decides which stages a change requires, runs them and reads results back.
 
 use super::binning::{self, bin_particles};
-use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu};
+use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
 use super::readback::{read_buffer, read_texture};
+use super::propagate::{PropagationInputs, Propagator};
+use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
-use crate::scene::{GridSpec, Light, Particle, Project, Scheme, Volume};
+use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
 use std::time::Instant;
 
 /// What to render this frame.
@@ -31,7 +33,9 @@ impl FrameRequest {
     }
 }
 
-/// Wall time per stage in milliseconds (queue drained after each stage).
+/// Time per stage in milliseconds: GPU timestamps on hardware adapters that have them (see
+/// [`FrameReport::gpu_timestamps`]), else wall time of the stage's host work, submit and a
+/// drained queue.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct StageTimings {
     pub inject: f64,
@@ -44,20 +48,26 @@ pub struct StageTimings {
 pub struct Counters {
     pub dispatches: u32,
     pub cells_injected: u64,
-    /// Particle–brick overlaps evaluated by injection.
-    pub particle_overlaps: u64,
+    /// Particle–cell pairs injection evaluated (list lengths × cells of the bins it read).
+    pub particle_evaluations: u64,
     pub cells_propagated: u64,
     pub lights_propagated: u32,
     /// Lights whose OPV was up to date or that are hidden / have zero intensity.
     pub lights_skipped: u32,
-    /// Jacobi iterations of the `giroud` scheme.
+    /// Jacobi iterations (`giroud`) or wavefronts (`sweep`) per light.
     pub propagation_iterations: u32,
     pub samples_marched: u64,
+    /// Empty 8³ bricks camera rays jumped over.
+    pub bricks_skipped: u64,
+    /// Rays stopped early because their transmittance fell below the cutoff.
+    pub rays_terminated: u64,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct FrameReport {
     pub timings_ms: StageTimings,
+    /// Whether `timings_ms` comes from GPU timestamp queries.
+    pub gpu_timestamps: bool,
     pub counters: Counters,
 }
 
@@ -69,10 +79,6 @@ pub struct Image {
     pub rgba: Vec<[f32; 4]>,
 }
 
-/// Fraction of view transmittance below which a ray stops: the radiance it could still
-/// collect is at most this fraction of what an unattenuated ray behind it would add.
-pub const TRANSMITTANCE_CUTOFF: f32 = 1e-4;
-
 struct GridResources {
     spec: GridSpec,
     light_count: usize,
@@ -81,6 +87,8 @@ struct GridResources {
     ev_view: wgpu::TextureView,
     lights_buf: wgpu::Buffer,
     opv: [wgpu::Buffer; 2],
+    /// Largest σ_t seen by samples in each 8³ brick (see `shaders/occupancy.wgsl`).
+    brick_max: wgpu::Buffer,
 }
 
 struct ImageResources {
@@ -94,10 +102,10 @@ struct ImageResources {
 /// What the GPU currently holds, to decide what a new project state invalidates.
 #[derive(Default)]
 struct Baked {
-    /// Grid, base extinction and particles of the EV on the GPU.
-    ev_inputs: Option<(GridSpec, f32, Vec<Particle>)>,
+    /// Grid, base extinction, base layer generation and particles of the EV on the GPU.
+    ev_inputs: Option<(GridSpec, f32, u64, Vec<Particle>)>,
     /// Per light: position baked into its OPV and the EV generation it used.
-    opv_inputs: Vec<Option<(glam::Vec3, u64, Scheme)>>,
+    opv_inputs: Vec<Option<(glam::Vec3, u64, Scheme, u32)>>,
     ev_generation: u64,
     image_inputs: Option<String>,
 }
@@ -107,24 +115,32 @@ pub struct FogPipeline {
     ctx: GpuContext,
     inject_layout: wgpu::BindGroupLayout,
     inject: wgpu::ComputePipeline,
-    giroud_layout: wgpu::BindGroupLayout,
-    giroud: wgpu::ComputePipeline,
+    occupancy_layout: wgpu::BindGroupLayout,
+    occupancy: wgpu::ComputePipeline,
+    propagator: Propagator,
     march_layout: wgpu::BindGroupLayout,
     march: wgpu::ComputePipeline,
     counters_buf: wgpu::Buffer,
+    timer: Option<StageTimer>,
     grid: Option<GridResources>,
     image: Option<ImageResources>,
     baked: Baked,
     last_report: FrameReport,
+    /// Imported density added under the particles, and a counter bumped when it changes.
+    base_layer: Option<(Volume, wgpu::Buffer)>,
+    base_layer_generation: u64,
+    brute_force_injection: bool,
+    /// Bin edge of the last injection's particle lists (see `binning`).
+    bin_size: u32,
 }
 
-fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;
     // Bindings must not be empty, and must hold at least one element of the largest
     // per-element struct (a light is 32 bytes).
     let padded;
     let contents = if bytes.is_empty() {
-        padded = [0u8; 64];
+        padded = [0u8; 256];
         &padded[..]
     } else {
         bytes
@@ -148,27 +164,16 @@ impl FogPipeline {
                 Slot::StorageRead,
                 Slot::StorageRead,
                 Slot::StorageTexture3d(wgpu::TextureFormat::R32Float),
+                Slot::StorageRead,
+                Slot::StorageRead,
             ],
         );
-        let inject = compute_pipeline(device, "inject", include_str!("../../shaders/inject.wgsl"), &inject_layout);
-        let giroud_layout = bind_group_layout(
-            device,
-            "propagate_giroud",
-            &[
-                Slot::Uniform,
-                Slot::Texture3d,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageWrite,
-            ],
-        );
-        let giroud = compute_pipeline(
-            device,
-            "propagate_giroud",
-            include_str!("../../shaders/propagate_giroud.wgsl"),
-            &giroud_layout,
-        );
+        let inject = compute_pipeline(device, "inject", &[include_str!("../../shaders/inject.wgsl")], &inject_layout);
+        let occupancy_layout =
+            bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
+        let occupancy =
+            compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
+        let propagator = Propagator::new(device);
         let march_layout = bind_group_layout(
             device,
             "march",
@@ -181,23 +186,32 @@ impl FogPipeline {
                 Slot::StorageTexture2d(wgpu::TextureFormat::Rgba32Float),
                 Slot::StorageTexture2d(wgpu::TextureFormat::Rgba8Unorm),
                 Slot::StorageWrite,
+                Slot::StorageRead,
+                Slot::StorageRead,
             ],
         );
-        let march = compute_pipeline(device, "march", include_str!("../../shaders/march.wgsl"), &march_layout);
+        let march = compute_pipeline(device, "march", &[include_str!("../../shaders/march.wgsl")], &march_layout);
         let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
+        let timer = StageTimer::new(&ctx);
         Self {
             ctx,
             inject_layout,
             inject,
-            giroud_layout,
-            giroud,
+            occupancy_layout,
+            occupancy,
+            propagator,
             march_layout,
             march,
             counters_buf,
+            timer,
             grid: None,
             image: None,
             baked: Baked::default(),
             last_report: FrameReport::default(),
+            base_layer: None,
+            base_layer_generation: 0,
+            brute_force_injection: false,
+            bin_size: binning::BRICK,
         }
     }
 
@@ -264,6 +278,13 @@ impl FogPipeline {
             .validate(self.ctx.max_grid_edge())
             .map_err(|e| GpuError::Invalid(e.to_string()))?;
         self.check_limits(project, request.width, request.height)?;
+        if let Some((v, _)) = &self.base_layer {
+            if v.grid != project.grid {
+                return Err(GpuError::Invalid(
+                    "the base layer was resampled for another grid; load it again for this grid".into(),
+                ));
+            }
+        }
         let scope = ErrorScope::push(&self.ctx.device);
         let mut report = FrameReport::default();
         if request.force {
@@ -272,32 +293,51 @@ impl FogPipeline {
         self.ensure_grid(project);
         self.write_lights(project);
 
-        let ev_inputs = (project.grid, project.medium.base_extinction, project.particles.clone());
-        if self.baked.ev_inputs.as_ref() != Some(&ev_inputs) {
+        let bricks = self.bricks_to_inject(project);
+        if !bricks.is_empty() {
             let t = Instant::now();
-            self.run_inject(project, &mut report.counters)?;
-            report.timings_ms.inject = ms(t);
-            self.baked.ev_inputs = Some(ev_inputs);
+            self.run_inject(project, &bricks, &mut report.counters)?;
+            report.timings_ms.inject = self.stage_ms(timer::INJECT, t)?;
             self.baked.ev_generation += 1;
         }
+        self.baked.ev_inputs =
+            Some((project.grid, project.medium.base_extinction, self.base_layer_generation, project.particles.clone()));
 
         let t = Instant::now();
         self.run_propagation(project, request.scheme, &mut report.counters)?;
-        report.timings_ms.propagate = ms(t);
+        if report.counters.lights_propagated > 0 {
+            report.timings_ms.propagate = self.stage_ms(timer::PROPAGATE, t)?;
+        }
 
         let image_key = format!(
-            "{:?}{:?}{:?}{:?}{:?}{}",
-            project.camera, project.render, project.medium, project.lights, request, self.baked.ev_generation
+            "{:?}{:?}{:?}{:?}{:?}{}x{}{}",
+            project.camera,
+            project.surfaces,
+            project.render,
+            project.medium,
+            project.lights,
+            request.width,
+            request.height,
+            self.baked.ev_generation
         );
         if self.baked.image_inputs.as_deref() != Some(image_key.as_str()) || report.counters.lights_propagated > 0 {
             let t = Instant::now();
             self.run_march(project, request, &mut report.counters)?;
-            report.timings_ms.march = ms(t);
+            report.timings_ms.march = self.stage_ms(timer::MARCH, t)?;
             self.baked.image_inputs = Some(image_key);
         }
         scope.pop("update")?;
+        report.gpu_timestamps = self.timer.is_some();
         self.last_report = report;
         Ok(report)
+    }
+
+    /// GPU time of a completed stage, or wall time since `started` without timestamps.
+    fn stage_ms(&self, stage: u32, started: Instant) -> Result<f64, GpuError> {
+        match &self.timer {
+            Some(t) => t.read_ms(&self.ctx, stage),
+            None => Ok(ms(started)),
+        }
     }
 
     fn ensure_grid(&mut self, project: &Project) {
@@ -344,7 +384,14 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv });
+        let bricks = spec.resolution.map(|n| n.div_ceil(binning::BRICK));
+        let brick_max = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("brick max extinction"),
+            size: (bricks.x * bricks.y * bricks.z) as u64 * 4,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
     }
 
@@ -361,21 +408,79 @@ impl FogPipeline {
             max: spec.max.to_array(),
             light_count: project.lights.len() as u32,
             cell: spec.cell_size().to_array(),
-            cutoff_epsilon: 0.0,
+            has_base_layer: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == spec) as u32,
             dims: spec.resolution.to_array(),
-            _pad: 0,
+            bin_size: self.bin_size,
         };
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
     }
 
-    fn run_inject(&mut self, project: &Project, counters: &mut Counters) -> Result<(), GpuError> {
+    /// Makes every cell evaluate every particle instead of only those binned into its brick:
+    /// the brute-force injection, for measuring what binning saves. Off by default.
+    pub fn set_brute_force_injection(&mut self, on: bool) {
+        if on != self.brute_force_injection {
+            self.brute_force_injection = on;
+            self.baked.ev_inputs = None;
+        }
+    }
+
+    /// Sets (or clears) a density layer added to every cell of the EV under the particles,
+    /// such as a VDB grid resampled into the project's grid. It must match the grid of the
+    /// projects passed to [`update`](Self::update).
+    pub fn set_base_layer(&mut self, layer: Option<Volume>) {
+        self.base_layer = layer.map(|v| {
+            let buf = storage_buffer(&self.ctx.device, "base layer", bytemuck::cast_slice(&v.data));
+            (v, buf)
+        });
+        self.base_layer_generation += 1;
+    }
+
+    /// Every brick after a change of grid, base fog or base layer, else only those whose
+    /// particles changed.
+    fn bricks_to_inject(&self, project: &Project) -> Vec<u32> {
+        let dims = binning::brick_dims(&project.grid);
+        let all = || (0..dims.x * dims.y * dims.z).collect();
+        match &self.baked.ev_inputs {
+            Some((grid, base, layer, particles))
+                if *grid == project.grid
+                    && *base == project.medium.base_extinction
+                    && *layer == self.base_layer_generation =>
+            {
+                if *particles == project.particles {
+                    Vec::new()
+                } else {
+                    binning::dirty_bricks(grid, particles, &project.particles)
+                }
+            }
+            _ => all(),
+        }
+    }
+
+    fn run_inject(&mut self, project: &Project, bricks: &[u32], counters: &mut Counters) -> Result<(), GpuError> {
+        let bins = if self.brute_force_injection {
+            binning::bin_all(&project.grid, &project.particles)
+        } else {
+            bin_particles(&project.grid, &project.particles)
+        };
+        if bins.bin_size != self.bin_size {
+            self.bin_size = bins.bin_size;
+            self.write_lights(project);
+        }
         let Some(g) = &self.grid else { return Ok(()) };
         let device = &self.ctx.device;
-        let bins = bin_particles(&project.grid, &project.particles);
         let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
         let particles_buf = storage_buffer(device, "particles", bytemuck::cast_slice(&particles));
         let offsets_buf = storage_buffer(device, "brick offsets", bytemuck::cast_slice(&bins.offsets));
         let items_buf = storage_buffer(device, "brick items", bytemuck::cast_slice(&bins.items));
+        let bricks_buf = storage_buffer(device, "dirty bricks", bytemuck::cast_slice(bricks));
+        let no_layer;
+        let layer_buf = match &self.base_layer {
+            Some((v, buf)) if v.grid == project.grid => buf,
+            _ => {
+                no_layer = storage_buffer(device, "no base layer", &[]);
+                &no_layer
+            }
+        };
         let bg = bind_group(
             device,
             "inject",
@@ -386,21 +491,44 @@ impl FogPipeline {
                 offsets_buf.as_entire_binding(),
                 items_buf.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&g.ev_view),
+                bricks_buf.as_entire_binding(),
+                layer_buf.as_entire_binding(),
             ],
         );
         let r = project.grid.resolution;
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("inject"),
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::INJECT)),
+            });
             pass.set_pipeline(&self.inject);
             pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4));
+            pass.dispatch_workgroups(bricks.len() as u32, 2, 1);
+            let occ = bind_group(
+                device,
+                "occupancy",
+                &self.occupancy_layout,
+                &[
+                    g.grid_buf.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&g.ev_view),
+                    g.brick_max.as_entire_binding(),
+                ],
+            );
+            let b = r.map(|n| n.div_ceil(binning::BRICK));
+            pass.set_pipeline(&self.occupancy);
+            pass.set_bind_group(0, &occ, &[]);
+            pass.dispatch_workgroups(b.x.div_ceil(4), b.y.div_ceil(4), b.z.div_ceil(4));
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::INJECT);
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
-        counters.dispatches += 1;
-        counters.cells_injected += project.grid.cell_count();
-        counters.particle_overlaps += bins.overlaps() as u64 * (binning::BRICK as u64).pow(3);
+        counters.dispatches += 2;
+        let cells_per_brick = (binning::BRICK as u64).pow(3);
+        counters.cells_injected += (bricks.len() as u64 * cells_per_brick).min(project.grid.cell_count());
+        counters.particle_evaluations += bins.evaluations(&project.grid, bricks);
         Ok(())
     }
 
@@ -410,7 +538,7 @@ impl FogPipeline {
         self.baked.opv_inputs.resize(project.lights.len(), None);
         let mut active = Vec::new();
         for (i, light) in project.lights.iter().enumerate() {
-            let key = (light.position, generation, scheme);
+            let key = (light.position, generation, scheme, project.propagation.sweep_stride);
             if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
                 counters.lights_skipped += 1;
             } else {
@@ -421,56 +549,24 @@ impl FogPipeline {
         if active.is_empty() {
             return Ok(());
         }
-        match scheme {
-            Scheme::Giroud => {
-                let iterations = active
-                    .iter()
-                    .map(|&l| giroud_iterations(&project.grid, project.lights[l as usize].position))
-                    .max()
-                    .unwrap_or(1);
-                // An even count leaves the result in buffer A, where every other light's OPV is.
-                let iterations = iterations + iterations % 2;
-                let device = &self.ctx.device;
-                let active_buf = storage_buffer(device, "active lights", bytemuck::cast_slice(&active));
-                let make = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
-                    bind_group(
-                        device,
-                        "propagate_giroud",
-                        &self.giroud_layout,
-                        &[
-                            g.grid_buf.as_entire_binding(),
-                            wgpu::BindingResource::TextureView(&g.ev_view),
-                            g.lights_buf.as_entire_binding(),
-                            active_buf.as_entire_binding(),
-                            src.as_entire_binding(),
-                            dst.as_entire_binding(),
-                        ],
-                    )
-                };
-                let ab = make(&g.opv[0], &g.opv[1]);
-                let ba = make(&g.opv[1], &g.opv[0]);
-                let r = project.grid.resolution;
-                let mut encoder = device.create_command_encoder(&Default::default());
-                // Lights not being updated must survive in B too, since B feeds back into A.
-                encoder.copy_buffer_to_buffer(&g.opv[0], 0, &g.opv[1], 0, None);
-                {
-                    let mut pass =
-                        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: None });
-                    pass.set_pipeline(&self.giroud);
-                    for it in 0..iterations {
-                        pass.set_bind_group(0, if it % 2 == 0 { &ab } else { &ba }, &[]);
-                        pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4) * active.len() as u32);
-                    }
-                }
-                self.ctx.queue.submit([encoder.finish()]);
-                self.ctx.wait()?;
-                counters.dispatches += iterations;
-                counters.propagation_iterations = iterations;
-                counters.cells_propagated += project.grid.cell_count() * active.len() as u64 * iterations as u64;
-            }
+        let positions: Vec<glam::Vec3> = project.lights.iter().map(|l| l.position).collect();
+        let inputs = PropagationInputs {
+            grid: &g.spec,
+            grid_buf: &g.grid_buf,
+            ev_view: &g.ev_view,
+            lights_buf: &g.lights_buf,
+            opv: &g.opv,
+            positions: &positions,
+            sweep_stride: project.propagation.sweep_stride,
+        };
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        let timestamps = self.timer.as_ref().map(|t| t.writes(timer::PROPAGATE));
+        self.propagator.encode(&self.ctx.device, &mut encoder, &inputs, scheme, &active, timestamps, counters);
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::PROPAGATE);
         }
-        counters.lights_propagated += active.len() as u32;
-        Ok(())
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()
     }
 
     fn ensure_image(&mut self, width: u32, height: u32) {
@@ -508,9 +604,12 @@ impl FogPipeline {
         self.ensure_image(request.width, request.height);
         let (Some(g), Some(img)) = (&self.grid, &self.image) else { return Ok(()) };
         let device = &self.ctx.device;
-        let params = march_params(project, request.width, request.height);
+        let surfaces = surfaces_gpu(project);
+        let surfaces_buf = storage_buffer(device, "surfaces", bytemuck::cast_slice(&surfaces));
+        let params = march_params(project, request.width, request.height, surfaces.len() as u32);
         self.ctx.queue.write_buffer(&img.params_buf, 0, bytemuck::bytes_of(&params));
         self.ctx.queue.write_buffer(&self.counters_buf, 0, &[0u8; 16]);
+        let counters_binding = self.counters_buf.as_entire_binding();
         let hdr_view = img.hdr.create_view(&Default::default());
         let bg = bind_group(
             device,
@@ -524,20 +623,30 @@ impl FogPipeline {
                 g.opv[0].as_entire_binding(),
                 wgpu::BindingResource::TextureView(&hdr_view),
                 wgpu::BindingResource::TextureView(&img.ldr_view),
-                self.counters_buf.as_entire_binding(),
+                counters_binding,
+                g.brick_max.as_entire_binding(),
+                surfaces_buf.as_entire_binding(),
             ],
         );
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("march"),
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::MARCH)),
+            });
             pass.set_pipeline(&self.march);
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups(request.width.div_ceil(8), request.height.div_ceil(8), 1);
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::MARCH);
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
         let c: Vec<u32> = read_buffer(&self.ctx, &self.counters_buf, 0, 4)?;
         counters.samples_marched += c[0] as u64;
+        counters.bricks_skipped += c[1] as u64;
+        counters.rays_terminated += c[2] as u64;
         counters.dispatches += 1;
         Ok(())
     }
@@ -600,34 +709,42 @@ fn particle_gpu(p: &Particle) -> ParticleGpu {
     }
 }
 
-/// Jacobi sweeps after which the `giroud` gather has converged exactly: one more than the
-/// largest Manhattan distance (in cells) from any cell to the light's slabs.
-pub fn giroud_iterations(grid: &GridSpec, light: glam::Vec3) -> u32 {
-    let cell = grid.cell_size();
-    let mut total = 0u32;
-    for a in 0..3 {
-        let n = grid.resolution[a] as i64;
-        let u = ((light[a] - grid.min[a]) / cell[a]) as f64;
-        let slab = u.floor() as i64;
-        let far = if slab < 0 {
-            n
-        } else if slab >= n {
-            n
-        } else {
-            slab.max(n - 1 - slab) as i64
-        };
-        total += far as u32;
+/// The project's surfaces in the layout of `shaders/march.wgsl`.
+fn surfaces_gpu(project: &Project) -> Vec<SurfaceGpu> {
+    let mut out: Vec<SurfaceGpu> = project
+        .surfaces
+        .boxes
+        .iter()
+        .map(|b| SurfaceGpu {
+            min: b.min.to_array(),
+            kind: 0,
+            max: b.max.to_array(),
+            _pad0: 0.0,
+            albedo: b.albedo.to_array(),
+            _pad1: 0.0,
+        })
+        .collect();
+    if let Some(g) = &project.surfaces.ground {
+        out.push(SurfaceGpu {
+            min: [0.0, g.height, 0.0],
+            kind: 1,
+            max: [0.0; 3],
+            _pad0: 0.0,
+            albedo: g.albedo.to_array(),
+            _pad1: 0.0,
+        });
     }
-    total + 1
+    out
 }
 
-/// Camera basis scaled to the image plane, step and far distance for the march.
-fn march_params(project: &Project, width: u32, height: u32) -> MarchParams {
+/// Camera basis scaled to the image plane, step policy and far distance for the march.
+fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) -> MarchParams {
     let cam = &project.camera;
+    let r = &project.render;
     let (right, up, forward) = cam.basis();
     let tan_half = (cam.fov_y_deg.to_radians() * 0.5).tan();
     let aspect = width as f32 / height as f32;
-    let cell = project.grid.cell_size().min_element();
+    let step = r.step_factor * project.grid.cell_size().min_element();
     let base = project.medium.base_extinction;
     // Beyond the grid only base fog remains; march it until its transmittance is 1e-4,
     // or at most 20 grid diagonals.
@@ -635,16 +752,30 @@ fn march_params(project: &Project, width: u32, height: u32) -> MarchParams {
     let far_distance = if base > 0.0 { (9.21 / base).min(20.0 * diag) } else { 0.0 };
     MarchParams {
         origin: cam.position.to_array(),
-        step: project.render.step_factor * cell,
+        step,
         right: (right * tan_half * aspect).to_array(),
         albedo: project.medium.albedo,
         up: (up * tan_half).to_array(),
         anisotropy: project.medium.anisotropy,
         forward: forward.to_array(),
-        exposure: project.render.exposure,
+        exposure: r.exposure,
         size: [width, height],
-        tr_cutoff: TRANSMITTANCE_CUTOFF,
+        tr_cutoff: r.transmittance_cutoff,
         far_distance,
+        policy: match r.step_policy {
+            StepPolicy::Fixed => 0,
+            StepPolicy::TwoLevel => 1,
+            StepPolicy::Adaptive => 2,
+        },
+        near_steps: r.near_steps,
+        far_steps: r.far_steps,
+        skip_empty: r.skip_empty as u32,
+        tau_target: r.tau_target,
+        near_fraction: r.near_fraction,
+        min_step: 0.25 * step,
+        max_step: 4.0 * step,
+        surface_count,
+        _pad: [0; 3],
     }
 }
 

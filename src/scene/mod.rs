@@ -33,6 +33,42 @@ pub struct Project {
     pub camera: Camera,
     pub render: RenderSettings,
     pub propagation: PropagationSettings,
+    pub surfaces: Surfaces,
+    /// A density grid imported from a VDB file, resampled into the grid under the
+    /// particles. Default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base_volume: Option<BaseVolume>,
+}
+
+/// A VDB density grid used as a base layer of the extinction volume.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BaseVolume {
+    /// The .vdb file; a relative path is relative to the project file's directory.
+    pub path: std::path::PathBuf,
+    /// Name of the float grid to read. Default "density".
+    #[serde(default = "density_name")]
+    pub grid: String,
+    /// Multiplier turning the grid's values into extinction (1/m). Default 1.
+    #[serde(default = "one")]
+    pub scale: f32,
+}
+
+fn density_name() -> String {
+    "density".into()
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+impl BaseVolume {
+    /// The file to read, resolving a relative path against `project_dir`.
+    pub fn resolved_path(&self, project_dir: Option<&std::path::Path>) -> std::path::PathBuf {
+        match project_dir {
+            Some(dir) if self.path.is_relative() => dir.join(&self.path),
+            _ => self.path.clone(),
+        }
+    }
 }
 
 impl Default for Project {
@@ -46,6 +82,8 @@ impl Default for Project {
             camera: Camera::default(),
             render: RenderSettings::default(),
             propagation: PropagationSettings::default(),
+            surfaces: Surfaces::default(),
+            base_volume: None,
         }
     }
 }
@@ -209,6 +247,22 @@ impl Camera {
     }
 }
 
+/// How samples are placed along camera rays inside the grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum StepPolicy {
+    /// Uniform steps of `step_factor` cells.
+    Fixed,
+    /// Tan et al.: `near_steps` uniform steps over the first `near_fraction` of the ray's path
+    /// through the grid, then `far_steps` linearly growing steps.
+    TwoLevel,
+    /// Steps of `tau_target` / (largest σ_t in the 8³ brick) and at most half the distance
+    /// to the nearest light, between ¼ and 4× `step_factor` cells, so each step's optical
+    /// thickness and the change of incoming light across it stay bounded.
+    #[default]
+    Adaptive,
+}
+
 /// How the preview image is rendered.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -218,43 +272,165 @@ pub struct RenderSettings {
     pub height: u32,
     /// Ray-march step as a fraction of the smallest cell edge. Default 0.5.
     pub step_factor: f32,
-    /// Multiplier on linear radiance before tone mapping (PNG only). Default 1.
+    /// Multiplier on linear radiance before tone mapping (PNG and display). Default 1.
     pub exposure: f32,
+    /// Default `adaptive`.
+    pub step_policy: StepPolicy,
+    /// Optical thickness per step of the adaptive policy. Default 0.05.
+    pub tau_target: f32,
+    /// Two-level policy: uniform near steps (default 48), growing far steps (default 24) and
+    /// the fraction of the path covered by the near level (default 0.35).
+    pub near_steps: u32,
+    pub far_steps: u32,
+    pub near_fraction: f32,
+    /// Jump over bricks with no extinction at all (exact). Default true.
+    pub skip_empty: bool,
+    /// A ray stops once its transmittance is below this: the radiance still to come is at
+    /// most this fraction of what the rest of the ray would add unattenuated. Default 1e-4.
+    pub transmittance_cutoff: f32,
 }
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        Self { width: 640, height: 360, step_factor: 0.5, exposure: 1.0 }
+        Self {
+            width: 640,
+            height: 360,
+            step_factor: 0.5,
+            exposure: 1.0,
+            step_policy: StepPolicy::default(),
+            tau_target: 0.05,
+            near_steps: 48,
+            far_steps: 24,
+            near_fraction: 0.35,
+            skip_empty: true,
+            transmittance_cutoff: 1e-4,
+        }
     }
+}
+
+/// Opaque diffuse surfaces that stop camera rays and receive light through the fog.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Surfaces {
+    /// An infinite ground plane. Default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ground: Option<Ground>,
+    /// Axis-aligned boxes (walls, blocks). Default none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub boxes: Vec<SurfaceBox>,
+}
+
+/// Where a ray first meets a surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    pub t: f64,
+    pub normal: glam::DVec3,
+    pub albedo: glam::DVec3,
+}
+
+impl Surfaces {
+    pub fn is_empty(&self) -> bool {
+        self.ground.is_none() && self.boxes.is_empty()
+    }
+
+    /// The first surface along `origin + t·dir` (t > 0), by the rules the GPU march uses:
+    /// boxes are hit only from outside, the ground only from above.
+    pub fn first_hit(&self, origin: glam::DVec3, dir: glam::DVec3) -> Option<SurfaceHit> {
+        use glam::DVec3;
+        let mut best: Option<SurfaceHit> = None;
+        let mut consider = |hit: SurfaceHit| {
+            if best.is_none_or(|b| hit.t < b.t) {
+                best = Some(hit);
+            }
+        };
+        if let Some(g) = &self.ground {
+            let h = g.height as f64;
+            if dir.y < 0.0 && origin.y > h {
+                consider(SurfaceHit { t: (h - origin.y) / dir.y, normal: DVec3::Y, albedo: g.albedo.as_dvec3() });
+            }
+        }
+        for b in &self.boxes {
+            let inv = dir.recip();
+            let ta = (b.min.as_dvec3() - origin) * inv;
+            let tb = (b.max.as_dvec3() - origin) * inv;
+            let (tn, tf) = (ta.min(tb), ta.max(tb));
+            let t_in = tn.max_element();
+            let t_out = tf.min_element();
+            if t_in > 0.0 && t_in <= t_out {
+                let axis = if t_in == tn.x { 0 } else if t_in == tn.y { 1 } else { 2 };
+                let mut normal = DVec3::ZERO;
+                normal[axis] = -dir[axis].signum();
+                consider(SurfaceHit { t: t_in, normal, albedo: b.albedo.as_dvec3() });
+            }
+        }
+        best
+    }
+}
+
+/// The plane y = `height`, lit from above.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ground {
+    pub height: f32,
+    /// Diffuse albedo per channel in [0, 1]. Default 0.5 grey.
+    #[serde(default = "grey")]
+    pub albedo: Vec3,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceBox {
+    pub min: Vec3,
+    pub max: Vec3,
+    /// Diffuse albedo per channel in [0, 1]. Default 0.5 grey.
+    #[serde(default = "grey")]
+    pub albedo: Vec3,
+}
+
+fn grey() -> Vec3 {
+    Vec3::splat(0.5)
 }
 
 /// How optical depth towards each light is propagated through the grid.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Scheme {
-    /// Giroud & Biri's 6-neighbour gather, iterated over the whole grid until converged.
-    #[default]
+    /// Giroud & Biri's 6-neighbour gather, iterated over the whole grid until converged:
+    /// O(N⁴) per light.
     Giroud,
+    /// Upwind short-characteristics sweep in wavefronts from the light: each cell computed
+    /// once, O(N³) per light, little numerical diffusion.
+    #[default]
+    Sweep,
+    /// Every cell marches straight to the light: reference quality, O(N⁴) per light.
+    Exact,
 }
 
 impl std::fmt::Display for Scheme {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
             Scheme::Giroud => "giroud",
+            Scheme::Sweep => "sweep",
+            Scheme::Exact => "exact",
         })
     }
 }
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct PropagationSettings {
-    /// Default `giroud`.
+    /// Default `sweep`.
     pub scheme: Scheme,
+    /// Layers the `sweep` scheme steps back per interpolation, 3..=16: larger is less
+    /// diffusive and costs more per cell. Default 4.
+    pub sweep_stride: u32,
+}
+
+impl Default for PropagationSettings {
+    fn default() -> Self {
+        Self { scheme: Scheme::default(), sweep_stride: 4 }
+    }
 }
 
 impl Project {
-    /// The extinction σ_t at a point of the analytic medium (f32; the f64 reference lives
-    /// in `crate::reference`).
     pub fn visible_particles(&self) -> impl Iterator<Item = &Particle> {
         self.particles.iter().filter(|p| !p.hidden)
     }

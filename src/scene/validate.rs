@@ -134,6 +134,53 @@ impl Project {
             return Err(err("render.step_factor", format!("must be within [0.01, 8], got {}", r.step_factor)));
         }
         at_least("render.exposure", r.exposure, 0.0)?;
+        finite("render.tau_target", r.tau_target)?;
+        if !(r.tau_target > 0.0 && r.tau_target <= 4.0) {
+            return Err(err("render.tau_target", format!("must be within (0, 4], got {}", r.tau_target)));
+        }
+        for (name, v) in [("render.near_steps", r.near_steps), ("render.far_steps", r.far_steps)] {
+            if v == 0 || v > 100_000 {
+                return Err(err(name, format!("must be within 1..=100000, got {v}")));
+            }
+        }
+        finite("render.near_fraction", r.near_fraction)?;
+        if !(0.0..=1.0).contains(&r.near_fraction) {
+            return Err(err("render.near_fraction", format!("must be within [0, 1], got {}", r.near_fraction)));
+        }
+        finite("render.transmittance_cutoff", r.transmittance_cutoff)?;
+        if !(0.0..1.0).contains(&r.transmittance_cutoff) {
+            return Err(err(
+                "render.transmittance_cutoff",
+                format!("must be within [0, 1), got {}", r.transmittance_cutoff),
+            ));
+        }
+        let albedo_ok = |v: Vec3| v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 1.0;
+        if let Some(g) = &self.surfaces.ground {
+            finite("surfaces.ground.height", g.height)?;
+            if !albedo_ok(g.albedo) {
+                return Err(err("surfaces.ground.albedo", "components must be within [0, 1]"));
+            }
+        }
+        for (i, b) in self.surfaces.boxes.iter().enumerate() {
+            finite3(&format!("surfaces.boxes[{i}].min"), b.min)?;
+            finite3(&format!("surfaces.boxes[{i}].max"), b.max)?;
+            if b.min.cmpge(b.max).any() {
+                return Err(err(format!("surfaces.boxes[{i}].max"), "must be greater than min on every axis"));
+            }
+            if !albedo_ok(b.albedo) {
+                return Err(err(format!("surfaces.boxes[{i}].albedo"), "components must be within [0, 1]"));
+            }
+        }
+        if let Some(b) = &self.base_volume {
+            at_least("base_volume.scale", b.scale, 0.0)?;
+            if b.grid.is_empty() {
+                return Err(err("base_volume.grid", "must name a grid, e.g. \"density\""));
+            }
+        }
+        let stride = self.propagation.sweep_stride;
+        if !(3..=16).contains(&stride) {
+            return Err(err("propagation.sweep_stride", format!("must be within 3..=16, got {stride}")));
+        }
         Ok(())
     }
 }

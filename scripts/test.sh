@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# The test command: sets the machine up (idempotent), then runs the whole suite in release
+# mode on the GPU adapter wgpu finds (Mesa's lavapipe on machines without a GPU).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./setup.sh
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d /tmp/fogsmith-xdg.XXXXXX)}"
+chmod 700 "$XDG_RUNTIME_DIR"
+cargo test --release --locked "$@"

@@ -1,0 +1,77 @@
+//! `fogsmith verify`: how far this project's bake and render are from the exact reference.
+
+use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
+use crate::measure::{ev_max_rel_error, image_error, opv_error, sample_cells};
+use crate::reference::{render_reference, RefRenderOptions};
+use crate::scene::{load_project, Scheme};
+use std::path::Path;
+use std::time::Instant;
+
+pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, json: bool) -> Result<(), Box<dyn std::error::Error>> {
+    let project = load_project(path)?;
+    if width == 0 || width > 4096 {
+        return Err(format!("--width must be within 1..=4096, got {width}").into());
+    }
+    let height = ((width as f32 * project.render.height as f32 / project.render.width as f32).round() as u32).max(1);
+    let mut request = FrameRequest::for_project(&project);
+    request.scheme = scheme.unwrap_or(request.scheme);
+    request.width = width;
+    request.height = height;
+    let ctx = GpuContext::new_headless()?;
+    let adapter = ctx.adapter_summary();
+    let mut gpu = FogPipeline::new(ctx);
+    let report = gpu.update(&project, &request)?;
+
+    let started = Instant::now();
+    let cells = sample_cells(&project.grid, max_cells.max(8));
+    let ev = gpu.read_ev()?;
+    let ev_err = ev_max_rel_error(&project, &ev, &cells);
+    let mut opv = Vec::new();
+    for light in 0..project.lights.len() {
+        opv.push(opv_error(&project, light, &gpu.read_opv(light)?, &cells));
+    }
+    let image = gpu.read_image()?;
+    let reference = render_reference(&project, width, height, &RefRenderOptions::default());
+    let img_err = image_error(&image, &reference);
+    let reference_ms = started.elapsed().as_secs_f64() * 1e3;
+    let sampled = (cells.len() as u64) < project.grid.cell_count();
+
+    if json {
+        let v = serde_json::json!({
+            "project": path,
+            "scheme": request.scheme.to_string(),
+            "grid": project.grid.resolution.to_array(),
+            "ev_max_rel_error": ev_err,
+            "opv": opv,
+            "image_rel_rmse": img_err.rel_rmse,
+            "image_max_abs_error": img_err.max_abs_error,
+            "image_size": [width, height],
+            "cells_compared": cells.len(),
+            "cells_sampled": sampled,
+            "gpu_timings_ms": report.timings_ms,
+            "reference_ms": reference_ms,
+            "adapter": adapter,
+        });
+        println!("{}", serde_json::to_string(&v)?);
+    } else {
+        println!("{} ({} scheme, {} grid) on {adapter}", path.display(), request.scheme, fmt_grid(&project));
+        println!(
+            "EV max relative error: {ev_err:.3e} ({} cells{})",
+            cells.len(),
+            if sampled { ", sampled" } else { "" }
+        );
+        for e in &opv {
+            println!(
+                "light {}: transmittance max abs error {:.3e}, mean {:.3e}",
+                e.light, e.transmittance_max_abs_error, e.transmittance_mean_abs_error
+            );
+        }
+        println!("image {width}×{height}: relative RMSE {:.3e}, max abs error {:.3e}", img_err.rel_rmse, img_err.max_abs_error);
+    }
+    Ok(())
+}
+
+fn fmt_grid(p: &crate::scene::Project) -> String {
+    let r = p.grid.resolution;
+    format!("{}×{}×{}", r.x, r.y, r.z)
+}

@@ -1,0 +1,115 @@
+//! Interchange: baked grids out as OpenVDB and OpenEXR, and a VDB density in as a base layer.
+//!
+//! - [`vdb`]: a small OpenVDB writer (file format 224, as OpenVDB 10 writes it) for the
+//!   extinction grid (`density`) and one optical-depth grid per light (`optical_depth_<i>`,
+//!   optionally `transmittance_<i>`), sparse, float or half, uncompressed or zip.
+//! - [`vdb_read`]: our own reader for the subset of OpenVDB files an artist imports as fog:
+//!   float/half `FloatGrid`s, uncompressed, zip or blosc (lz4), tiles, several grids per file;
+//!   it refuses everything else with a message, never panics and bounds every allocation.
+//!   [`vdb_read::resample_into`] turns such a grid into a project's dense grid.
+//! - [`exr`]: the linear HDR render, the grids as one multi-layer EXR (a layer per quantity
+//!   per z-slice) and the extinction as a 2D slice atlas for game engines.
+//!
+//! Every writer writes a temporary file beside the destination and renames it into place,
+//! so a failed export never leaves a partial file at the destination.
+//!
+//! Nothing here depends on the GPU: exporters take [`crate::scene::Volume`]s (the EV and the
+//! per-light optical depths read back by the pipeline) plus [`LightInfo`].
+
+pub mod exr;
+pub mod vdb;
+pub mod vdb_read;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// What a light contributes to an export: metadata on its grids. Plain data, filled by the
+/// caller from the project's lights.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightInfo {
+    /// World-space position, metres.
+    pub position: [f32; 3],
+    /// Radiant intensity, W/sr.
+    pub intensity: f32,
+    /// Linear RGB colour.
+    pub color: [f32; 3],
+}
+
+/// Why an export or an import failed. Every variant names the file, the problem and, where
+/// there is one, what to do about it.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error("{path}: cannot write: {source}. Check that the folder exists, is writable and has free space.")]
+    Write { path: PathBuf, source: std::io::Error },
+    #[error("{path}: cannot read: {source}. Check the path and the file's permissions.")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {problem}. {fix}")]
+    Invalid { path: PathBuf, problem: String, fix: String },
+    #[error("{path}: not a readable OpenVDB file: {problem} (at byte {offset}). The file is damaged or truncated; export it again from the application that made it.")]
+    Corrupt { path: PathBuf, problem: String, offset: u64 },
+    #[error("{path}: {problem}. {fix}")]
+    Unsupported { path: PathBuf, problem: String, fix: String },
+}
+
+impl ExportError {
+    pub(crate) fn invalid(path: &Path, problem: impl Into<String>, fix: impl Into<String>) -> Self {
+        ExportError::Invalid { path: path.to_path_buf(), problem: problem.into(), fix: fix.into() }
+    }
+    pub(crate) fn unsupported(path: &Path, problem: impl Into<String>, fix: impl Into<String>) -> Self {
+        ExportError::Unsupported { path: path.to_path_buf(), problem: problem.into(), fix: fix.into() }
+    }
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed and
+/// synced, then renamed over the destination. On failure the temporary file is removed and
+/// the destination is untouched.
+pub(crate) fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<(), ExportError>) -> Result<(), ExportError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "export".into());
+    // Unique per process and per call, so that two exports to one destination never share it.
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = dir.join(format!(".{}.{}-{}.tmp", file_name, std::process::id(), n));
+    let result = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, path).map_err(|source| ExportError::Write { path: path.to_path_buf(), source })
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// [`write_atomic`] for an in-memory file.
+pub(crate) fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
+    write_atomic(path, |tmp| {
+        let err = |source| ExportError::Write { path: path.to_path_buf(), source };
+        let mut f = std::fs::File::create(tmp).map_err(err)?;
+        f.write_all(bytes).map_err(err)?;
+        f.sync_all().map_err(err)?;
+        Ok(())
+    })
+}
+
+/// The project's `base_volume` resampled into its grid, or None when it has none. A relative
+/// path is resolved against `project_path`'s folder.
+pub fn load_base_layer(
+    project: &crate::scene::Project,
+    project_path: Option<&Path>,
+) -> Result<Option<crate::scene::Volume>, ExportError> {
+    let Some(base) = &project.base_volume else { return Ok(None) };
+    let dir = project_path.and_then(Path::parent);
+    let path = base.resolved_path(dir);
+    vdb_read::import_density(&path, Some(&base.grid), &project.grid, base.scale).map(Some)
+}
+
+/// Export metadata of the project's lights, indexed like its OPVs.
+pub fn light_infos(project: &crate::scene::Project) -> Vec<LightInfo> {
+    project
+        .lights
+        .iter()
+        .map(|l| LightInfo { position: l.position.to_array(), intensity: l.intensity, color: l.color.to_array() })
+        .collect()
+}

@@ -1,0 +1,126 @@
+//! Error metrics of physics.md §8: GPU results against the exact f64 reference.
+//!
+//! Shared by `fogsmith verify`, the benchmarks, the stress matrix and the tests, so every
+//! figure Fogsmith reports is computed the same way.
+
+use crate::gpu::Image;
+use crate::reference::{optical_depth_cells, Medium64};
+use crate::scene::{GridSpec, Project, Volume};
+use serde::Serialize;
+
+/// Every cell when the grid has at most `max` of them, else `max` cells drawn with a fixed
+/// seed (so runs are comparable), always including the eight corners.
+pub fn sample_cells(grid: &GridSpec, max: usize) -> Vec<[u32; 3]> {
+    let r = grid.resolution;
+    let n = grid.cell_count() as usize;
+    let cell = |idx: usize| {
+        let i = (idx % r.x as usize) as u32;
+        let j = ((idx / r.x as usize) % r.y as usize) as u32;
+        let k = (idx / (r.x as usize * r.y as usize)) as u32;
+        [i, j, k]
+    };
+    if n <= max {
+        return (0..n).map(cell).collect();
+    }
+    let mut out: Vec<[u32; 3]> = (0..8u32)
+        .map(|c| [(c & 1) * (r.x - 1), ((c >> 1) & 1) * (r.y - 1), ((c >> 2) & 1) * (r.z - 1)])
+        .collect();
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    while out.len() < max {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        out.push(cell((state >> 11) as usize % n));
+    }
+    out
+}
+
+/// Transmittance error of one light's OPV.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct OpvError {
+    pub light: usize,
+    pub transmittance_max_abs_error: f64,
+    pub transmittance_mean_abs_error: f64,
+    /// Largest |T − T_exact| / T_exact where T_exact > 0.01.
+    pub depth_max_rel_error: f64,
+    pub cells: usize,
+    /// Whether the GPU volume held a NaN or infinity (counted as error 1).
+    pub nan_or_inf: bool,
+}
+
+pub fn opv_error(project: &Project, light: usize, opv: &Volume, cells: &[[u32; 3]]) -> OpvError {
+    opv_error_against(light, opv, cells, &optical_depth_cells(project, light, cells))
+}
+
+/// [`opv_error`] with the exact optical depths at `cells` already computed.
+pub fn opv_error_against(light: usize, opv: &Volume, cells: &[[u32; 3]], exact: &[f64]) -> OpvError {
+    let (mut max, mut sum, mut rel, mut bad) = (0.0f64, 0.0f64, 0.0f64, false);
+    for (c, t_exact) in cells.iter().zip(exact) {
+        let t = opv.get(c[0], c[1], c[2]) as f64;
+        let e = if t.is_finite() {
+            ((-t).exp() - (-t_exact).exp()).abs()
+        } else {
+            bad = true;
+            1.0
+        };
+        max = max.max(e);
+        sum += e;
+        if *t_exact > 0.01 && t.is_finite() {
+            rel = rel.max((t - t_exact).abs() / t_exact);
+        }
+    }
+    OpvError {
+        light,
+        transmittance_max_abs_error: max,
+        transmittance_mean_abs_error: sum / cells.len().max(1) as f64,
+        depth_max_rel_error: rel,
+        cells: cells.len(),
+        nan_or_inf: bad,
+    }
+}
+
+/// Largest relative error of the EV against the analytic σ_t where σ_t > 1e-6
+/// (infinite if the EV holds a NaN or infinity).
+pub fn ev_max_rel_error(project: &Project, ev: &Volume, cells: &[[u32; 3]]) -> f64 {
+    let medium = Medium64::from_project(project);
+    let mut worst = 0.0f64;
+    for c in cells {
+        let got = ev.get(c[0], c[1], c[2]) as f64;
+        if !got.is_finite() {
+            return f64::INFINITY;
+        }
+        let want = medium.extinction(crate::reference::cell_center64(&project.grid, c[0], c[1], c[2]));
+        if want > 1e-6 {
+            worst = worst.max((got - want).abs() / want);
+        }
+    }
+    worst
+}
+
+/// Relative RMSE (RMS error over the mean reference radiance, all channels) and largest
+/// absolute error of a GPU image against a reference of the same size.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ImageError {
+    pub rel_rmse: f64,
+    pub max_abs_error: f64,
+    pub nan_or_inf: bool,
+}
+
+pub fn image_error(image: &Image, reference: &[[f64; 3]]) -> ImageError {
+    let (mut sq, mut mean, mut max, mut bad) = (0.0f64, 0.0f64, 0.0f64, false);
+    for (p, r) in image.rgba.iter().zip(reference) {
+        for c in 0..3 {
+            let v = p[c] as f64;
+            if !v.is_finite() {
+                bad = true;
+                continue;
+            }
+            let d = v - r[c];
+            sq += d * d;
+            mean += r[c];
+            max = max.max(d.abs());
+        }
+    }
+    let n = (reference.len() * 3).max(1) as f64;
+    let mean = mean / n;
+    let rel_rmse = if mean > 0.0 { (sq / n).sqrt() / mean } else { (sq / n).sqrt() };
+    ImageError { rel_rmse, max_abs_error: max, nan_or_inf: bad }
+}

@@ -1,0 +1,357 @@
+//! Exact CPU reference, in f64, for measuring the GPU pipeline's error.
+//!
+//! Nothing here is meant for users' images: it is slow on purpose, trading speed for
+//! formulas that are exact or converge to a tight tolerance, so that benchmarks,
+//! `verify` and the editor's error views have ground truth to compare against.
+//!
+//! - [`Medium64`]: the analytic medium of `physics.md` §2 and its exact optical depth (§3).
+//! - [`optical_depth_volume`], [`optical_depth_cells`]: exact optical-depth volumes (OPVs).
+//! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
+//!   (§4) with exact transmittance.
+//! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
+
+mod quad;
+mod render;
+pub mod sun;
+
+pub use render::{
+    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, RefRenderOptions,
+};
+
+use crate::scene::{GridSpec, Project};
+use glam::DVec3;
+use std::sync::Mutex;
+
+/// A particle is skipped on a segment where its whole line integral, c·r·√π·exp(−d²/r²) with
+/// d its distance to the segment, is below this: an absolute optical depth that changes any
+/// transmittance by less than 1e-20 relative.
+pub const NEGLIGIBLE_DEPTH: f64 = 1e-20;
+
+const SQRT_PI: f64 = 1.772_453_850_905_516;
+
+/// One gaussian of the medium: σ_t(x) = density · exp(−|x − center|² / radius²).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gaussian64 {
+    pub center: DVec3,
+    pub radius: f64,
+    pub density: f64,
+}
+
+/// The medium of a project in f64: base fog plus gaussians.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Medium64 {
+    base: f64,
+    gaussians: Vec<Gaussian64>,
+    /// Per gaussian, the d²/r² beyond which it adds less than [`NEGLIGIBLE_DEPTH`].
+    cull: Vec<f64>,
+}
+
+impl Medium64 {
+    pub fn new(base: f64, gaussians: Vec<Gaussian64>) -> Self {
+        let cull = gaussians.iter().map(|g| (g.density * g.radius * SQRT_PI / NEGLIGIBLE_DEPTH).ln()).collect();
+        Self { base, gaussians, cull }
+    }
+
+    /// Visible particles with positive radius and density; hidden ones contribute nothing.
+    pub fn from_project(project: &Project) -> Self {
+        let gaussians = project
+            .visible_particles()
+            .filter(|p| p.radius > 0.0 && p.density > 0.0)
+            .map(|p| Gaussian64 { center: p.center.as_dvec3(), radius: p.radius as f64, density: p.density as f64 })
+            .collect();
+        Self::new(project.medium.base_extinction.max(0.0) as f64, gaussians)
+    }
+
+    /// Homogeneous base extinction, 1/m.
+    pub fn base(&self) -> f64 {
+        self.base
+    }
+
+    pub fn gaussians(&self) -> &[Gaussian64] {
+        &self.gaussians
+    }
+
+    /// σ_t at `x`.
+    pub fn extinction(&self, x: DVec3) -> f64 {
+        self.base
+            + self
+                .gaussians
+                .iter()
+                .map(|g| g.density * (-(x - g.center).length_squared() / (g.radius * g.radius)).exp())
+                .sum::<f64>()
+    }
+
+    /// Exact optical depth ∫ σ_t along the segment from `a` to `b` (physics.md §3); both ends
+    /// must be finite.
+    pub fn optical_depth(&self, a: DVec3, b: DVec3) -> f64 {
+        let len = (b - a).length();
+        if len == 0.0 {
+            return 0.0;
+        }
+        let dir = (b - a) / len;
+        self.base * len
+            + self.gaussians.iter().zip(&self.cull).map(|(g, &cull)| g.segment_depth(cull, a, dir, len)).sum::<f64>()
+    }
+
+    /// The gaussians that can contribute anywhere along the line `origin + t·dir` (unit `dir`).
+    pub fn along_line(&self, origin: DVec3, dir: DVec3) -> Self {
+        let mut kept = Self { base: self.base, gaussians: Vec::new(), cull: Vec::new() };
+        for (g, &cull) in self.gaussians.iter().zip(&self.cull) {
+            let ob = g.center - origin;
+            let perp = ob - dir * dir.dot(ob);
+            if perp.length_squared() / (g.radius * g.radius) <= cull {
+                kept.gaussians.push(*g);
+                kept.cull.push(cull);
+            }
+        }
+        kept
+    }
+}
+
+impl Gaussian64 {
+    /// ∫_0^len of this gaussian along `origin + t·dir`, unit `dir`.
+    /// `cull`: the d²/r² beyond which the whole integral is negligible (see [`Medium64`]).
+    fn segment_depth(&self, cull: f64, origin: DVec3, dir: DVec3, len: f64) -> f64 {
+        let r = self.radius;
+        let ob = self.center - origin;
+        let t_star = dir.dot(ob);
+        let q = (ob - dir * t_star).length_squared() / (r * r);
+        let nearest = t_star.clamp(0.0, len);
+        if q > cull || (ob - dir * nearest).length_squared() / (r * r) > cull {
+            return 0.0;
+        }
+        let z0 = -t_star / r;
+        let z1 = (len - t_star) / r;
+        if len < 1e-2 * r {
+            // A short segment: the erf difference would cancel; 4-point Gauss–Legendre is
+            // exact to rounding for an interval this narrow.
+            const X: [f64; 2] = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
+            const W: [f64; 2] = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
+            let (c, h) = ((0.5 * len - t_star) / r, 0.5 * len / r);
+            let sum: f64 = (0..2)
+                .map(|i| W[i] * ((-q - (c - h * X[i]).powi(2)).exp() + (-q - (c + h * X[i]).powi(2)).exp()))
+                .sum();
+            return self.density * r * h * sum;
+        }
+        self.density * (-q).exp() * r * (0.5 * SQRT_PI) * erf_diff(z0, z1)
+    }
+}
+
+/// erf(z1) − erf(z0) for z0 ≤ z1, through erfc where both arguments have the same sign so
+/// that tails far from the centre do not cancel.
+fn erf_diff(z0: f64, z1: f64) -> f64 {
+    if z0 >= 0.0 {
+        libm::erfc(z0) - libm::erfc(z1)
+    } else if z1 <= 0.0 {
+        libm::erfc(-z1) - libm::erfc(-z0)
+    } else {
+        libm::erf(z1) - libm::erf(z0)
+    }
+}
+
+/// Centre of cell (i, j, k) in f64.
+pub fn cell_center64(grid: &GridSpec, i: u32, j: u32, k: u32) -> DVec3 {
+    let min = grid.min.as_dvec3();
+    let cell = (grid.max.as_dvec3() - min) / grid.resolution.as_dvec3();
+    min + (DVec3::new(i as f64, j as f64, k as f64) + 0.5) * cell
+}
+
+/// Exact optical depth T(cell centre, light) for every cell of `project.grid`, x fastest.
+/// `light` indexes `project.lights`, hidden or not; hidden particles are left out.
+///
+/// # Panics
+/// If `light` is not an index into `project.lights`.
+pub fn optical_depth_volume(project: &Project, light: usize) -> Vec<f64> {
+    let grid = project.grid;
+    let r = grid.resolution;
+    let cells = r.x as usize * r.y as usize * r.z as usize;
+    let medium = Medium64::from_project(project);
+    let source = project.lights[light].position.as_dvec3();
+    let mut out = vec![0.0; cells];
+    par_fill(&mut out, r.x.max(1) as usize, |idx| {
+        let i = (idx % r.x as usize) as u32;
+        let j = ((idx / r.x as usize) % r.y as usize) as u32;
+        let k = (idx / (r.x as usize * r.y as usize)) as u32;
+        medium.optical_depth(cell_center64(&grid, i, j, k), source)
+    });
+    out
+}
+
+/// Exact optical depth towards `light` at the centres of the given cells, in their order.
+///
+/// # Panics
+/// If `light` is not an index into `project.lights`.
+pub fn optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    let medium = Medium64::from_project(project);
+    let source = project.lights[light].position.as_dvec3();
+    let mut out = vec![0.0; cells.len()];
+    par_fill(&mut out, 64, |n| {
+        let [i, j, k] = cells[n];
+        medium.optical_depth(cell_center64(&project.grid, i, j, k), source)
+    });
+    out
+}
+
+/// Fills `out[n] = f(n)` on all available cores, handing out chunks of `chunk` items.
+pub(crate) fn par_fill<T: Send>(out: &mut [T], chunk: usize, f: impl Fn(usize) -> T + Sync) {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunk = chunk.max(1);
+    let chunks = out.len().div_ceil(chunk);
+    let work = Mutex::new(out.chunks_mut(chunk).enumerate());
+    std::thread::scope(|s| {
+        for _ in 0..threads.min(chunks) {
+            s.spawn(|| loop {
+                let next = work.lock().map(|mut it| it.next()).ok().flatten();
+                let Some((c, items)) = next else { break };
+                for (n, item) in items.iter_mut().enumerate() {
+                    *item = f(c * chunk + n);
+                }
+            });
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Light, Particle};
+    use glam::{UVec3, Vec3};
+
+    /// Deterministic pseudo-random numbers in [0, 1).
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn brute_force(m: &Medium64, a: DVec3, b: DVec3) -> f64 {
+        let len = (b - a).length();
+        let dir = (b - a) / len;
+        let mut pts = Vec::new();
+        for g in &m.gaussians {
+            let t = dir.dot(g.center - a);
+            pts.extend((-6..=6).map(|k| t + k as f64 * g.radius));
+        }
+        let pts = quad::breakpoints(pts, 0.0, len);
+        quad::integrate(|t| m.extinction(a + dir * t), &pts, 1e-13, 0.0, 20_000).0
+    }
+
+    #[test]
+    fn optical_depth_matches_brute_force_quadrature() {
+        let mut s = 7;
+        for _ in 0..20 {
+            let p = |s: &mut u64| DVec3::new(lcg(s), lcg(s), lcg(s)) * 4.0 - 2.0;
+            let gaussians = (0..3)
+                .map(|_| Gaussian64 { center: p(&mut s), radius: 0.1 + lcg(&mut s), density: 0.1 + 5.0 * lcg(&mut s) })
+                .collect();
+            let m = Medium64::new(0.05, gaussians);
+            let (a, b) = (p(&mut s), p(&mut s));
+            let exact = m.optical_depth(a, b);
+            let brute = brute_force(&m, a, b);
+            assert!((exact - brute).abs() <= 1e-9 * brute, "{exact} vs {brute}");
+        }
+    }
+
+    #[test]
+    fn optical_depth_of_extreme_particles_is_finite_and_accurate() {
+        let a = DVec3::new(-3.0, 0.2, 0.1);
+        for radius in [1e-3, 1e-2, 1.0, 1e3] {
+            for density in [1e-6, 1.0, 1e4] {
+                for offset in [0.0, 0.5 * radius, 3.0 * radius, 40.0 * radius] {
+                    let g = Gaussian64 { center: DVec3::new(0.3, 0.2 + offset, 0.1), radius, density };
+                    let m = Medium64::new(0.0, vec![g]);
+                    for b in [
+                        a,
+                        a + DVec3::X * 1e-9,
+                        DVec3::new(0.3, 0.2, 0.1),
+                        DVec3::new(5.0, 0.2, 0.1),
+                        DVec3::new(3.0, 0.5, 0.1),
+                    ] {
+                        let t = m.optical_depth(a, b);
+                        assert!(t.is_finite() && t >= 0.0, "r {radius} c {density} off {offset}: {t}");
+                        let brute = if a == b { 0.0 } else { brute_force(&m, a, b) };
+                        assert!(
+                            (t - brute).abs() <= 1e-9 * brute + NEGLIGIBLE_DEPTH,
+                            "r {radius} c {density} off {offset} b {b}: {t} vs {brute}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn full_line_through_a_gaussian_integrates_to_its_mass() {
+        let g = Gaussian64 { center: DVec3::ZERO, radius: 0.7, density: 3.0 };
+        let m = Medium64::new(0.0, vec![g]);
+        let t = m.optical_depth(DVec3::new(-50.0, 0.0, 0.0), DVec3::new(50.0, 0.0, 0.0));
+        let exact = 3.0 * 0.7 * std::f64::consts::PI.sqrt();
+        assert!((t - exact).abs() < 1e-13 * exact);
+        assert_eq!(m.optical_depth(DVec3::ONE, DVec3::ONE), 0.0);
+    }
+
+    #[test]
+    fn volume_and_cells_agree_and_skip_hidden_particles() {
+        let mut project = Project::default();
+        project.grid.resolution = UVec3::new(5, 4, 3);
+        project.medium.base_extinction = 0.1;
+        project.particles.push(Particle::new(Vec3::new(0.0, 2.0, 0.0), 0.8, 2.0));
+        let mut hidden = Particle::new(Vec3::new(0.5, 1.0, 0.0), 0.8, 100.0);
+        hidden.hidden = true;
+        project.particles.push(hidden);
+        project.lights.push(Light::new(Vec3::new(1.0, 3.5, -1.0), 1.0, Vec3::ONE));
+        let volume = optical_depth_volume(&project, 0);
+        assert_eq!(volume.len(), 60);
+        let cells = [[0, 0, 0], [4, 3, 2], [2, 1, 1]];
+        let sampled = optical_depth_cells(&project, 0, &cells);
+        let medium = Medium64::from_project(&project);
+        assert_eq!(medium.gaussians.len(), 1);
+        for (n, [i, j, k]) in cells.iter().copied().enumerate() {
+            assert_eq!(sampled[n], volume[project.grid.index(i, j, k)]);
+            let x = cell_center64(&project.grid, i, j, k);
+            assert_eq!(sampled[n], medium.optical_depth(x, DVec3::new(1.0, 3.5, -1.0)));
+        }
+    }
+}
+
+#[cfg(test)]
+mod timings {
+    use super::*;
+    use std::time::Instant;
+
+    /// `cargo test --lib reference::timings -- --ignored --nocapture`: rough costs on the demos.
+    #[test]
+    #[ignore]
+    fn demo_project_timings() {
+        for name in ["cloud", "cornell", "street"] {
+            let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("projects/{name}.ron"));
+            let project = match crate::scene::load_project(&path) {
+                Ok(p) => p,
+                Err(e) => panic!("{e}"),
+            };
+            let t = Instant::now();
+            let opv = optical_depth_volume(&project, 0);
+            let opv_s = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let image = render_reference(&project, 32, 18, &RefRenderOptions::default());
+            let render_s = t.elapsed().as_secs_f64();
+            let max_t = opv.iter().copied().fold(0.0, f64::max);
+            let medium = Medium64::from_project(&project);
+            let origin = project.camera.position.as_dvec3();
+            let mut worst = 0.0_f64;
+            for (px, py) in [(16, 9), (5, 4), (25, 12), (10, 15)] {
+                let dir = camera_ray64(&project.camera, px, py, 32, 18);
+                let march =
+                    radiance_along_ray(&medium, &project, origin, dir, f64::INFINITY, &RefRenderOptions::default());
+                let exact = in_scatter_adaptive(&medium, &project, origin, dir, f64::INFINITY, 1e-9);
+                worst = worst.max(((march[0] - exact[0]) / exact[0]).abs());
+            }
+            println!("{name}: default step {:.2e} m, march vs adaptive max rel {worst:.2e}", default_step(&project));
+            let mean_l = image.iter().map(|p| p[0]).sum::<f64>() / image.len() as f64;
+            println!(
+                "{name}: OPV {} cells in {opv_s:.2} s (max T {max_t:.2}); reference 32x18 in {render_s:.2} s (mean R {mean_l:.3e}); {} threads",
+                opv.len(),
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            );
+        }
+    }
+}

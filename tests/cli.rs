@@ -1,0 +1,98 @@
+//! The `fogsmith` binary end to end: render, verify, export, and its errors.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn fogsmith() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_fogsmith"))
+}
+
+fn demo(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("projects").join(name)
+}
+
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
+}
+
+#[test]
+fn render_every_demo_prints_json_and_writes_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["cornell.ron", "cloud.ron", "street.ron"] {
+        let png = dir.path().join(name.replace(".ron", ".png"));
+        let out = fogsmith()
+            .args(["render", demo(name).to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "64", "--height", "36", "--json"])
+            .output()
+            .unwrap();
+        let v = json_of(&out);
+        for key in ["width", "height", "lights", "grid", "timings_ms", "adapter"] {
+            assert!(v.get(key).is_some(), "{name}: JSON lacks {key}: {v}");
+        }
+        for stage in ["inject", "propagate", "march"] {
+            assert!(v["timings_ms"][stage].as_f64().is_some_and(|t| t >= 0.0), "{name}: {v}");
+        }
+        assert_eq!(v["width"], 64);
+        let img = image::open(&png).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (64, 36));
+        assert!(img.pixels().any(|p| p.0.iter().any(|&c| c > 20)), "{name}: the image is black");
+    }
+}
+
+#[test]
+fn verify_reports_errors_against_the_reference() {
+    let out = fogsmith().args(["verify", demo("cornell.ron").to_str().unwrap(), "--width", "32", "--cells", "5000", "--json"]).output().unwrap();
+    let v = json_of(&out);
+    assert!(v["ev_max_rel_error"].as_f64().unwrap() < 1e-3, "{v}");
+    let opv = v["opv"].as_array().unwrap();
+    assert_eq!(opv.len(), 2);
+    for o in opv {
+        assert!(o["transmittance_max_abs_error"].as_f64().unwrap() < 0.02, "{v}");
+        assert!(o["transmittance_mean_abs_error"].as_f64().is_some());
+    }
+    assert!(v["image_rel_rmse"].as_f64().unwrap() < 0.05, "{v}");
+}
+
+#[test]
+fn export_writes_vdb_and_exr_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = dir.path().join("fog.vdb");
+    let atlas = dir.path().join("atlas.exr");
+    let out = fogsmith()
+        .args(["export", demo("cloud.ron").to_str().unwrap(), "--width", "32", "--height", "18"])
+        .args(["--vdb", vdb.to_str().unwrap(), "--exr-atlas", atlas.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    let v = json_of(&out);
+    let names: Vec<&str> = v["vdb"]["grids"].as_array().unwrap().iter().map(|g| g["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["density", "optical_depth_0", "optical_depth_1"]);
+    let grid = fogsmith::export::vdb_read::read_vdb_grid(&vdb, Some("density")).unwrap();
+    assert!(grid.active_voxel_count() > 0);
+    assert!(v["exr_atlas"]["layout"].as_str().unwrap().contains("64 slices of 64×48"), "{v}");
+    assert!(atlas.exists());
+}
+
+#[test]
+fn errors_are_clear_and_exit_nonzero() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.ron");
+    std::fs::write(&bad, "Project(particles: [(center: (0.0, 0.0, 0.0), radius: -1.0, density: 1.0)])").unwrap();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["render".into(), "/nonexistent/x.ron".into(), "-o".into(), "x.png".into()], "/nonexistent/x.ron"),
+        (vec!["render".into(), bad.display().to_string(), "-o".into(), "x.png".into()], "particles[0].radius"),
+        (vec!["render".into(), demo("cornell.ron").display().to_string(), "-o".into(), dir.path().join("x.bmp").display().to_string()], "unsupported output format"),
+        (vec!["render".into(), demo("cornell.ron").display().to_string(), "-o".into(), "x.png".into(), "--width".into(), "0".into()], "--width"),
+        (vec!["export".into(), demo("cornell.ron").display().to_string()], "nothing to export"),
+        (
+            vec!["export".into(), demo("cornell.ron").display().to_string(), "--vdb".into(), "/nonexistent-dir/x.vdb".into(), "--width".into(), "16".into(), "--height".into(), "16".into()],
+            "/nonexistent-dir/x.vdb",
+        ),
+    ];
+    for (args, needle) in cases {
+        let out = fogsmith().args(&args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(needle), "{args:?}: stderr lacks {needle:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    }
+}

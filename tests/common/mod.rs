@@ -1,0 +1,46 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use fogsmith::gpu::{FogPipeline, GpuContext};
+use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
+use glam::{UVec3, Vec3};
+
+/// The real pipeline on whatever adapter wgpu finds (lavapipe on CI). A missing adapter
+/// fails the test loudly: GPU tests are never skipped.
+pub fn pipeline() -> FogPipeline {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        let dir = std::env::temp_dir().join("fogsmith-test-xdg");
+        let _ = std::fs::create_dir_all(&dir);
+        std::env::set_var("XDG_RUNTIME_DIR", dir);
+    }
+    match GpuContext::new_headless() {
+        Ok(ctx) => FogPipeline::new(ctx),
+        Err(e) => panic!("GPU tests need an adapter and none is available: {e}"),
+    }
+}
+
+/// A small cloud of gaussians in a unit-ish box with one or more lights.
+pub fn small_scene(res: u32, lights: &[Vec3]) -> Project {
+    let mut p = Project::default();
+    p.grid = GridSpec { min: Vec3::new(-1.0, -1.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::splat(res) };
+    p.medium = Medium { base_extinction: 0.05, albedo: 0.8, anisotropy: 0.0 };
+    p.particles = vec![
+        Particle::new(Vec3::new(0.0, 0.0, 0.0), 0.35, 4.0),
+        Particle::new(Vec3::new(0.4, -0.2, 0.1), 0.25, 6.0),
+        Particle::new(Vec3::new(-0.45, 0.3, -0.2), 0.3, 3.0),
+        Particle::new(Vec3::new(0.1, 0.5, 0.4), 0.2, 8.0),
+    ];
+    p.lights = lights.iter().map(|&pos| Light::new(pos, 5.0, Vec3::new(1.0, 0.9, 0.8))).collect();
+    p.camera = Camera { position: Vec3::new(0.3, 0.4, 3.5), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 45.0 };
+    p.render.width = 48;
+    p.render.height = 36;
+    p
+}
+
+/// A grid filled with base fog only.
+pub fn homogeneous_scene(res: u32, beta: f32, light: Vec3) -> Project {
+    let mut p = small_scene(res, &[light]);
+    p.particles.clear();
+    p.medium.base_extinction = beta;
+    p
+}

@@ -1,0 +1,126 @@
+//! Project files: the documented example loads, every demo loads, errors carry file, line,
+//! column and field, and saving is atomic and round-trips exactly.
+
+use fogsmith::scene::io::to_ron_string;
+use fogsmith::scene::{load_project, parse_project, save_project, Project, ProjectError, Scheme};
+use std::path::Path;
+
+const EXAMPLE: &str = r#"Project(
+    version: 1,
+    grid: (min: (-2.0, 0.0, -2.0), max: (2.0, 4.0, 2.0), resolution: (64, 64, 64)),
+    medium: (base_extinction: 0.0, albedo: 1.0, anisotropy: 0.0),
+    particles: [
+        (center: (0.0, 1.5, 0.0), radius: 0.6, density: 3.0),
+    ],
+    lights: [
+        (position: (1.2, 2.5, 0.4), intensity: 20.0, color: (1.0, 0.95, 0.9)),
+    ],
+    camera: (position: (0.0, 2.0, 7.0), target: (0.0, 1.5, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0),
+    render: (width: 640, height: 360),
+)"#;
+
+fn parse(text: &str) -> Result<Project, ProjectError> {
+    parse_project(text, Path::new("scene.ron"))
+}
+
+#[test]
+fn documented_example_loads_with_defaults() {
+    let p = parse(EXAMPLE).unwrap();
+    assert_eq!(p.particles.len(), 1);
+    assert_eq!(p.lights[0].intensity, 20.0);
+    assert_eq!(p.render.step_factor, 0.5, "omitted fields take their documented defaults");
+    assert_eq!(p.propagation.scheme, Scheme::Sweep);
+}
+
+#[test]
+fn every_demo_project_loads() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("projects");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "ron") {
+            let p = load_project(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert!(!p.lights.is_empty(), "{}", path.display());
+            n += 1;
+        }
+    }
+    assert!(n >= 3, "at least three demo projects ship, found {n}");
+}
+
+#[test]
+fn syntax_errors_name_file_line_and_column() {
+    let broken = EXAMPLE.replace("radius: 0.6,", "radius: 0.6");
+    match parse(&broken) {
+        Err(ProjectError::Syntax { path, line, col, message }) => {
+            assert_eq!(path, Path::new("scene.ron"));
+            assert_eq!(line, 6, "{message}");
+            assert!(col > 1);
+        }
+        other => panic!("expected a syntax error, got {other:?}"),
+    }
+}
+
+#[test]
+fn invalid_values_name_the_field_and_its_position() {
+    let cases = [
+        ("radius: 0.6", "radius: -0.6", "particles[0].radius", 6),
+        ("density: 3.0", "density: NaN", "particles[0].density", 6),
+        ("intensity: 20.0", "intensity: -1.0", "lights[0].intensity", 9),
+        ("resolution: (64, 64, 64)", "resolution: (64, 0, 64)", "grid.resolution.y", 3),
+        ("resolution: (64, 64, 64)", "resolution: (64, 100000, 64)", "grid.resolution.y", 3),
+        ("max: (2.0, 4.0, 2.0)", "max: (2.0, -4.0, 2.0)", "grid.max.y", 3),
+        ("albedo: 1.0", "albedo: 1.5", "medium.albedo", 4),
+        ("fov_y_deg: 40.0", "fov_y_deg: 0.0", "camera.fov_y_deg", 11),
+    ];
+    for (from, to, field, want_line) in cases {
+        let text = EXAMPLE.replace(from, to);
+        match parse(&text) {
+            Err(ProjectError::Invalid { line, error, .. }) => {
+                assert_eq!(error.field, field, "{to}");
+                assert_eq!(line, want_line, "{to}: {error}");
+            }
+            other => panic!("{to}: expected a validation error, got {other:?}"),
+        }
+        let message = parse(&text).unwrap_err().to_string();
+        assert!(message.starts_with(&format!("scene.ron:{want_line}:")), "{message}");
+        assert!(message.contains(field), "{message}");
+    }
+}
+
+#[test]
+fn missing_file_is_a_clear_error() {
+    let err = load_project(Path::new("/nonexistent/fog.ron")).unwrap_err();
+    assert!(err.to_string().contains("/nonexistent/fog.ron"), "{err}");
+}
+
+#[test]
+fn save_then_load_is_identical_and_keeps_a_backup() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fog.ron");
+    let mut p = parse(EXAMPLE).unwrap();
+    p.particles[0].name = Some("wisp".into());
+    p.lights[0].hidden = true;
+    save_project(&path, &p).unwrap();
+    let back = load_project(&path).unwrap();
+    assert_eq!(back, p);
+    assert_eq!(to_ron_string(&back).unwrap(), std::fs::read_to_string(&path).unwrap());
+
+    p.medium.base_extinction = 0.25;
+    save_project(&path, &p).unwrap();
+    assert_eq!(load_project(&path).unwrap(), p);
+    let backup = load_project(&dir.path().join("fog.ron.bak")).unwrap();
+    assert_eq!(backup.medium.base_extinction, 0.0, "the previous version is kept as .bak");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "no temporary files are left behind");
+}
+
+#[test]
+fn saving_to_an_unwritable_place_fails_cleanly() {
+    let p = parse(EXAMPLE).unwrap();
+    let err = save_project(Path::new("/nonexistent-dir/fog.ron"), &p).unwrap_err();
+    assert!(err.to_string().contains("/nonexistent-dir/fog.ron"), "{err}");
+}
