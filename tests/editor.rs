@@ -151,6 +151,19 @@ fn the_slice_axis_and_field_follow_the_controls() {
     h.run_steps(3);
     let s = h.state().current_slice().expect("transmittance slice");
     assert!(s.values.iter().all(|v| (0.0..=1.0).contains(v)), "exp(−T) lies in [0, 1]");
+
+    h.state_mut().slice_settings_mut().field = fogsmith::editor::slices::Field::Error;
+    for _ in 0..3000 {
+        h.step();
+        if h.state().busy() == 0 && h.state().current_slice().is_some_and(|s| s.values.iter().any(|v| *v > 0.0)) {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let s = h.state().current_slice().expect("error slice from the CPU reference");
+    let worst = s.values.iter().copied().fold(0.0f32, f32::max);
+    assert!(s.values.iter().all(|v| v.is_finite() && *v >= 0.0), "|T − T_exact| is a finite magnitude");
+    assert!(worst > 0.0 && worst < 2.0, "the pipeline's optical depth is close to the exact one (worst {worst})");
 }
 
 #[test]

@@ -34,3 +34,16 @@ fn the_editor_window_opens_and_draws_the_preview() {
         std::fs::copy(&out, docs).expect("copy to docs/editor.png");
     }
 }
+
+#[test]
+fn without_a_display_the_editor_explains_and_fails() {
+    let out = Command::new(env!("CARGO_BIN_EXE_fogsmith"))
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("the binary runs");
+    assert!(!out.status.success(), "no window can open without a display");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("no display") && stderr.contains("fogsmith render"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
