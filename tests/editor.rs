@@ -5,7 +5,7 @@
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
 use egui_kittest::{Harness, SnapshotOptions};
-use fogsmith::editor::app::{Action, StartProject};
+use fogsmith::editor::app::{Action, Quality, StartProject};
 use fogsmith::editor::slices::Axis;
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
@@ -21,7 +21,11 @@ fn harness(start: StartProject) -> Harness<'static, EditorApp> {
     let mut h = Harness::builder()
         .with_size(Vec2::new(1280.0, 800.0))
         .wgpu_setup(fogsmith::editor::wgpu_setup())
-        .build_eframe(|cc| EditorApp::new(cc, start, EditorOptions::default()));
+        .build_eframe(|cc| {
+            let mut app = EditorApp::new(cc, start, EditorOptions::default());
+            app.set_quality(Quality::Full);
+            app
+        });
     h.run_steps(3);
     assert_eq!(h.state().gpu_error(), None, "the preview must render");
     h

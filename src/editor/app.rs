@@ -87,7 +87,7 @@ struct Persisted {
     tool: Tool,
     brush: Brush,
     slices: SliceSettings,
-    exposure_follows_project: bool,
+    quality: Quality,
 }
 
 impl Default for Persisted {
@@ -98,7 +98,7 @@ impl Default for Persisted {
             tool: Tool::default(),
             brush: Brush::default(),
             slices: SliceSettings::default(),
-            exposure_follows_project: true,
+            quality: Quality::default(),
         }
     }
 }
@@ -106,6 +106,28 @@ impl Default for Persisted {
 const STORAGE_KEY: &str = "fogsmith-editor";
 /// Time the march may take per frame while the camera moves.
 const MOVE_BUDGET_MS: f64 = 50.0;
+/// Time the march may take for a still frame in [`Quality::Balanced`].
+const STILL_BUDGET_MS: f64 = 800.0;
+
+/// How the preview resolution follows the adapter's speed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Quality {
+    /// Full resolution when still if the march fits a short budget, lower otherwise.
+    #[default]
+    Balanced,
+    /// Always full resolution when still (may take seconds per frame on software adapters).
+    Full,
+}
+
+/// The largest size with the aspect of `full` whose march should fit `budget_ms`, in
+/// sixteenths of the full size.
+fn budget_size(full: [u32; 2], budget_ms: f64, ms_per_pixel: f64) -> [u32; 2] {
+    let [w, h] = full;
+    let pixels = (w as f64 * h as f64).max(1.0);
+    let affordable = (budget_ms / ms_per_pixel.max(1e-9)).clamp(64.0 * 64.0, pixels);
+    let s = ((affordable / pixels).sqrt() * 16.0).floor().max(1.0) / 16.0;
+    [((w as f64 * s) as u32).max(16), ((h as f64 * s) as u32).max(16)]
+}
 /// Inject + propagate time above which rebakes wait for the end of a gesture.
 const SLOW_BAKE_MS: f64 = 150.0;
 const MAX_RECENT: usize = 10;
@@ -158,6 +180,8 @@ pub(crate) struct GpuView {
     march_ms_per_pixel: f64,
     /// Time of the last inject + propagate that did work.
     pub bake_ms: f64,
+    /// Wall time of the last pipeline update, all stages and waits included.
+    pub update_ms: f64,
 }
 
 impl GpuView {
@@ -174,12 +198,13 @@ impl GpuView {
             renders: 0,
             march_ms_per_pixel: 1e-4,
             bake_ms: 0.0,
+            update_ms: 0.0,
         }
     }
 
     /// Brings the pipeline up to date with the session at `size` pixels; returns whether a
     /// new frame was rendered.
-    fn render(&mut self, session: &Session, epoch: u64, size: [u32; 2], full: bool) -> bool {
+    fn render(&mut self, session: &Session, epoch: u64, size: [u32; 2]) -> bool {
         let key = (epoch, session.generation(), size);
         if self.rendered == Some(key) {
             return false;
@@ -187,13 +212,17 @@ impl GpuView {
         self.rendered = Some(key);
         let project = session.project();
         let request = FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
-        match self.pipeline.update(project, &request) {
+        let started = Instant::now();
+        let result = self.pipeline.update(project, &request);
+        self.update_ms = started.elapsed().as_secs_f64() * 1e3;
+        match result {
             Ok(report) => {
                 if report.counters.dispatches > 0 {
                     self.report = report;
                 }
-                if report.timings_ms.march > 0.0 && full {
-                    self.march_ms_per_pixel = report.timings_ms.march / (size[0] as f64 * size[1] as f64).max(1.0);
+                if report.timings_ms.march > 0.0 {
+                    let per_pixel = report.timings_ms.march / (size[0] as f64 * size[1] as f64).max(1.0);
+                    self.march_ms_per_pixel = 0.5 * (self.march_ms_per_pixel + per_pixel);
                 }
                 if report.counters.cells_injected > 0 || report.counters.lights_propagated > 0 {
                     self.bake_ms = report.timings_ms.inject + report.timings_ms.propagate;
@@ -290,6 +319,7 @@ pub struct EditorState {
     pub(crate) viewport_rect: Option<egui::Rect>,
     pub(crate) preview_size: [u32; 2],
     pub(crate) interacting: bool,
+    pub(crate) quality: Quality,
     /// Scripted camera motion counts as interaction (`--measure-fps`).
     pub(crate) force_interacting: bool,
     pub(crate) clock: FrameClock,
@@ -359,6 +389,7 @@ impl EditorApp {
             viewport_rect: None,
             preview_size: [640, 400],
             interacting: false,
+            quality: if options.screenshot.is_some() { Quality::Full } else { persisted.quality },
             force_interacting: false,
             clock: FrameClock::default(),
             continuous: options.measure_fps.is_some(),
@@ -404,6 +435,10 @@ impl EditorApp {
     }
     pub fn set_tool(&mut self, tool: Tool) {
         self.state.tool = tool;
+    }
+    /// Full-resolution previews make frames independent of the adapter's speed (tests).
+    pub fn set_quality(&mut self, quality: Quality) {
+        self.state.quality = quality;
     }
     pub fn brush_mut(&mut self) -> &mut Brush {
         &mut self.state.brush
@@ -514,7 +549,7 @@ impl eframe::App for EditorApp {
             tool: self.state.tool,
             brush: self.state.brush,
             slices: self.state.slices,
-            exposure_follows_project: true,
+            quality: self.state.quality,
         };
         eframe::set_value(storage, STORAGE_KEY, &persisted);
     }
@@ -578,17 +613,14 @@ impl EditorState {
         if editing && gpu.bake_ms > SLOW_BAKE_MS && gpu.rendered.is_some() {
             return;
         }
-        let [w, h] = self.preview_size;
-        let size = if self.interacting {
-            let full = (w as f64 * h as f64).max(1.0);
-            let budget = (MOVE_BUDGET_MS / gpu.march_ms_per_pixel.max(1e-9)).clamp(64.0 * 64.0, full);
-            let s = ((budget / full).sqrt() * 16.0).floor().max(1.0) / 16.0;
-            [((w as f64 * s) as u32).max(16), ((h as f64 * s) as u32).max(16)]
-        } else {
-            self.preview_size
+        let budget_ms = match (self.interacting, self.quality) {
+            (true, _) => MOVE_BUDGET_MS,
+            (false, Quality::Balanced) => STILL_BUDGET_MS,
+            (false, Quality::Full) => f64::INFINITY,
         };
+        let size = budget_size(self.preview_size, budget_ms, gpu.march_ms_per_pixel);
         let before = gpu.error.clone();
-        gpu.render(&self.session, self.epoch, size, size == self.preview_size);
+        gpu.render(&self.session, self.epoch, size);
         if gpu.error.is_some() && gpu.error != before {
             let message = gpu.error.clone().unwrap_or_default();
             self.error(format!("Preview failed: {message}"));
@@ -808,7 +840,10 @@ impl EditorState {
                 let camera = super::view::orbit(&self.session.project().camera, 0.02, 0.0);
                 self.session.set_camera(camera);
                 self.force_interacting = true;
+                self.interacting = true;
             } else {
+                self.force_interacting = false;
+                self.interacting = false;
                 let half = seconds * 0.5;
                 let p = self.session.project();
                 println!(
@@ -824,7 +859,8 @@ impl EditorState {
                 if let Some(g) = &self.gpu {
                     let t = g.report.timings_ms;
                     println!(
-                        "last update: inject {:.1} ms, propagate {:.1} ms, march {:.1} ms at {:?}; {}",
+                        "last update: {:.1} ms wall; inject {:.1} ms, propagate {:.1} ms, march {:.1} ms at {:?}; {}",
+                        g.update_ms,
                         t.inject,
                         t.propagate,
                         t.march,

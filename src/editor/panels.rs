@@ -591,6 +591,7 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
             ui.end_row();
         }
     });
+    ui.label(format!("Last update: {:.1} ms wall", gpu.update_ms)).on_hover_text("All stages and waits of the last pipeline update");
     ui.separator();
     let c = serde_json::to_value(r.counters).unwrap_or_default();
     egui::Grid::new("stats-counters").striped(true).num_columns(2).show(ui, |ui| {

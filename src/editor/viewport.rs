@@ -63,6 +63,20 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
         ui.add(egui::DragValue::new(&mut b.jitter).speed(0.01).range(0.0..=2.0).prefix("jitter ").suffix("×r"))
             .on_hover_text("Random offset of each dab within the working plane, in brush radii");
         ui.separator();
+        use super::app::Quality;
+        egui::ComboBox::from_id_salt("quality")
+            .selected_text(match state.quality {
+                Quality::Balanced => "balanced",
+                Quality::Full => "full res",
+            })
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut state.quality, Quality::Balanced, "balanced")
+                    .on_hover_text("Lower the preview resolution when the adapter is slow, so a still frame takes well under a second");
+                ui.selectable_value(&mut state.quality, Quality::Full, "full res")
+                    .on_hover_text("Always march every pixel when still (seconds per frame on software adapters)");
+            })
+            .response
+            .on_hover_text("Preview resolution. While the camera moves the preview is always coarser, then refines.");
         let mut exposure = state.session.project().render.exposure;
         let r = ui
             .add(egui::DragValue::new(&mut exposure).speed(0.02).range(0.0..=100.0).prefix("exposure "))
