@@ -62,7 +62,8 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             .on_hover_text("Distance between dabs along a stroke, in brush radii");
         ui.add(egui::DragValue::new(&mut b.jitter).speed(0.01).range(0.0..=2.0).prefix("jitter ").suffix("×r"))
             .on_hover_text("Random offset of each dab within the working plane, in brush radii");
-        ui.separator();
+    });
+    ui.horizontal_wrapped(|ui| {
         use super::app::Quality;
         egui::ComboBox::from_id_salt("quality")
             .selected_text(match state.quality {
@@ -77,6 +78,8 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             })
             .response
             .on_hover_text("Preview resolution. While the camera moves the preview is always coarser, then refines.");
+        ui.label("preview");
+        ui.separator();
         let mut exposure = state.session.project().render.exposure;
         let r = ui
             .add(egui::DragValue::new(&mut exposure).speed(0.02).range(0.0..=100.0).prefix("exposure "))
