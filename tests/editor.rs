@@ -5,7 +5,7 @@
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
 use egui_kittest::{Harness, SnapshotOptions};
-use fogsmith::editor::app::{Action, Quality, StartProject};
+use fogsmith::editor::app::{Action, Export, Quality, StartProject};
 use fogsmith::editor::slices::Axis;
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
@@ -192,6 +192,16 @@ fn save_and_reopen_round_trip() {
     wait_idle(&mut h);
     assert_eq!(h.state().session().project(), &saved);
     assert_eq!(h.state().session().path(), Some(path.as_path()));
+
+    let vdb = dir.path().join("scene.vdb");
+    h.state_mut().export(Export::Vdb, vdb.clone());
+    wait_idle(&mut h);
+    let names: Vec<String> = fogsmith::export::vdb_read::list_vdb_grids(&vdb)
+        .expect("the exported VDB reads back")
+        .into_iter()
+        .map(|g| g.name)
+        .collect();
+    assert_eq!(names, ["density", "optical_depth_0", "optical_depth_1"]);
 }
 
 #[test]

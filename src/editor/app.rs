@@ -143,10 +143,27 @@ pub enum Action {
 }
 
 enum JobResult {
-    Picked { save_as: bool, path: Option<PathBuf> },
+    Picked { purpose: Pick, path: Option<PathBuf> },
+    Exported { path: PathBuf, result: Result<String, String> },
     Loaded { path: PathBuf, result: Result<Project, String> },
     Saved { path: PathBuf, generation: u64, result: Result<(), String> },
     Exact { key: ExactKey, result: Result<Vec<f64>, String> },
+}
+
+/// What a file dialog was opened for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Export {
+    /// OpenVDB: density plus optical depth per light.
+    Vdb,
+    /// Multi-channel OpenEXR with every z slice of density and optical depth per light.
+    ExrSlices,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pick {
+    Open,
+    SaveAs,
+    Export(Export),
 }
 
 /// Identifies the exact optical depths computed for one slice of one project state.
@@ -469,6 +486,10 @@ impl EditorApp {
     pub fn save_as(&mut self, path: PathBuf) {
         self.state.save_to(path);
     }
+    /// Exports the baked volumes to `path` in the background.
+    pub fn export(&mut self, kind: Export, path: PathBuf) {
+        self.state.export_to(kind, path);
+    }
     pub fn title(&self) -> &str {
         &self.state.title
     }
@@ -659,7 +680,7 @@ impl EditorState {
         match action {
             Action::New => self.replace_project(Project::default(), None, "untitled.ron"),
             Action::OpenDialog => self.spawn("Choosing a file", || JobResult::Picked {
-                save_as: false,
+                purpose: Pick::Open,
                 path: rfd::FileDialog::new().add_filter("Fogsmith project", &["ron"]).pick_file(),
             }),
             Action::Open(path) => {
@@ -690,7 +711,7 @@ impl EditorState {
     fn save_as_dialog(&mut self) {
         let name = self.session.name().to_owned();
         self.spawn("Choosing where to save", move || JobResult::Picked {
-            save_as: true,
+            purpose: Pick::SaveAs,
             path: rfd::FileDialog::new().add_filter("Fogsmith project", &["ron"]).set_file_name(name).save_file(),
         });
     }
@@ -707,12 +728,72 @@ impl EditorState {
         });
     }
 
+    fn export_dialog(&mut self, kind: Export) {
+        let (filter, ext) = match kind {
+            Export::Vdb => ("OpenVDB", "vdb"),
+            Export::ExrSlices => ("OpenEXR", "exr"),
+        };
+        let stem = Path::new(self.session.name()).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = format!("{}.{ext}", stem.split(' ').next().unwrap_or("fog"));
+        self.spawn("Choosing where to export", move || JobResult::Picked {
+            purpose: Pick::Export(kind),
+            path: rfd::FileDialog::new().add_filter(filter, &[ext]).set_file_name(name).save_file(),
+        });
+    }
+
+    /// Reads the baked volumes back (brief) and writes them in a background thread.
+    pub(crate) fn export_to(&mut self, kind: Export, path: PathBuf) {
+        self.render_preview();
+        let Some(gpu) = &self.gpu else {
+            self.error("Nothing to export: the pipeline is not running");
+            return;
+        };
+        let project = self.session.project();
+        let volumes = gpu.pipeline.read_ev().and_then(|ev| {
+            let opvs = (0..project.lights.len()).map(|i| gpu.pipeline.read_opv(i)).collect::<Result<Vec<_>, _>>()?;
+            Ok((ev, opvs))
+        });
+        let (ev, opvs) = match volumes {
+            Ok(v) => v,
+            Err(e) => {
+                self.error(format!("Export failed: {e}"));
+                return;
+            }
+        };
+        let infos = crate::export::light_infos(project);
+        let p = path.clone();
+        self.spawn(&format!("Exporting {}", path.display()), move || {
+            let result = match kind {
+                Export::Vdb => {
+                    use crate::export::vdb::{grids_from_volumes, write_vdb, GridSelection, VdbOptions};
+                    let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, *l)).collect();
+                    let grids = grids_from_volumes(&ev, &lights, GridSelection::default());
+                    write_vdb(&p, &grids, &VdbOptions::default())
+                        .map(|stats| format!("{} grids, {} bytes", stats.grids.len(), stats.bytes))
+                        .map_err(|e| e.to_string())
+                }
+                Export::ExrSlices => {
+                    let names: Vec<String> = (0..opvs.len()).map(|i| format!("optical_depth_{i}")).collect();
+                    let mut channels: Vec<(&str, &crate::scene::Volume)> = vec![("density", &ev)];
+                    channels.extend(names.iter().map(String::as_str).zip(opvs.iter()));
+                    crate::export::exr::write_slices_exr(&p, &channels)
+                        .map(|_| format!("{} volumes", channels.len()))
+                        .map_err(|e| e.to_string())
+                }
+            };
+            JobResult::Exported { path: p, result }
+        });
+    }
+
     fn finish_job(&mut self, result: JobResult) {
         self.busy.pop();
         match result {
             JobResult::Picked { path: None, .. } => self.after_save = None,
-            JobResult::Picked { save_as: false, path: Some(path) } => self.perform(Action::Open(path)),
-            JobResult::Picked { save_as: true, path: Some(path) } => self.save_to(path),
+            JobResult::Picked { purpose: Pick::Open, path: Some(path) } => self.perform(Action::Open(path)),
+            JobResult::Picked { purpose: Pick::SaveAs, path: Some(path) } => self.save_to(path),
+            JobResult::Picked { purpose: Pick::Export(kind), path: Some(path) } => self.export_to(kind, path),
+            JobResult::Exported { path, result: Ok(summary) } => self.info(format!("Exported {}: {summary}", path.display())),
+            JobResult::Exported { path, result: Err(e) } => self.error(format!("Export to {} failed: {e}", path.display())),
             JobResult::Loaded { path, result: Ok(project) } => {
                 self.replace_project(project, Some(path.clone()), "");
                 self.info(format!("Opened {}", path.display()));
@@ -1094,6 +1175,14 @@ impl EditorState {
         if ui.add(egui::Button::new("Save As…").shortcut_text("Ctrl+Shift+S")).on_hover_text("Save under a new name").clicked() {
             self.save_as_dialog();
         }
+        ui.menu_button("Export", |ui| {
+            if ui.button("OpenVDB…").on_hover_text("Density and optical depth per light as an OpenVDB file").clicked() {
+                self.export_dialog(Export::Vdb);
+            }
+            if ui.button("EXR slices…").on_hover_text("Every z slice of density and optical depth per light in one OpenEXR").clicked() {
+                self.export_dialog(Export::ExrSlices);
+            }
+        });
         let can_revert = self.session.path().is_some();
         if ui.add_enabled(can_revert, egui::Button::new("Revert")).on_hover_text("Reload the file, dropping unsaved changes").clicked() {
             self.request(Action::Revert);
