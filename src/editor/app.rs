@@ -79,7 +79,7 @@ impl StartProject {
 }
 
 /// What is remembered between runs.
-#[derive(Serialize, Deserialize)]
+#[derive(Default, Serialize, Deserialize)]
 #[serde(default)]
 struct Persisted {
     dock: Option<DockState<Tab>>,
@@ -88,19 +88,6 @@ struct Persisted {
     brush: Brush,
     slices: SliceSettings,
     quality: Quality,
-}
-
-impl Default for Persisted {
-    fn default() -> Self {
-        Self {
-            dock: None,
-            recent: Vec::new(),
-            tool: Tool::default(),
-            brush: Brush::default(),
-            slices: SliceSettings::default(),
-            quality: Quality::default(),
-        }
-    }
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
@@ -145,7 +132,7 @@ pub enum Action {
 enum JobResult {
     Picked { purpose: Pick, path: Option<PathBuf> },
     Exported { path: PathBuf, result: Result<String, String> },
-    Loaded { path: PathBuf, result: Result<Project, String> },
+    Loaded { path: PathBuf, result: Result<Box<Project>, String> },
     Saved { path: PathBuf, generation: u64, result: Result<(), String> },
     Exact { key: ExactKey, result: Result<Vec<f64>, String> },
 }
@@ -686,7 +673,7 @@ impl EditorState {
             Action::Open(path) => {
                 let p = path.clone();
                 self.spawn(&format!("Opening {}", path.display()), move || JobResult::Loaded {
-                    result: load_project(&p).map_err(|e| e.to_string()),
+                    result: load_project(&p).map(Box::new).map_err(|e| e.to_string()),
                     path: p,
                 });
             }
@@ -795,7 +782,7 @@ impl EditorState {
             JobResult::Exported { path, result: Ok(summary) } => self.info(format!("Exported {}: {summary}", path.display())),
             JobResult::Exported { path, result: Err(e) } => self.error(format!("Export to {} failed: {e}", path.display())),
             JobResult::Loaded { path, result: Ok(project) } => {
-                self.replace_project(project, Some(path.clone()), "");
+                self.replace_project(*project, Some(path.clone()), "");
                 self.info(format!("Opened {}", path.display()));
                 self.push_recent(path);
             }
