@@ -6,6 +6,7 @@
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 //! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
+//! - [`stress`]: the numerical stress matrix behind `fogsmith stress`.
 
 pub mod cli;
 pub mod export;
@@ -14,3 +15,4 @@ pub mod measure;
 pub mod output;
 pub mod reference;
 pub mod scene;
+pub mod stress;

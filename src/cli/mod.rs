@@ -9,6 +9,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 mod export;
+mod stress;
 mod verify;
 
 #[derive(Parser)]
@@ -46,6 +47,16 @@ enum Command {
         #[arg(long, default_value_t = 100_000)]
         cells: usize,
         /// Print one JSON object on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Run the numerical stress matrix (extreme densities, radii, particle counts, light and
+    /// camera placements, grid sizes) and check every result for NaN, range and accuracy.
+    Stress {
+        /// A reduced matrix that finishes in a few minutes on a software adapter.
+        #[arg(long)]
+        quick: bool,
+        /// Print the results as a JSON list on stdout.
         #[arg(long)]
         json: bool,
     },
@@ -137,6 +148,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         Some(Command::Verify { project, scheme, width, cells, json }) => verify::run(&project, scheme, width, cells, json),
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
+        Some(Command::Stress { quick, json }) => stress::run(quick, json),
     }
 }
 

@@ -238,7 +238,21 @@ pub fn import_density(path: &Path, name: Option<&str>, target: &GridSpec, scale:
         return Err(ExportError::invalid(path, format!("import scale {scale} is negative or not finite"), "use a scale >= 0"));
     }
     let grid = read_vdb_grid(path, name)?;
-    Ok(Volume { grid: *target, data: resample_into(target, &grid, scale) })
+    let data = resample_into(target, &grid, scale);
+    let bad = data.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
+    if let Some(first) = data.iter().position(|v| !v.is_finite() || *v < 0.0) {
+        let r = target.resolution;
+        let cell = [first % r.x as usize, (first / r.x as usize) % r.y as usize, first / (r.x as usize * r.y as usize)];
+        return Err(ExportError::invalid(
+            path,
+            format!(
+                "grid {:?} gives {bad} cells a density that is negative or not finite (first: cell {cell:?}, value {})",
+                grid.name, data[first]
+            ),
+            "a density must be finite and >= 0: import a fog density grid, not a level set, or lower base_volume.scale",
+        ));
+    }
+    Ok(Volume { grid: *target, data })
 }
 
 /// Lists the grids of a VDB file.

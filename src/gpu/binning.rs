@@ -52,6 +52,15 @@ pub fn for_each_brick(dims: UVec3, (lo, hi): (UVec3, UVec3), mut f: impl FnMut(u
     }
 }
 
+/// Particle–brick overlaps [`bin_particles`] would list, counted without allocating.
+pub fn overlap_count(grid: &GridSpec, particles: &[Particle]) -> u64 {
+    particles
+        .iter()
+        .filter_map(|p| brick_range(grid, p))
+        .map(|(lo, hi)| (hi - lo + UVec3::ONE).as_u64vec3().element_product())
+        .sum()
+}
+
 pub struct Bins {
     pub offsets: Vec<u32>,
     pub items: Vec<u32>,

@@ -251,12 +251,61 @@ impl FogPipeline {
                 ),
             });
         }
+        let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        let particle_bytes = project.particles.len() as u64 * std::mem::size_of::<ParticleGpu>() as u64;
+        if particle_bytes > binding {
+            return Err(GpuError::Limit {
+                what: format!("{} particles", project.particles.len()),
+                needed: particle_bytes,
+                limit: binding,
+                adapter,
+                suggestion: format!(
+                    "use at most {} particles, e.g. by merging small ones or importing dense regions as a VDB base volume",
+                    binding / std::mem::size_of::<ParticleGpu>() as u64
+                ),
+            });
+        }
+        // Each particle is listed once per 8³ brick its cut-off sphere overlaps; the count is
+        // bounded by particles × bricks, so it is only summed when that bound could exceed.
+        let bricks = binning::brick_dims(&project.grid).as_u64vec3().element_product();
+        if project.particles.len() as u64 * bricks * 4 > binding {
+            let overlaps = binning::overlap_count(&project.grid, &project.particles);
+            if overlaps * 4 > binding {
+                return Err(GpuError::Limit {
+                    what: format!("the particle–brick lists of {} particles", project.particles.len()),
+                    needed: overlaps * 4,
+                    limit: binding,
+                    adapter,
+                    suggestion: "use fewer or smaller particles (each is listed in every 8³-cell brick it reaches), or lower grid.resolution".into(),
+                });
+            }
+        }
+        let light_bytes = project.lights.len() as u64 * std::mem::size_of::<LightGpu>() as u64;
+        if light_bytes > binding {
+            return Err(GpuError::Limit {
+                what: format!("{} lights", project.lights.len()),
+                needed: light_bytes,
+                limit: binding,
+                adapter,
+                suggestion: "use fewer lights".into(),
+            });
+        }
         let edge2d = width.max(height);
         if edge2d > limits.max_texture_dimension_2d {
             return Err(GpuError::Limit {
                 what: format!("a {width}×{height} image"),
                 needed: edge2d as u64,
                 limit: limits.max_texture_dimension_2d as u64,
+                adapter,
+                suggestion: "render a smaller image".into(),
+            });
+        }
+        let readback = width as u64 * height as u64 * 16;
+        if readback > limits.max_buffer_size {
+            return Err(GpuError::Limit {
+                what: format!("reading back a {width}×{height} RGBA32F image"),
+                needed: readback,
+                limit: limits.max_buffer_size,
                 adapter,
                 suggestion: "render a smaller image".into(),
             });
@@ -271,6 +320,20 @@ impl FogPipeline {
             .validate(self.ctx.max_grid_edge())
             .map_err(|e| GpuError::Invalid(e.to_string()))?;
         self.check_limits(project, request.width, request.height)?;
+        if request.scheme == Scheme::Giroud {
+            // One dispatch covers every propagated light: z = ⌈nz/4⌉ workgroups per light.
+            let z = project.grid.resolution.z.div_ceil(4) as u64 * project.lights.len() as u64;
+            let limit = self.ctx.limits.max_compute_workgroups_per_dimension as u64;
+            if z > limit {
+                return Err(GpuError::Limit {
+                    what: format!("the giroud scheme with {} lights on a grid {} cells deep", project.lights.len(), project.grid.resolution.z),
+                    needed: z,
+                    limit,
+                    adapter: self.ctx.adapter_info.name.clone(),
+                    suggestion: "use the sweep scheme, fewer lights or a lower grid.resolution.z".into(),
+                });
+            }
+        }
         if let Some((v, _)) = &self.base_layer {
             if v.grid != project.grid {
                 return Err(GpuError::Invalid(
@@ -457,20 +520,36 @@ impl FogPipeline {
                 &no_layer
             }
         };
-        let bg = bind_group(
-            device,
-            "inject",
-            &self.inject_layout,
-            &[
-                g.grid_buf.as_entire_binding(),
-                particles_buf.as_entire_binding(),
-                offsets_buf.as_entire_binding(),
-                items_buf.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&g.ev_view),
-                bricks_buf.as_entire_binding(),
-                layer_buf.as_entire_binding(),
-            ],
-        );
+        // One workgroup pair per brick, at most max_compute_workgroups_per_dimension per
+        // dispatch: larger grids take several dispatches over aligned slices of the list.
+        let align = (self.ctx.limits.min_storage_buffer_offset_alignment as usize / 4).max(1);
+        let chunk = (self.ctx.limits.max_compute_workgroups_per_dimension as usize / align).max(1) * align;
+        let groups: Vec<(wgpu::BindGroup, u32)> = bricks
+            .chunks(chunk)
+            .enumerate()
+            .map(|(n, part)| {
+                let slice = wgpu::BufferBinding {
+                    buffer: &bricks_buf,
+                    offset: (n * chunk * 4) as u64,
+                    size: wgpu::BufferSize::new(part.len() as u64 * 4),
+                };
+                let bg = bind_group(
+                    device,
+                    "inject",
+                    &self.inject_layout,
+                    &[
+                        g.grid_buf.as_entire_binding(),
+                        particles_buf.as_entire_binding(),
+                        offsets_buf.as_entire_binding(),
+                        items_buf.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(&g.ev_view),
+                        wgpu::BindingResource::Buffer(slice),
+                        layer_buf.as_entire_binding(),
+                    ],
+                );
+                (bg, part.len() as u32)
+            })
+            .collect();
         let r = project.grid.resolution;
         let mut encoder = device.create_command_encoder(&Default::default());
         {
@@ -479,8 +558,10 @@ impl FogPipeline {
                 timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::INJECT)),
             });
             pass.set_pipeline(&self.inject);
-            pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(bricks.len() as u32, 2, 1);
+            for (bg, count) in &groups {
+                pass.set_bind_group(0, bg, &[]);
+                pass.dispatch_workgroups(*count, 2, 1);
+            }
             let occ = bind_group(
                 device,
                 "occupancy",
@@ -501,7 +582,7 @@ impl FogPipeline {
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
-        counters.dispatches += 2;
+        counters.dispatches += 1 + groups.len() as u32;
         let cells_per_brick = (binning::BRICK as u64).pow(3);
         counters.cells_injected += (bricks.len() as u64 * cells_per_brick).min(project.grid.cell_count());
         counters.particle_overlaps +=

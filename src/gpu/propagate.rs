@@ -228,9 +228,13 @@ impl Propagator {
     }
 }
 
-/// The light's cell index (may lie outside the grid).
+/// The light's cell index (may lie outside the grid). A light far outside is moved, per
+/// axis, to 2²⁰ cells beyond the grid: the sweep only compares Manhattan distances between
+/// grid cells, which that keeps, and the level arithmetic then stays far inside i32.
 fn light_cell(grid: &GridSpec, light: Vec3) -> IVec3 {
-    ((light - grid.min) / grid.cell_size()).floor().as_ivec3()
+    const FAR: f32 = (1 << 20) as f32;
+    let c = ((light - grid.min) / grid.cell_size()).floor();
+    c.clamp(Vec3::splat(-FAR), grid.resolution.as_vec3() + FAR).as_ivec3()
 }
 
 /// The wavefronts of the sweep for one light: for every Manhattan distance ("level") from

@@ -1,0 +1,364 @@
+//! Hostile inputs: mutated project text and mutated VDB files never panic and end in a clear
+//! error naming the file (and, for projects, the line and column); accepted projects are
+//! valid and survive a save/load round trip; bad paths fail cleanly.
+//!
+//! The mutation runs use fixed seeds and case counts so CI is reproducible and quick. For a
+//! longer run: `FOGSMITH_FUZZ_CASES=200000 cargo test --release --test hostile`.
+
+use fogsmith::export::vdb::{encode_vdb, VdbCompression, VdbGrid, VdbOptions};
+use fogsmith::export::vdb_read::{import_density, read_vdb_grid_from_bytes, resample_into, MAX_LEAVES};
+use fogsmith::scene::io::to_ron_string;
+use fogsmith::scene::{parse_project, GridSpec, ProjectError, Volume, MAX_RESOLUTION_DEFAULT};
+use glam::{UVec3, Vec3};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+
+fn corpus(ext: &str) -> Vec<(PathBuf, Vec<u8>)> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
+    let mut out: Vec<(PathBuf, Vec<u8>)> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == ext))
+        .map(|p| {
+            let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            (p, bytes)
+        })
+        .collect();
+    out.sort();
+    assert!(out.len() >= 2, "tests/corpus holds at least two .{ext} seeds");
+    out
+}
+
+fn cases(default: u32) -> u32 {
+    std::env::var("FOGSMITH_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(default)
+}
+
+fn runner(cases: u32) -> TestRunner {
+    let config = Config { cases, failure_persistence: None, ..Config::default() };
+    TestRunner::new_with_rng(config, TestRng::deterministic_rng(RngAlgorithm::ChaCha))
+}
+
+/// Edits that keep most of a document's structure so the parser goes deep.
+#[derive(Clone, Debug)]
+enum Edit {
+    Delete(usize, usize),
+    Insert(usize, &'static str),
+    ReplaceNumber(usize, &'static str),
+    Duplicate(usize, usize),
+    Truncate(usize),
+}
+
+const TOKENS: &[&str] = &[
+    "(", ")", "[", "]", "{", "}", ",", ":", "\"", "//", "/*", "*/", "-", ".", "e", "\n", "é", "\u{0}", "\\",
+    "Some(", "None", "true", "r#\"", "'", "#![enable(implicit_some)]", "particles: [", "lights: []",
+    "resolution: (4096, 4096, 4096)", "resolution: (0, 1, 1)", "version: 2", "scheme: warp",
+    "base_volume: (path: \"/nonexistent.vdb\")",
+];
+const NUMBERS: &[&str] = &[
+    "NaN", "inf", "-inf", "1e39", "-1e39", "3.4e38", "1e-45", "-0.0", "0", "-1", "4294967296", "4294967295",
+    "18446744073709551616", "99999999999999999999999", "1e308", "0x10", "1_000", ".5", "5.", "+1",
+];
+
+fn edit() -> impl Strategy<Value = Edit> {
+    prop_oneof![
+        (any::<usize>(), 1usize..40).prop_map(|(a, n)| Edit::Delete(a, n)),
+        (any::<usize>(), prop::sample::select(TOKENS)).prop_map(|(a, t)| Edit::Insert(a, t)),
+        (any::<usize>(), prop::sample::select(NUMBERS)).prop_map(|(a, t)| Edit::ReplaceNumber(a, t)),
+        (any::<usize>(), 1usize..200).prop_map(|(a, n)| Edit::Duplicate(a, n)),
+        any::<usize>().prop_map(Edit::Truncate),
+    ]
+}
+
+fn apply(text: &str, edits: &[Edit]) -> String {
+    let mut chars: Vec<char> = text.chars().collect();
+    for e in edits {
+        let len = chars.len().max(1);
+        match *e {
+            Edit::Delete(a, n) => {
+                let a = a % len;
+                let b = (a + n).min(chars.len());
+                if a < b {
+                    chars.drain(a..b);
+                }
+            }
+            Edit::Insert(a, t) => {
+                let a = a % (chars.len() + 1);
+                chars.splice(a..a, t.chars());
+            }
+            Edit::ReplaceNumber(a, t) => {
+                let starts: Vec<usize> = (0..chars.len())
+                    .filter(|&i| chars[i].is_ascii_digit() && (i == 0 || !chars[i - 1].is_ascii_alphanumeric() && chars[i - 1] != '.'))
+                    .collect();
+                if let Some(&s) = starts.get(a % starts.len().max(1)) {
+                    let mut end = s;
+                    while end < chars.len() && (chars[end].is_ascii_alphanumeric() || chars[end] == '.' || chars[end] == '-') {
+                        end += 1;
+                    }
+                    chars.splice(s..end, t.chars());
+                }
+            }
+            Edit::Duplicate(a, n) => {
+                let a = a % len;
+                let b = (a + n).min(chars.len());
+                let piece: Vec<char> = chars[a.min(chars.len())..b].to_vec();
+                chars.splice(b..b, piece);
+            }
+            Edit::Truncate(a) => chars.truncate(a % len),
+        }
+    }
+    chars.into_iter().collect()
+}
+
+/// The property every project text must satisfy; Err describes the violation.
+fn check_project_text(text: &str) -> Result<(), String> {
+    let origin = Path::new("fuzz.ron");
+    let result = catch_unwind(AssertUnwindSafe(|| parse_project(text, origin)))
+        .map_err(|_| format!("parse_project panicked on:\n{text}"))?;
+    match result {
+        Ok(p) => {
+            p.validate(MAX_RESOLUTION_DEFAULT).map_err(|e| format!("accepted an invalid project ({e}):\n{text}"))?;
+            let saved = to_ron_string(&p).map_err(|e| format!("could not serialise an accepted project: {e}"))?;
+            let back = parse_project(&saved, origin).map_err(|e| format!("saved text does not load ({e}):\n{saved}"))?;
+            if back != p {
+                return Err(format!("save/load changed the project:\n{text}"));
+            }
+            Ok(())
+        }
+        Err(e @ (ProjectError::Syntax { line, col, .. } | ProjectError::Invalid { line, col, .. })) => {
+            let msg = e.to_string();
+            if line == 0 || col == 0 || !msg.starts_with(&format!("fuzz.ron:{line}:{col}: ")) {
+                return Err(format!("error without a usable position: {msg}"));
+            }
+            Ok(())
+        }
+        Err(e) => Err(format!("unexpected error kind: {e}")),
+    }
+}
+
+#[test]
+fn mutated_project_text_never_panics_and_errors_have_positions() {
+    let seeds: Vec<String> = corpus("ron")
+        .into_iter()
+        .map(|(p, b)| String::from_utf8(b).unwrap_or_else(|_| panic!("{} is UTF-8", p.display())))
+        .collect();
+    for s in &seeds {
+        check_project_text(s).unwrap();
+    }
+    let strategy = (0..seeds.len(), prop::collection::vec(edit(), 1..6));
+    runner(cases(3000))
+        .run(&strategy, |(seed, edits)| {
+            let text = apply(&seeds[seed], &edits);
+            check_project_text(&text).map_err(TestCaseError::fail)
+        })
+        .unwrap();
+}
+
+/// Mutations of a binary file: truncation, bit flips, extreme integers, foreign tree types.
+#[derive(Clone, Debug)]
+enum ByteEdit {
+    Truncate(usize),
+    Flip(usize, u8),
+    Int32(usize, u32),
+    Int64(usize, u64),
+    Splice(usize, usize, usize),
+    TreeType(&'static str),
+}
+
+fn byte_edit() -> impl Strategy<Value = ByteEdit> {
+    let ints32 = prop::sample::select(vec![0u32, 1, 7, 0x7FFF_FFFF, 0x8000_0000, u32::MAX, 1 << 20, 4097]);
+    let ints64 = prop::sample::select(vec![0u64, u64::MAX, i64::MAX as u64, 1 << 40, 1 << 31, u32::MAX as u64 + 1]);
+    prop_oneof![
+        any::<usize>().prop_map(ByteEdit::Truncate),
+        (any::<usize>(), any::<u8>()).prop_map(|(a, b)| ByteEdit::Flip(a, b)),
+        (any::<usize>(), ints32).prop_map(|(a, v)| ByteEdit::Int32(a, v)),
+        (any::<usize>(), ints64).prop_map(|(a, v)| ByteEdit::Int64(a, v)),
+        (any::<usize>(), any::<usize>(), 1usize..64).prop_map(|(a, b, n)| ByteEdit::Splice(a, b, n)),
+        prop::sample::select(vec!["Tree_int32_5_4_3", "Tree_vec3s_5_4_3", "Tree_float_4_4_3", "Tree_bool_5_4_3_"])
+            .prop_map(ByteEdit::TreeType),
+    ]
+}
+
+fn apply_bytes(bytes: &[u8], edits: &[ByteEdit]) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    for e in edits {
+        let len = b.len().max(1);
+        match *e {
+            ByteEdit::Truncate(a) => b.truncate(a % len),
+            ByteEdit::Flip(a, x) => {
+                if let Some(v) = b.get_mut(a % len) {
+                    *v ^= x.max(1);
+                }
+            }
+            ByteEdit::Int32(a, v) => {
+                let a = a % len;
+                if a + 4 <= b.len() {
+                    b[a..a + 4].copy_from_slice(&v.to_le_bytes());
+                }
+            }
+            ByteEdit::Int64(a, v) => {
+                let a = a % len;
+                if a + 8 <= b.len() {
+                    b[a..a + 8].copy_from_slice(&v.to_le_bytes());
+                }
+            }
+            ByteEdit::Splice(a, from, n) => {
+                let (a, from) = (a % len, from % len);
+                let piece: Vec<u8> = b[from.min(b.len())..(from + n).min(b.len())].to_vec();
+                let end = (a + piece.len()).min(b.len());
+                b.splice(a..end, piece);
+            }
+            ByteEdit::TreeType(t) => {
+                let needle = b"Tree_float_5_4_3";
+                if let Some(at) = b.windows(needle.len()).position(|w| w == needle) {
+                    b[at..at + needle.len()].copy_from_slice(t.as_bytes());
+                }
+            }
+        }
+    }
+    b
+}
+
+fn check_vdb_bytes(bytes: &[u8]) -> Result<(), String> {
+    let path = Path::new("fuzz.vdb");
+    let target = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(6) };
+    let outcome = catch_unwind(AssertUnwindSafe(|| {
+        read_vdb_grid_from_bytes(path, bytes, None).map(|g| {
+            let leaves = g.leaf_count();
+            let values = resample_into(&target, &g, 1.0);
+            (leaves, values.len(), g.active_bbox())
+        })
+    }))
+    .map_err(|_| format!("the VDB reader panicked on {} bytes", bytes.len()))?;
+    match outcome {
+        Ok((leaves, n, _)) if leaves <= MAX_LEAVES && n == 216 => Ok(()),
+        Ok((leaves, n, _)) => Err(format!("accepted a grid of {leaves} leaves, resampled to {n} values")),
+        Err(e) => {
+            let msg = e.to_string();
+            if msg.starts_with("fuzz.vdb: ") && msg.len() > 20 {
+                Ok(())
+            } else {
+                Err(format!("error does not name the file: {msg}"))
+            }
+        }
+    }
+}
+
+#[test]
+fn mutated_vdb_files_never_panic_and_errors_name_the_file() {
+    let seeds: Vec<Vec<u8>> = corpus("vdb").into_iter().map(|(_, b)| b).collect();
+    for s in &seeds {
+        check_vdb_bytes(s).unwrap();
+        read_vdb_grid_from_bytes(Path::new("seed.vdb"), s, None).expect("corpus seeds are readable");
+    }
+    let strategy = (0..seeds.len(), prop::collection::vec(byte_edit(), 1..5));
+    runner(cases(1500))
+        .run(&strategy, |(seed, edits)| {
+            let bytes = apply_bytes(&seeds[seed], &edits);
+            check_vdb_bytes(&bytes).map_err(TestCaseError::fail)
+        })
+        .unwrap();
+}
+
+/// A small grid with a dense blob, written by our writer: the corpus seeds.
+fn seed_volume() -> Volume {
+    let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::new(12, 9, 10) };
+    let mut data = Vec::new();
+    for k in 0..10 {
+        for j in 0..9 {
+            for i in 0..12 {
+                let x = grid.cell_center(i, j, k);
+                data.push(if i >= 8 { 0.5 } else { 3.0 * (-(x - Vec3::new(0.2, 0.5, 0.0)).length_squared() * 4.0).exp() });
+            }
+        }
+    }
+    Volume::new(grid, data)
+}
+
+/// `cargo test --test hostile -- --ignored write_corpus` rewrites the VDB seeds.
+#[test]
+#[ignore]
+fn write_corpus() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
+    let v = seed_volume();
+    for (name, opts) in [
+        ("float_zip.vdb", VdbOptions::default()),
+        ("half_none.vdb", VdbOptions { compression: VdbCompression::None, half: true, ..Default::default() }),
+        ("float_none_notiles.vdb", VdbOptions { compression: VdbCompression::None, tiles: false, threshold: 0.01, ..Default::default() }),
+    ] {
+        let (bytes, _) = encode_vdb(Path::new(name), &[VdbGrid::from_volume("density", &v)], &opts).unwrap();
+        std::fs::write(dir.join(name), bytes).unwrap();
+    }
+}
+
+/// A density grid with negative or non-finite values (a level set, a damaged file) would put
+/// negative extinction or NaN into every frame: the import refuses it, naming file and grid.
+#[test]
+fn importing_negative_or_non_finite_density_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(4) };
+    for bad in [-0.25f32, f32::INFINITY] {
+        let mut v = seed_volume();
+        v.data[40] = bad;
+        let path = dir.path().join("bad.vdb");
+        fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &v)], &VdbOptions { tiles: false, ..Default::default() })
+            .unwrap();
+        let target = GridSpec { resolution: UVec3::new(12, 9, 10), min: v.grid.min, max: v.grid.max };
+        let err = import_density(&path, None, &target, 1.0).unwrap_err().to_string();
+        assert!(err.contains("bad.vdb") && err.contains("\"density\"") && err.contains("negative or not finite"), "{err}");
+    }
+    // A finite grid whose scaled values overflow f32.
+    let path = dir.path().join("scaled.vdb");
+    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &seed_volume())], &VdbOptions::default()).unwrap();
+    let err = import_density(&path, None, &target, 3e38).unwrap_err().to_string();
+    assert!(err.contains("not finite"), "{err}");
+    assert!(import_density(&path, None, &target, 2.0).is_ok());
+}
+
+/// Loading, saving and exporting to paths that do not exist or cannot be written name the
+/// path; nothing panics.
+#[test]
+fn bad_paths_give_clear_errors() {
+    use fogsmith::scene::{load_project, save_project, Project};
+    let err = load_project(Path::new("/nonexistent/dir/fog.ron")).unwrap_err().to_string();
+    assert!(err.contains("/nonexistent/dir/fog.ron") && err.contains("No such file"), "{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let err = load_project(dir.path()).unwrap_err().to_string();
+    assert!(err.contains(&dir.path().display().to_string()), "a directory is not a project: {err}");
+    let binary = dir.path().join("binary.ron");
+    std::fs::write(&binary, [0xFFu8, 0xFE, 0x00, 0x41]).unwrap();
+    let err = load_project(&binary).unwrap_err().to_string();
+    assert!(err.contains("binary.ron"), "{err}");
+
+    let p = Project::default();
+    let err = save_project(Path::new("/nonexistent/dir/fog.ron"), &p).unwrap_err().to_string();
+    assert!(err.contains("/nonexistent/dir/fog.ron"), "{err}");
+    let err = save_project(dir.path(), &p).unwrap_err().to_string();
+    assert!(err.contains(&dir.path().display().to_string()), "saving over a directory: {err}");
+
+    let v = seed_volume();
+    let grids = [VdbGrid::from_volume("density", &v)];
+    let err = fogsmith::export::vdb::write_vdb(Path::new("/nonexistent/dir/out.vdb"), &grids, &VdbOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("/nonexistent/dir/out.vdb") && err.contains("cannot write"), "{err}");
+    let err = fogsmith::export::vdb_read::read_vdb_grid(Path::new("/nonexistent/in.vdb"), None).unwrap_err().to_string();
+    assert!(err.contains("/nonexistent/in.vdb") && err.contains("cannot read"), "{err}");
+    let ron = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/minimal.ron");
+    let err = fogsmith::export::vdb_read::read_vdb_grid(&ron, None).unwrap_err().to_string();
+    assert!(err.contains("minimal.ron") && err.contains("not an OpenVDB file"), "{err}");
+}
+
+/// Declared sizes far beyond anything bakeable are refused by validation, not allocated.
+#[test]
+fn huge_declared_sizes_are_refused() {
+    for (text, field) in [
+        ("Project(grid: (min: (0,0,0), max: (1,1,1), resolution: (4294967295, 4294967295, 4294967295)))", "grid.resolution.x"),
+        ("Project(render: (width: 4294967295))", "render.width"),
+        ("Project(render: (near_steps: 4000000000))", "render.near_steps"),
+    ] {
+        let err = parse_project(text, Path::new("huge.ron")).unwrap_err().to_string();
+        assert!(err.starts_with("huge.ron:1:") && err.contains(field), "{err}");
+    }
+}
