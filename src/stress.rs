@@ -8,11 +8,12 @@
 //! along the axes through its cell in homogeneous fog, and, where the grid resolves the
 //! medium, the OPV transmittance within a stated bound of the exact reference
 //! ([`crate::measure`]). Cases past the adapter's limits must be refused with a
-//! [`GpuError::Limit`] before anything is allocated.
+//! [`GpuError::Limit`] before anything is allocated, and values past the project's own
+//! bounds ([`MAX_COORDINATE`], [`MAX_EXTINCTION`]) by validation.
 
 use crate::gpu::{FogPipeline, FrameRequest, GpuError};
 use crate::measure::{ev_max_rel_error, opv_error, sample_cells};
-use crate::scene::{Camera, GridSpec, Light, Medium, Particle, Project, Scheme, Volume};
+use crate::scene::{Camera, GridSpec, Light, Medium, Particle, Project, Scheme, Volume, MAX_COORDINATE, MAX_EXTINCTION};
 use glam::{UVec3, Vec3};
 use serde::Serialize;
 use std::time::Instant;
@@ -23,7 +24,7 @@ pub enum Expect {
     /// A finished bake; `bound` is the largest OPV transmittance error allowed against the
     /// exact reference, None where the grid does not resolve the medium (reported only).
     Bake { bound: Option<f64>, monotone: bool },
-    /// Refusal with a limit error whose message contains this text.
+    /// Refusal with a limit or validation error whose message contains this text.
     Refused(&'static str),
 }
 
@@ -104,8 +105,8 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
     let cell = 2.0 / DEFAULT_RES as f32;
 
     // Homogeneous fog from none to very large, light inside the grid off the cell centres.
-    for beta in [0.0f32, 1e-6, 1e-2, 1.0, 1e2, 1e4, 1e12, 1e30] {
-        let schemes: &[Scheme] = if quick && !(beta == 1.0 || beta == 1e30) { &all[..1] } else { &all };
+    for beta in [0.0f32, 1e-6, 1e-2, 1.0, 1e2, 1e4, MAX_EXTINCTION] {
+        let schemes: &[Scheme] = if quick && !(beta == 1.0 || beta == MAX_EXTINCTION) { &all[..1] } else { &all };
         for &s in schemes {
             let mut p = base(DEFAULT_RES);
             p.medium.base_extinction = beta;
@@ -124,7 +125,7 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
         ("light just outside", Box::new(|p| p.grid.max + Vec3::splat(1e-3))),
         ("light 1e3 m outside", Box::new(|_| Vec3::new(1e3, 20.0, -7.0))),
         ("light 1e7 m outside", Box::new(|_| Vec3::new(-1e7, 3e6, 1e5))),
-        ("light 1e30 m outside", Box::new(|_| Vec3::new(1e30, -1e30, 1e29))),
+        ("light 1e9 m outside", Box::new(|_| Vec3::new(MAX_COORDINATE, -MAX_COORDINATE, 1e8))),
         ("light at the camera", Box::new(|p| p.camera.position)),
     ];
     for (name, at) in &placements {
@@ -135,6 +136,37 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
             p.lights.push(light(at(&p)));
             cases.push(bake(name.to_string(), p, s, Some(HOMOGENEOUS_BOUND), true));
         }
+    }
+    for (name, field, mut p) in [
+        ("light at 1e30 m", "lights[0].position", base(8)),
+        ("base fog 1e30/m", "medium.base_extinction", base(8)),
+    ] {
+        p.lights.push(light(Vec3::new(1e30, -1e30, 1e29)));
+        if field.starts_with("medium") {
+            p.lights[0].position = Vec3::ZERO;
+            p.medium.base_extinction = 1e30;
+        }
+        cases.push(StressCase { name: name.into(), project: p, scheme: Scheme::Sweep, expect: Expect::Refused(field), reference_cells: 0 });
+    }
+    for (name, lo, hi) in [("grid 1e-6 m across", -5e-7f32, 5e-7f32), ("grid 4e8 m across", -2e8, 2e8)] {
+        let mut p = base(16);
+        p.grid.min = Vec3::splat(lo);
+        p.grid.max = Vec3::splat(hi);
+        p.medium.base_extinction = 0.5 / hi;
+        p.camera.position = Vec3::new(0.3, 0.4, 3.5) * hi;
+        p.lights.push(light(Vec3::new(0.21, -0.33, 0.47) * hi));
+        p.lights[0].intensity = 4.0 * hi * hi;
+        cases.push(bake(name.into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+    }
+    {
+        // A very bright light on a cell centre, seen straight on from inside the fog.
+        let mut p = base(DEFAULT_RES);
+        p.medium.base_extinction = 0.3;
+        p.camera = Camera { position: Vec3::new(-0.5, 0.1, 0.2), target: center(&p, [20, 17, 15]), up: Vec3::Y, fov_y_deg: 30.0 };
+        p.render.width = 25;
+        p.render.height = 17;
+        p.lights.push(Light::new(p.camera.target, 1e12, Vec3::ONE));
+        cases.push(bake("1e12 W/sr light on a cell centre, seen straight on".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
     }
     {
         // Camera inside the fog looking straight at a light: the middle pixel's ray passes
@@ -159,7 +191,9 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
             let c = center(&p, [16, 16, 16]) + Vec3::splat(0.2 * cell);
             p.particles.push(Particle::new(c, radius_cells * cell, density));
             p.lights.push(light(c + Vec3::new(0.1, 0.05, -0.1) * cell));
-            p.lights.push(light(Vec3::new(1.5, 1.2, 0.9)));
+            // Inside the grid: particles are clipped to it (outside only the base fog exists),
+            // while the reference integrates whole gaussians.
+            p.lights.push(light(Vec3::new(0.8, 0.7, 0.6)));
             let resolved = radius_cells >= 2.0 && density * cell <= 1.0;
             let bound = if resolved { Some(RESOLVED_BOUND) } else { None };
             cases.push(bake(format!("particle c {density:e}/m r {radius_cells:e} cells"), p, Scheme::Sweep, bound, false));
@@ -262,8 +296,7 @@ pub fn run_case(gpu: &mut FogPipeline, case: &StressCase) -> StressResult {
     match (&case.expect, outcome) {
         (Expect::Refused(what), Err(e)) => {
             let msg = e.to_string();
-            let limit_error = matches!(e, GpuError::Limit { .. })
-                || (matches!(e, GpuError::Invalid(_)) && msg.contains("grid.resolution"));
+            let limit_error = matches!(e, GpuError::Limit { .. } | GpuError::Invalid(_));
             result.passed = limit_error && msg.contains(what);
             result.detail = if result.passed { format!("refused: {msg}") } else { format!("refused with the wrong error: {msg}") };
         }
