@@ -147,12 +147,17 @@ fn mutated_project_text_never_panics_and_errors_have_positions() {
         check_project_text(s).unwrap();
     }
     let strategy = (0..seeds.len(), prop::collection::vec(edit(), 1..6));
-    runner(cases(3000))
+    let accepted = std::cell::Cell::new(0u32);
+    let n = cases(3000);
+    runner(n)
         .run(&strategy, |(seed, edits)| {
             let text = apply(&seeds[seed], &edits);
+            accepted.set(accepted.get() + parse_project(&text, Path::new("x.ron")).is_ok() as u32);
             check_project_text(&text).map_err(TestCaseError::fail)
         })
         .unwrap();
+    println!("{n} mutated projects, {} accepted", accepted.get());
+    assert!(accepted.get() > 0 && accepted.get() < n, "the mutations reach both outcomes");
 }
 
 /// Mutations of a binary file: truncation, bit flips, extreme integers, foreign tree types.
@@ -253,21 +258,26 @@ fn mutated_vdb_files_never_panic_and_errors_name_the_file() {
         read_vdb_grid_from_bytes(Path::new("seed.vdb"), s, None).expect("corpus seeds are readable");
     }
     let strategy = (0..seeds.len(), prop::collection::vec(byte_edit(), 1..5));
-    runner(cases(1500))
+    let accepted = std::cell::Cell::new(0u32);
+    let n = cases(1500);
+    runner(n)
         .run(&strategy, |(seed, edits)| {
             let bytes = apply_bytes(&seeds[seed], &edits);
+            accepted.set(accepted.get() + read_vdb_grid_from_bytes(Path::new("x.vdb"), &bytes, None).is_ok() as u32);
             check_vdb_bytes(&bytes).map_err(TestCaseError::fail)
         })
         .unwrap();
+    println!("{n} mutated VDB files, {} read", accepted.get());
+    assert!(accepted.get() > 0 && accepted.get() < n, "the mutations reach both outcomes");
 }
 
 /// A small grid with a dense blob, written by our writer: the corpus seeds.
 fn seed_volume() -> Volume {
-    let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::new(12, 9, 10) };
+    let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::new(9, 8, 8) };
     let mut data = Vec::new();
-    for k in 0..10 {
-        for j in 0..9 {
-            for i in 0..12 {
+    for k in 0..8 {
+        for j in 0..8 {
+            for i in 0..9 {
                 let x = grid.cell_center(i, j, k);
                 data.push(if i >= 8 { 0.5 } else { 3.0 * (-(x - Vec3::new(0.2, 0.5, 0.0)).length_squared() * 4.0).exp() });
             }
@@ -300,11 +310,11 @@ fn importing_negative_or_non_finite_density_is_refused() {
     let target = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(4) };
     for bad in [-0.25f32, f32::INFINITY] {
         let mut v = seed_volume();
-        v.data[40] = bad;
+        v.data[100] = bad;
         let path = dir.path().join("bad.vdb");
         fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &v)], &VdbOptions { tiles: false, ..Default::default() })
             .unwrap();
-        let target = GridSpec { resolution: UVec3::new(12, 9, 10), min: v.grid.min, max: v.grid.max };
+        let target = GridSpec { resolution: UVec3::new(9, 8, 8), min: v.grid.min, max: v.grid.max };
         let err = import_density(&path, None, &target, 1.0).unwrap_err().to_string();
         assert!(err.contains("bad.vdb") && err.contains("\"density\"") && err.contains("negative or not finite"), "{err}");
     }
