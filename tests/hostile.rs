@@ -3,7 +3,7 @@
 //! valid and survive a save/load round trip; bad paths fail cleanly.
 //!
 //! The mutation runs use fixed seeds and case counts so CI is reproducible and quick. For a
-//! longer run: `FOGSMITH_FUZZ_CASES=200000 cargo test --release --test hostile`.
+//! longer run: `FOGSMITH_FUZZ_CASES=300000 FOGSMITH_FUZZ_SEED=7 cargo test --release --test hostile`.
 
 use fogsmith::export::vdb::{encode_vdb, VdbCompression, VdbGrid, VdbOptions};
 use fogsmith::export::vdb_read::{import_density, read_vdb_grid_from_bytes, resample_into, MAX_LEAVES};
@@ -35,9 +35,18 @@ fn cases(default: u32) -> u32 {
     std::env::var("FOGSMITH_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }
 
+/// Fixed seed unless `FOGSMITH_FUZZ_SEED` picks another (for longer runs).
 fn runner(cases: u32) -> TestRunner {
     let config = Config { cases, failure_persistence: None, ..Config::default() };
-    TestRunner::new_with_rng(config, TestRng::deterministic_rng(RngAlgorithm::ChaCha))
+    let rng = match std::env::var("FOGSMITH_FUZZ_SEED").ok().and_then(|v| v.parse::<u64>().ok()) {
+        Some(seed) => {
+            let mut bytes = [0u8; 32];
+            bytes[..8].copy_from_slice(&seed.to_le_bytes());
+            TestRng::from_seed(RngAlgorithm::ChaCha, &bytes)
+        }
+        None => TestRng::deterministic_rng(RngAlgorithm::ChaCha),
+    };
+    TestRunner::new_with_rng(config, rng)
 }
 
 /// Edits that keep most of a document's structure so the parser goes deep.

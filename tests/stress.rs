@@ -94,3 +94,61 @@ fn giroud_dispatch_limit_is_refused_and_sweep_still_runs() {
     assert!(matches!(err, GpuError::Limit { .. }) && err.to_string().contains("sweep scheme"), "{err}");
     gpu.update(&p, &FrameRequest { scheme: Scheme::Sweep, ..FrameRequest::for_project(&p) }).unwrap();
 }
+
+/// A grid of more 8³ bricks than one dispatch may have workgroups is injected in several
+/// dispatches: every brick, the last included, gets the base fog.
+#[test]
+fn grids_with_more_bricks_than_one_dispatch_are_fully_injected() {
+    let mut gpu = pipeline();
+    let limits = gpu.context().limits.clone();
+    let max_groups = limits.max_compute_workgroups_per_dimension as u64;
+    let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    // Shallow in y and z so that x alone makes the bricks, within the OPV budget.
+    let (ny, nz) = (64u32, 128u32);
+    let nx = ((max_groups + 1).div_ceil((ny / 8 * nz / 8) as u64) * 8) as u32;
+    assert!(nx <= limits.max_texture_dimension_3d, "this adapter's limits need another shape: {limits:?}");
+    assert!(nx as u64 * (ny * nz) as u64 * 4 <= binding, "this adapter's limits need another shape");
+    let mut p = small_scene(8, &[]);
+    p.particles.clear();
+    p.medium.base_extinction = 0.25;
+    p.grid.resolution = UVec3::new(nx, ny, nz);
+    p.render.width = 8;
+    p.render.height = 8;
+    let report = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
+    assert!(report.counters.dispatches >= 3, "inject split over at least two dispatches, plus occupancy");
+    let ev = gpu.read_ev().unwrap();
+    let wrong = ev.data.iter().filter(|v| **v != 0.25).count();
+    assert_eq!(wrong, 0, "{wrong} cells missed by injection");
+}
+
+/// A light millions of cells outside the grid still gets one wavefront per Manhattan level
+/// that crosses the grid (its cell index used to overflow i32).
+#[test]
+fn sweep_wavefronts_of_a_far_light_cover_the_grid_once() {
+    let p = small_scene(32, &[]);
+    for light in [Vec3::new(1e9, -1e9, 1e8), Vec3::new(-1e9, 0.1, 0.2), Vec3::new(0.3, 1e9, -1e9)] {
+        let steps = fogsmith::gpu::sweep_steps(&p.grid, light, 0, 4);
+        let outside = (0..3).filter(|&a| light[a].abs() > 1.0).count() as i32;
+        let inside = 3 - outside;
+        // Outside axes contribute 31 levels each; an inside axis 31 on both sides, folded.
+        assert!(steps.len() as i32 >= 31 * outside + 16 * inside, "{light}: {} steps", steps.len());
+        assert!(steps.windows(2).all(|w| w[1].level == w[0].level + 1), "{light}: levels are consecutive");
+        assert!(steps.iter().all(|s| s.size[0] >= 1 && s.size[0] <= 32 && s.size[1] >= 1 && s.size[1] <= 32), "{light}");
+        let cells: u64 = steps.iter().map(|s| s.size[0] as u64 * s.size[1] as u64).sum();
+        assert!(cells >= 32 * 32 * 32 / 2, "{light}: the wavefronts cover the grid");
+    }
+}
+
+/// Positions and extinctions past the project's bounds are refused by validation with the
+/// field named, before they can overflow f32 on the GPU (a light at 1e30 m gave NaN frames).
+#[test]
+fn out_of_range_positions_and_extinction_are_invalid() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(8, &[Vec3::new(1e30, 0.0, 0.0)]);
+    let err = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap_err().to_string();
+    assert!(err.contains("lights[0].position") && err.contains("1e9"), "{err}");
+    p.lights[0].position = Vec3::ONE;
+    p.medium.base_extinction = 1e30;
+    let err = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap_err().to_string();
+    assert!(err.contains("medium.base_extinction") && err.contains("1e12"), "{err}");
+}
