@@ -381,3 +381,49 @@ fn huge_declared_sizes_are_refused() {
         assert!(err.starts_with("huge.ron:1:") && err.contains(field), "{err}");
     }
 }
+
+/// A base volume on a grid too large to hold densely is refused before the dense copy is
+/// allocated (it used to abort the process with an allocation failure).
+#[test]
+fn base_volume_on_a_huge_grid_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("base.vdb");
+    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &seed_volume())], &VdbOptions::default()).unwrap();
+    let huge = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(4096) };
+    let err = import_density(&path, None, &huge, 1.0).unwrap_err().to_string();
+    assert!(err.contains("base.vdb") && err.contains("4096×4096×4096") && err.contains("lower grid.resolution"), "{err}");
+}
+
+/// Saving a project of a version this build does not write is an error, not a debug panic.
+#[test]
+fn saving_a_foreign_version_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = fogsmith::scene::Project { version: 7, ..Default::default() };
+    let err = fogsmith::scene::save_project(&dir.path().join("v.ron"), &p).unwrap_err().to_string();
+    assert!(err.contains("version 7"), "{err}");
+}
+
+/// The CLI checks the adapter's limits before it resamples and uploads a base volume, so a
+/// grid past them is refused at once with the limit named and a suggestion.
+#[test]
+fn cli_refuses_an_oversized_grid_before_loading_its_base_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("base.vdb"), std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/float_zip.vdb")).unwrap())
+        .unwrap();
+    let project = dir.path().join("big.ron");
+    std::fs::write(
+        &project,
+        "Project(grid: (min: (-1, -1, -1), max: (1, 1, 1), resolution: (4096, 4096, 128)), base_volume: Some((path: \"base.vdb\")))",
+    )
+    .unwrap();
+    let started = std::time::Instant::now();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_fogsmith"))
+        .args(["render", &project.display().to_string(), "-o", &dir.path().join("x.png").display().to_string()])
+        .env("XDG_RUNTIME_DIR", std::env::var_os("XDG_RUNTIME_DIR").unwrap_or_else(|| std::env::temp_dir().into()))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && !stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains("allows at most") && stderr.contains("lower grid.resolution"), "{stderr}");
+    assert!(started.elapsed().as_secs() < 60, "refused before any dense work");
+}

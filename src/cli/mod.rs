@@ -104,10 +104,12 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
             return Err(format!("{name} must be within 1..=16384, got {v}").into());
         }
     }
-    let layer = load_base_layer(&project, Some(&args.project))?;
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let mut pipeline = FogPipeline::new(ctx);
+    // Before the base layer is resampled and uploaded: it is as large as one light's OPV.
+    pipeline.check_limits(&project, request.width, request.height)?;
+    let layer = load_base_layer(&project, Some(&args.project))?;
     pipeline.set_base_layer(layer);
     let report = pipeline.update(&project, &request)?;
     Ok(Baked { project, pipeline, report, request, adapter })
