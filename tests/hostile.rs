@@ -427,3 +427,25 @@ fn cli_refuses_an_oversized_grid_before_loading_its_base_volume() {
     assert!(stderr.contains("allows at most") && stderr.contains("lower grid.resolution"), "{stderr}");
     assert!(started.elapsed().as_secs() < 60, "refused before any dense work");
 }
+
+/// Half floats stop at 65504: a VDB or EXR written as half refuses larger values instead of
+/// storing infinity (the optical depth of dense fog is often larger).
+#[test]
+fn half_float_overflow_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut v = seed_volume();
+    v.data[3] = 1e5;
+    let path = dir.path().join("dense.vdb");
+    let half = VdbOptions { half: true, ..Default::default() };
+    let err = fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("optical_depth", &v)], &half).unwrap_err().to_string();
+    assert!(err.contains("dense.vdb") && err.contains("\"optical_depth\"") && err.contains("65504") && err.contains("full floats"), "{err}");
+    assert!(!path.exists());
+    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("optical_depth", &v)], &VdbOptions::default()).unwrap();
+
+    let exr = dir.path().join("bright.exr");
+    let mut rgba = vec![[0.5f32, 0.5, 0.5, 1.0]; 16];
+    rgba[5][0] = 7e4;
+    let err = fogsmith::export::exr::write_render_exr(&exr, 4, 4, &rgba, true).unwrap_err().to_string();
+    assert!(err.contains("bright.exr") && err.contains("65504"), "{err}");
+    fogsmith::export::exr::write_render_exr(&exr, 4, 4, &rgba, false).unwrap();
+}
