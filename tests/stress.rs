@@ -152,3 +152,19 @@ fn out_of_range_positions_and_extinction_are_invalid() {
     let err = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap_err().to_string();
     assert!(err.contains("medium.base_extinction") && err.contains("1e12"), "{err}");
 }
+
+/// Random small scenes at every magnitude the project allows: finite, in-range results.
+#[test]
+fn random_extreme_scenes_stay_finite_and_in_range() {
+    let mut gpu = pipeline();
+    let mut failures = Vec::new();
+    for seed in 0..40 {
+        let case = fogsmith::stress::random_case(seed);
+        let r = run_case(&mut gpu, &case);
+        println!("seed {seed}: {} {:.0} ms {}", r.scheme, r.time_ms, r.detail);
+        if !r.passed {
+            failures.push(format!("seed {seed}: {}\n{:?}", r.detail, case.project));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+}

@@ -1,7 +1,7 @@
 //! `fogsmith stress`: the numerical stress matrix of [`crate::stress`] on this machine's adapter.
 
 use crate::gpu::{FogPipeline, GpuContext};
-use crate::stress::{matrix, run_matrix, StressResult};
+use crate::stress::{matrix, random_case, run_matrix, StressResult};
 
 pub fn run(quick: bool, json: bool) -> Result<(), Box<dyn std::error::Error>> {
     let ctx = GpuContext::new_headless()?;
@@ -9,7 +9,8 @@ pub fn run(quick: bool, json: bool) -> Result<(), Box<dyn std::error::Error>> {
     let max_3d = ctx.limits.max_texture_dimension_3d;
     let max_binding = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
     let mut gpu = FogPipeline::new(ctx);
-    let cases = matrix(quick, max_3d, max_binding);
+    let mut cases = matrix(quick, max_3d, max_binding);
+    cases.extend((0..if quick { 40 } else { 400 }).map(random_case));
     if !json {
         println!("stress matrix ({} cases{}) on {adapter}", cases.len(), if quick { ", quick" } else { "" });
         println!("{:<48} {:<7} {:>10} {:>8} {:>6} {:>10}  result", "case", "scheme", "max error", "bound", "NaN", "time ms");
