@@ -168,3 +168,22 @@ fn random_extreme_scenes_stay_finite_and_in_range() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
 }
+
+/// A base layer too large for the adapter is not uploaded (wgpu would panic) and the bake is
+/// refused with the limit named; a zero-sized frame is an error, not a GPU validation failure.
+#[test]
+fn oversized_base_layer_and_empty_frames_are_errors() {
+    let mut gpu = pipeline();
+    let limits = gpu.context().limits.clone();
+    let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let mut p = small_scene(8, &[Vec3::ONE]);
+    let nz = (binding / 4 / (256 * 256) + 1) as u32;
+    p.grid.resolution = UVec3::new(256, 256, nz);
+    gpu.set_base_layer(Some(fogsmith::scene::Volume::new(p.grid, vec![0.5; p.grid.cell_count() as usize])));
+    let err = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap_err();
+    assert!(matches!(err, GpuError::Limit { .. }) && err.to_string().contains("lower grid.resolution"), "{err}");
+    gpu.set_base_layer(None);
+    let p = small_scene(8, &[Vec3::ONE]);
+    let err = gpu.update(&p, &FrameRequest { width: 0, ..FrameRequest::for_project(&p) }).unwrap_err().to_string();
+    assert!(err.contains("width") && err.contains("got 0"), "{err}");
+}

@@ -319,6 +319,11 @@ impl FogPipeline {
         project
             .validate(self.ctx.max_grid_edge())
             .map_err(|e| GpuError::Invalid(e.to_string()))?;
+        for (name, v) in [("width", request.width), ("height", request.height)] {
+            if v == 0 || v > 16384 {
+                return Err(GpuError::Invalid(format!("the frame {name} must be within 1..=16384 pixels, got {v}")));
+            }
+        }
         self.check_limits(project, request.width, request.height)?;
         if request.scheme == Scheme::Giroud {
             // One dispatch covers every propagated light: z = ⌈nz/4⌉ workgroups per light.
@@ -475,8 +480,13 @@ impl FogPipeline {
     /// such as a VDB grid resampled into the project's grid. It must match the grid of the
     /// projects passed to [`update`](Self::update).
     pub fn set_base_layer(&mut self, layer: Option<Volume>) {
+        let limits = &self.ctx.limits;
+        let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
         self.base_layer = layer.map(|v| {
-            let buf = storage_buffer(&self.ctx.device, "base layer", bytemuck::cast_slice(&v.data));
+            // A layer too large to bind is not uploaded (wgpu would panic): it is as large as
+            // one light's OPV, so `update` refuses its grid with the limit named.
+            let bytes: &[u8] = bytemuck::cast_slice(&v.data);
+            let buf = storage_buffer(&self.ctx.device, "base layer", if bytes.len() as u64 > binding { &[] } else { bytes });
             (v, buf)
         });
         self.base_layer_generation += 1;
