@@ -187,3 +187,17 @@ fn oversized_base_layer_and_empty_frames_are_errors() {
     let err = gpu.update(&p, &FrameRequest { width: 0, ..FrameRequest::for_project(&p) }).unwrap_err().to_string();
     assert!(err.contains("width") && err.contains("got 0"), "{err}");
 }
+
+/// `fogsmith stress --json` prints these results: the documented keys are present.
+#[test]
+fn stress_results_serialise_with_the_documented_keys() {
+    let mut gpu = pipeline();
+    let limits = gpu.context().limits.clone();
+    let case = matrix(true, limits.max_texture_dimension_3d, limits.max_storage_buffer_binding_size as u64).remove(0);
+    let v = serde_json::to_value(vec![run_case(&mut gpu, &case)]).unwrap();
+    let row = &v[0];
+    for key in ["case", "max_error", "nan_or_inf", "time_ms", "passed", "bound", "scheme"] {
+        assert!(row.get(key).is_some(), "{key} missing from {row}");
+    }
+    assert!(row["nan_or_inf"].is_boolean() && row["time_ms"].is_number() && row["case"].is_string());
+}
