@@ -10,6 +10,11 @@
 //! ([`crate::measure`]). Cases past the adapter's limits must be refused with a
 //! [`GpuError::Limit`] before anything is allocated, and values past the project's own
 //! bounds ([`MAX_COORDINATE`], [`MAX_EXTINCTION`]) by validation.
+//!
+//! Memory for particles is bounded by the adapter: the particle buffer (32 bytes each) and
+//! the CPU-built particle–brick lists (4 bytes per particle per 8³ brick its cut-off sphere
+//! reaches, counted before anything is allocated) must each fit one storage binding, so a
+//! million small particles bake while a thousand grid-filling ones on 256³ are refused.
 
 use crate::gpu::{FogPipeline, FrameRequest, GpuError};
 use crate::measure::{ev_max_rel_error, opv_error, sample_cells};

@@ -449,3 +449,17 @@ fn half_float_overflow_is_refused() {
     assert!(err.contains("bright.exr") && err.contains("65504"), "{err}");
     fogsmith::export::exr::write_render_exr(&exr, 4, 4, &rgba, false).unwrap();
 }
+
+/// Deep nesting and very long input end in a positioned error, not a stack overflow.
+#[test]
+fn deeply_nested_and_long_text_is_an_error() {
+    for text in [
+        format!("Project(particles: {}", "[".repeat(100_000)),
+        format!("Project(grid: {}", "(".repeat(100_000)),
+        format!("Project(camera: (fov_y_deg: {}))", "9".repeat(100_000)),
+        format!("Project(particles: [{}])", "(center: (0, 0, 0), radius: 1, density: 1),".repeat(20_000)) + "(radius: -1)",
+    ] {
+        check_project_text(&text).unwrap();
+        assert!(parse_project(&text, Path::new("deep.ron")).is_err());
+    }
+}

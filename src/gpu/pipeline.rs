@@ -216,7 +216,9 @@ impl FogPipeline {
         self.last_report
     }
 
-    /// Refuses, before allocating anything, a scene larger than the adapter allows.
+    /// Refuses, before allocating anything, a scene larger than the adapter allows: grid edge
+    /// (3D texture), OPVs, particles, particle–brick lists and lights (one storage binding
+    /// each) and the image (2D texture and its readback buffer).
     pub fn check_limits(&self, project: &Project, width: u32, height: u32) -> Result<(), GpuError> {
         let limits = &self.ctx.limits;
         let adapter = self.ctx.adapter_info.name.clone();
