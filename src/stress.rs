@@ -20,6 +20,7 @@ use crate::gpu::{FogPipeline, FrameRequest, GpuError};
 use crate::measure::{ev_max_rel_error, opv_error, sample_cells};
 use crate::scene::{
     Camera, GridSpec, Light, Medium, Particle, Project, Scheme, StepPolicy, Volume, MAX_COORDINATE, MAX_EXTINCTION,
+    MAX_INTENSITY,
 };
 use glam::{UVec3, Vec3};
 use serde::Serialize;
@@ -167,7 +168,7 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
         p.medium.base_extinction = 0.5 / hi;
         p.camera.position = Vec3::new(0.3, 0.4, 3.5) * hi;
         p.lights.push(light(Vec3::new(0.21, -0.33, 0.47) * hi));
-        p.lights[0].intensity = 4.0 * hi * hi;
+        p.lights[0].intensity = (4.0 * hi * hi).min(MAX_INTENSITY);
         cases.push(bake(name.into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
     }
     {
@@ -178,7 +179,34 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
         p.render.width = 25;
         p.render.height = 17;
         p.lights.push(Light::new(p.camera.target, 1e12, Vec3::ONE));
-        cases.push(bake("1e12 W/sr light on a cell centre, seen straight on".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        cases.push(bake("1e12 W/sr light on a cell centre, seen straight on".into(), p.clone(), Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        p.lights[0].intensity = MAX_INTENSITY;
+        cases.push(bake("1e15 W/sr light on a cell centre, seen straight on".into(), p.clone(), Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        p.lights[0].intensity = 3e38;
+        p.lights[0].color = Vec3::splat(10.0);
+        cases.push(StressCase {
+            name: "3e38 W/sr light, colour 10".into(),
+            project: p.clone(),
+            scheme: Scheme::Sweep,
+            expect: Expect::Refused("lights[0].intensity"),
+            reference_cells: 0,
+        });
+        // The same brightest light seen straight on in a grid 20 µm across, with the
+        // finest step allowed: the largest inverse-square factor the march can meet.
+        let mut p = p;
+        let scale = 1e-5f32;
+        p.grid.min *= scale;
+        p.grid.max *= scale;
+        p.grid.resolution = UVec3::splat(64);
+        p.medium.base_extinction = 0.3 / scale;
+        p.medium.albedo = 0.0;
+        p.render.step_factor = 0.01;
+        p.camera.position *= scale;
+        p.lights[0] = Light::new(center(&p, [40, 33, 30]), MAX_INTENSITY, Vec3::ONE);
+        p.camera.target = p.lights[0].position;
+        cases.push(bake("1e15 W/sr light in a 2e-5 m grid, albedo 0, seen straight on".into(), p.clone(), Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        p.medium.albedo = 1.0;
+        cases.push(bake("1e15 W/sr light in a 2e-5 m grid, seen straight on".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
     }
     {
         // Camera inside the fog looking straight at a light: the middle pixel's ray passes
@@ -318,7 +346,7 @@ pub fn random_case(seed: u64) -> StressCase {
         }
         for _ in 0..1 + (u() * 3.0) as usize {
             let at = point(3.0, u(), u(), u(), u());
-            p.lights.push(Light::new(at.clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE)), log(-3.0, 12.0, u()), Vec3::new(u(), u(), u())));
+            p.lights.push(Light::new(at.clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE)), log(-3.0, 15.0, u()), Vec3::new(u(), u(), u())));
         }
         p.camera.position = point(2.0, u(), u(), u(), u()).clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE));
         p.camera.target = if u() < 0.3 { p.lights[0].position } else { mid };

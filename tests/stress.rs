@@ -151,6 +151,11 @@ fn out_of_range_positions_and_extinction_are_invalid() {
     p.medium.base_extinction = 1e30;
     let err = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap_err().to_string();
     assert!(err.contains("medium.base_extinction") && err.contains("1e12"), "{err}");
+    // A light bright enough to overflow the radiance near it (it gave infinite pixels).
+    p.medium.base_extinction = 0.1;
+    p.lights[0].intensity = 3e38;
+    let err = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap_err().to_string();
+    assert!(err.contains("lights[0].intensity") && err.contains("1e15"), "{err}");
 }
 
 /// Random small scenes at every magnitude the project allows: finite, in-range results.

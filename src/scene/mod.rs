@@ -11,7 +11,7 @@ mod validate;
 mod volume;
 
 pub use io::{load_project, parse_project, save_project, ProjectError};
-pub use validate::{ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_RESOLUTION_DEFAULT};
+pub use validate::{ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_INTENSITY, MAX_RESOLUTION_DEFAULT};
 pub use volume::Volume;
 
 use glam::{UVec3, Vec3};

@@ -49,6 +49,10 @@ pub const MAX_COORDINATE: f32 = 1e9;
 /// picometre). With [`MAX_COORDINATE`] every optical depth stays finite in f32.
 pub const MAX_EXTINCTION: f32 = 1e12;
 
+/// Largest radiant intensity per channel (intensity × colour), in W/sr. Radiance near a point
+/// light grows like 1/distance², so brighter lights overflowed f32 into infinite pixels.
+pub const MAX_INTENSITY: f32 = 1e15;
+
 fn position(field: &str, v: Vec3) -> Result<(), ValidationError> {
     finite3(field, v)?;
     if v.abs().max_element() > MAX_COORDINATE {
@@ -136,6 +140,13 @@ impl Project {
             finite3(&format!("lights[{i}].color"), l.color)?;
             if l.color.min_element() < 0.0 {
                 return Err(err(format!("lights[{i}].color"), "components must be ≥ 0"));
+            }
+            let peak = l.intensity as f64 * l.color.max_element() as f64;
+            if peak > MAX_INTENSITY as f64 {
+                return Err(err(
+                    format!("lights[{i}].intensity"),
+                    format!("intensity × colour must be at most {MAX_INTENSITY:e} W/sr per channel, got {peak:e}; lower the intensity or the colour"),
+                ));
             }
         }
         let c = &self.camera;
