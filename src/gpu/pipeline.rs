@@ -8,6 +8,7 @@ use super::readback::{read_buffer, read_texture};
 use super::propagate::{PropagationInputs, Propagator};
 use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
+use crate::reference::sun::GPU_TABLE_SIZE;
 use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
 use std::time::Instant;
 
@@ -121,6 +122,8 @@ pub struct FogPipeline {
     march_layout: wgpu::BindGroupLayout,
     march: wgpu::ComputePipeline,
     counters_buf: wgpu::Buffer,
+    /// Sun et al.'s F table (remapped layout) for the closed-form base fog.
+    sun_table: wgpu::Buffer,
     timer: Option<StageTimer>,
     grid: Option<GridResources>,
     image: Option<ImageResources>,
@@ -187,9 +190,17 @@ impl FogPipeline {
                 Slot::StorageWrite,
                 Slot::StorageRead,
                 Slot::StorageRead,
+                Slot::StorageRead,
             ],
         );
-        let march = compute_pipeline(device, "march", &[include_str!("../../shaders/march.wgsl")], &march_layout);
+        let march = compute_pipeline(
+            device,
+            "march",
+            &[include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
+            &march_layout,
+        );
+        let sun = crate::reference::sun::FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
+        let sun_table = storage_buffer(device, "sun F table", bytemuck::cast_slice(&sun.data));
         let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
         let timer = StageTimer::new(&ctx);
         Self {
@@ -202,6 +213,7 @@ impl FogPipeline {
             march_layout,
             march,
             counters_buf,
+            sun_table,
             timer,
             grid: None,
             image: None,
@@ -625,6 +637,7 @@ impl FogPipeline {
                 counters_binding,
                 g.brick_max.as_entire_binding(),
                 surfaces_buf.as_entire_binding(),
+                self.sun_table.as_entire_binding(),
             ],
         );
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -745,10 +758,8 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
     let aspect = width as f32 / height as f32;
     let step = r.step_factor * project.grid.cell_size().min_element();
     let base = project.medium.base_extinction;
-    // Beyond the grid only base fog remains; march it until its transmittance is 1e-4,
-    // or at most 20 grid diagonals.
-    let diag = project.grid.size().length();
-    let far_distance = if base > 0.0 { (9.21 / base).min(20.0 * diag) } else { 0.0 };
+    // Beyond the grid only base fog remains; follow it until its transmittance is 1e-8.
+    let far_distance = if base > 0.0 { (18.42 / base).min(20.0 * project.grid.size().length()) } else { 0.0 };
     MarchParams {
         origin: cam.position.to_array(),
         step,
