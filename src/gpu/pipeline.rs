@@ -53,8 +53,11 @@ pub struct Counters {
     pub particle_evaluations: u64,
     pub cells_propagated: u64,
     pub lights_propagated: u32,
-    /// Lights whose OPV was up to date or that are hidden / have zero intensity.
+    /// Lights whose OPV was up to date, or that are hidden, dark or culled.
     pub lights_skipped: u32,
+    /// Lights skipped because their contribution is provably negligible
+    /// (see [`light_is_negligible`]).
+    pub lights_culled: u32,
     /// Jacobi iterations (`giroud`) or wavefronts (`sweep`) per light.
     pub propagation_iterations: u32,
     pub samples_marched: u64,
@@ -358,6 +361,10 @@ impl FogPipeline {
             if g.spec == spec && g.light_count == light_count {
                 return;
             }
+            if g.spec == spec {
+                self.resize_lights(light_count);
+                return;
+            }
         }
         let device = &self.ctx.device;
         let r = spec.resolution;
@@ -380,21 +387,6 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
-        let opv = ["optical depth A", "optical depth B"].map(|label| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: opv_size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        });
-        let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("lights"),
-            size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let bricks = spec.resolution.map(|n| n.div_ceil(binning::BRICK));
         let brick_max = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("brick max extinction"),
@@ -402,13 +394,33 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        let (lights_buf, opv) = light_buffers(device, &spec, light_count);
         self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
     }
 
+    /// Reallocates the per-light buffers for a new light count on the same grid, keeping the
+    /// OPVs of the lights that remain (by index), so adding a light propagates only that one.
+    fn resize_lights(&mut self, light_count: usize) {
+        let Some(g) = &mut self.grid else { return };
+        let device = &self.ctx.device;
+        let (lights_buf, opv) = light_buffers(device, &g.spec, light_count);
+        let kept = g.spec.cell_count() * 4 * g.light_count.min(light_count) as u64;
+        if kept > 0 {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(&g.opv[0], 0, &opv[0], 0, kept);
+            self.ctx.queue.submit([encoder.finish()]);
+        }
+        g.lights_buf = lights_buf;
+        g.opv = opv;
+        g.light_count = light_count;
+        self.baked.opv_inputs.truncate(light_count);
+    }
+
     fn write_lights(&mut self, project: &Project) {
         let Some(g) = &self.grid else { return };
-        let lights: Vec<LightGpu> = project.lights.iter().map(light_gpu).collect();
+        let lights: Vec<LightGpu> =
+            project.lights.iter().map(|l| light_gpu(l, light_is_negligible(project, l))).collect();
         if !lights.is_empty() {
             self.ctx.queue.write_buffer(&g.lights_buf, 0, bytemuck::cast_slice(&lights));
         }
@@ -550,7 +562,10 @@ impl FogPipeline {
         let mut active = Vec::new();
         for (i, light) in project.lights.iter().enumerate() {
             let key = (light.position, generation, scheme, project.propagation.sweep_stride);
-            if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
+            if light_is_negligible(project, light) {
+                counters.lights_skipped += 1;
+                counters.lights_culled += 1;
+            } else if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
                 counters.lights_skipped += 1;
             } else {
                 active.push(i as u32);
@@ -705,9 +720,49 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-fn light_gpu(l: &Light) -> LightGpu {
-    let rgb = if l.hidden { glam::Vec3::ZERO } else { l.radiance_rgb() };
+fn light_gpu(l: &Light, culled: bool) -> LightGpu {
+    let rgb = if l.hidden || culled { glam::Vec3::ZERO } else { l.radiance_rgb() };
     LightGpu { position: l.position.to_array(), _pad0: 0.0, rgb: rgb.to_array(), _pad1: 0.0 }
+}
+
+/// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
+fn light_buffers(device: &wgpu::Device, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [wgpu::Buffer; 2]) {
+    let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
+    let opv = ["optical depth A", "optical depth B"].map(|label| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: opv_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    });
+    let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("lights"),
+        size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    (lights_buf, opv)
+}
+
+/// Radiance below which a light's whole contribution is dropped: the tone-mapped display
+/// changes by less than exposure × this, far below one 8-bit step.
+pub const CULL_RADIANCE: f32 = 1e-6;
+
+/// Whether light `l` provably adds less than [`CULL_RADIANCE`] / exposure to every pixel.
+/// Only possible without base fog and surfaces: then light is scattered only inside the grid,
+/// and a pixel receives at most I·albedo·max(phase) / d² (d: the light's distance to the grid
+/// box), since ∫σ_t·exp(−τ) along a ray is below 1.
+pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
+    if project.medium.base_extinction > 0.0 || !project.surfaces.is_empty() || project.base_volume.is_some() {
+        return false;
+    }
+    let g = project.grid;
+    let d2 = (l.position - l.position.clamp(g.min, g.max)).length_squared();
+    let gm = project.medium.anisotropy.abs();
+    let max_phase = (1.0 + gm) / (4.0 * std::f32::consts::PI * (1.0 - gm).powi(2));
+    let bound = l.radiance_rgb().max_element() * project.medium.albedo * max_phase / d2;
+    bound * project.render.exposure.max(1e-6) < CULL_RADIANCE
 }
 
 fn particle_gpu(p: &Particle) -> ParticleGpu {
