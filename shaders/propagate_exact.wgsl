@@ -19,18 +19,7 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     if any(id >= grid.dims) {
         return;
     }
-    let s = lights[exact.light].position;
     let x = cell_center(id);
-    let len = length(s - x);
-    let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
-    // An even number of intervals for Simpson's rule.
-    let n = 2u * max(1u, u32(ceil(len / h * f32(exact.steps_per_cell) * 0.5)));
-    let dt = len / f32(n);
-    let dir = (s - x) / max(len, 1e-30);
-    var acc = sigma_at_point(x) + sigma_at_point(s);
-    for (var k = 1u; k < n; k++) {
-        let w = select(2.0, 4.0, (k & 1u) == 1u);
-        acc += w * sigma_at_point(x + dir * (f32(k) * dt));
-    }
-    opv[exact.light * cell_count() + linear_index(id)] = acc * dt / 3.0;
+    let t = integrate_segment(x, lights[exact.light].position, f32(exact.steps_per_cell));
+    opv[exact.light * cell_count() + linear_index(id)] = t;
 }
