@@ -7,6 +7,7 @@
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
 
 pub mod io;
+pub mod recovery;
 mod validate;
 mod volume;
 
