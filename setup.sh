@@ -11,6 +11,7 @@ PACKAGES=(
   python3-openvdb       # OpenVDB itself, to check exported .vdb files
   libopenvdb-tools      # vdb_tool: writes zip / uncompressed .vdb files for the import tests
   openexr               # exrheader / exrinfo, to check exported .exr files
+  fonts-dejavu-core     # the font of the benchmark plots
   pkg-config
   libxkbcommon-x11-0    # winit on X11
   libx11-xcb1

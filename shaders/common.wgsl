@@ -8,7 +8,8 @@ struct GridParams {
     cell: vec3f,
     has_base_layer: u32,
     dims: vec3u,
-    _pad: u32,
+    // Edge, in cells, of the bins particles are listed in for injection.
+    bin_size: u32,
 }
 
 // A point light: position and radiant intensity per RGB channel (W/sr). Hidden lights have zero rgb.

@@ -1,7 +1,8 @@
 // Injection: particles -> extinction volume (EV).
-// Each cell sums the gaussians binned into its 8³ brick; a particle is binned only into the
-// bricks its cut-off sphere reaches, so cost follows particle-cell overlaps. One workgroup
-// pair per listed brick: a full bake lists every brick, an edit only the bricks it touched.
+// Each cell sums the gaussians listed in its bin (bin_size³ cells); a particle is listed
+// only in the bins its cut-off sphere reaches, so cost follows particle-cell overlaps. One
+// workgroup pair per listed 8³ brick: a full bake lists every brick, an edit only the bricks
+// it touched.
 
 struct ParticleGpu {
     center: vec3f,
@@ -13,8 +14,8 @@ struct ParticleGpu {
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var<storage, read> particles: array<ParticleGpu>;
-@group(0) @binding(2) var<storage, read> brick_offsets: array<u32>;
-@group(0) @binding(3) var<storage, read> brick_items: array<u32>;
+@group(0) @binding(2) var<storage, read> bin_offsets: array<u32>;
+@group(0) @binding(3) var<storage, read> bin_items: array<u32>;
 @group(0) @binding(4) var ev: texture_storage_3d<r32float, write>;
 @group(0) @binding(5) var<storage, read> dirty_bricks: array<u32>;
 // An imported density layer (e.g. from a VDB file) under the particles, when has_base_layer.
@@ -32,9 +33,12 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
         return;
     }
     let x = cell_center(id);
+    let ndims = (grid.dims + grid.bin_size - 1u) / grid.bin_size;
+    let nb = id / grid.bin_size;
+    let bin = nb.x + ndims.x * (nb.y + ndims.y * nb.z);
     var sum = 0.0;
-    for (var n = brick_offsets[brick]; n < brick_offsets[brick + 1u]; n++) {
-        let p = particles[brick_items[n]];
+    for (var n = bin_offsets[bin]; n < bin_offsets[bin + 1u]; n++) {
+        let p = particles[bin_items[n]];
         let d = x - p.center;
         let d2 = dot(d, d);
         if d2 < p.cutoff2 {

@@ -20,24 +20,15 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     if any(id >= grid.dims) {
         return;
     }
-    let s = lights[exact.light].position;
     let x = cell_center(id);
+    let s = lights[exact.light].position;
     let len = length(s - x);
-    let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
     let dir = (s - x) / max(len, 1e-30);
     // Beyond the grid only base fog remains: march to where the segment leaves the grid and
     // add the rest analytically, so the cost stays O(N) however far the light is.
     let ta = (grid.min - x) / dir;
     let tb = (grid.max - x) / dir;
-    let t_exit = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
-    let inside = clamp(t_exit, 0.0, len);
-    // An even number of intervals for Simpson's rule.
-    let n = 2u * max(1u, u32(ceil(inside / h * f32(exact.steps_per_cell) * 0.5)));
-    let dt = inside / f32(n);
-    var acc = sigma_at_point(x) + sigma_at_point(x + dir * inside);
-    for (var k = 1u; k < n; k++) {
-        let w = select(2.0, 4.0, (k & 1u) == 1u);
-        acc += w * sigma_at_point(x + dir * (f32(k) * dt));
-    }
-    opv[exact.light * cell_count() + linear_index(id)] = acc * dt / 3.0 + grid.base_extinction * (len - inside);
+    let inside = clamp(min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z)), 0.0, len);
+    let t = integrate_segment(x, x + dir * inside, f32(exact.steps_per_cell)) + grid.base_extinction * (len - inside);
+    opv[exact.light * cell_count() + linear_index(id)] = t;
 }

@@ -8,7 +8,9 @@
 //! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
 //! - [`stress`]: the numerical stress matrix behind `fogsmith stress`.
 
+pub mod bench;
 pub mod cli;
+pub mod demos;
 pub mod export;
 pub mod gpu;
 pub mod measure;

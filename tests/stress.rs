@@ -65,7 +65,7 @@ fn limits_are_refused_before_allocation_with_the_limit_named() {
     let n = binding / 4 / 32768 + 1;
     p.particles = vec![Particle::new(Vec3::ZERO, 100.0, 1.0); n as usize];
     let msg = limit_message(&p, 16, 16);
-    assert!(msg.contains("particle–brick") && msg.contains("fewer or smaller particles"), "{msg}");
+    assert!(msg.contains("particle–bin") && msg.contains("fewer or smaller particles"), "{msg}");
 
     let mut p = small_scene(8, &[Vec3::ONE]);
     let n = binding / 32 + 1;

@@ -60,6 +60,19 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Measure run time against error for every scheme, step policy and table layout, and
+    /// how update time scales; writes bench.csv, bench.json and PNG plots.
+    Bench {
+        /// A reduced suite that finishes in about two minutes.
+        #[arg(long)]
+        quick: bool,
+        /// Output folder.
+        #[arg(long, default_value = "bench-out")]
+        out: PathBuf,
+        /// Suites to run (default: all).
+        #[arg(long, value_enum, value_delimiter = ',')]
+        suite: Vec<crate::bench::Suite>,
+    },
     /// Print the GPU adapter Fogsmith would use and its limits.
     Info {
         #[arg(long)]
@@ -151,6 +164,21 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
         Some(Command::Stress { quick, json }) => stress::run(quick, json),
+        Some(Command::Bench { quick, out, suite }) => {
+            use crate::bench::Suite;
+            let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };
+            let started = std::time::Instant::now();
+            let records = crate::bench::run(&crate::bench::BenchOptions { quick, out: out.clone(), suites }, &mut |line| {
+                println!("{line}")
+            })?;
+            println!(
+                "{} records in {:.0} s; wrote {}/bench.json, bench.csv and *.png",
+                records.len(),
+                started.elapsed().as_secs_f64(),
+                out.display()
+            );
+            Ok(())
+        }
     }
 }
 

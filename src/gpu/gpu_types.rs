@@ -12,7 +12,7 @@ pub struct GridParams {
     pub cell: [f32; 3],
     pub has_base_layer: u32,
     pub dims: [u32; 3],
-    pub _pad: u32,
+    pub bin_size: u32,
 }
 
 #[repr(C)]

@@ -8,6 +8,7 @@ use super::readback::{read_buffer, read_texture};
 use super::propagate::{PropagationInputs, Propagator};
 use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
+use crate::reference::sun::GPU_TABLE_SIZE;
 use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
 use std::time::Instant;
 
@@ -33,8 +34,9 @@ impl FrameRequest {
     }
 }
 
-/// Time per stage in milliseconds: GPU timestamps where the adapter has them (see
-/// [`FrameReport::gpu_timestamps`]), else wall time around submit and a drained queue.
+/// Time per stage in milliseconds: GPU timestamps on hardware adapters that have them (see
+/// [`FrameReport::gpu_timestamps`]), else wall time of the stage's host work, submit and a
+/// drained queue.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct StageTimings {
     pub inject: f64,
@@ -47,12 +49,15 @@ pub struct StageTimings {
 pub struct Counters {
     pub dispatches: u32,
     pub cells_injected: u64,
-    /// Particle–brick overlaps evaluated by injection.
-    pub particle_overlaps: u64,
+    /// Particle–cell pairs injection evaluated (list lengths × cells of the bins it read).
+    pub particle_evaluations: u64,
     pub cells_propagated: u64,
     pub lights_propagated: u32,
-    /// Lights whose OPV was up to date or that are hidden / have zero intensity.
+    /// Lights whose OPV was up to date, or that are hidden, dark or culled.
     pub lights_skipped: u32,
+    /// Lights skipped because their contribution is provably negligible
+    /// (see [`light_is_negligible`]).
+    pub lights_culled: u32,
     /// Jacobi iterations (`giroud`) or wavefronts (`sweep`) per light.
     pub propagation_iterations: u32,
     pub samples_marched: u64,
@@ -120,6 +125,8 @@ pub struct FogPipeline {
     march_layout: wgpu::BindGroupLayout,
     march: wgpu::ComputePipeline,
     counters_buf: wgpu::Buffer,
+    /// Sun et al.'s F table (remapped layout) for the closed-form base fog.
+    sun_table: wgpu::Buffer,
     timer: Option<StageTimer>,
     grid: Option<GridResources>,
     image: Option<ImageResources>,
@@ -128,6 +135,9 @@ pub struct FogPipeline {
     /// Imported density added under the particles, and a counter bumped when it changes.
     base_layer: Option<(Volume, wgpu::Buffer)>,
     base_layer_generation: u64,
+    brute_force_injection: bool,
+    /// Bin edge of the last injection's particle lists (see `binning`).
+    bin_size: u32,
 }
 
 pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -183,9 +193,17 @@ impl FogPipeline {
                 Slot::StorageWrite,
                 Slot::StorageRead,
                 Slot::StorageRead,
+                Slot::StorageRead,
             ],
         );
-        let march = compute_pipeline(device, "march", &[include_str!("../../shaders/march.wgsl")], &march_layout);
+        let march = compute_pipeline(
+            device,
+            "march",
+            &[include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
+            &march_layout,
+        );
+        let sun = crate::reference::sun::FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
+        let sun_table = storage_buffer(device, "sun F table", bytemuck::cast_slice(&sun.data));
         let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
         let timer = StageTimer::new(&ctx);
         Self {
@@ -198,6 +216,7 @@ impl FogPipeline {
             march_layout,
             march,
             counters_buf,
+            sun_table,
             timer,
             grid: None,
             image: None,
@@ -205,6 +224,8 @@ impl FogPipeline {
             last_report: FrameReport::default(),
             base_layer: None,
             base_layer_generation: 0,
+            brute_force_injection: false,
+            bin_size: binning::BRICK,
         }
     }
 
@@ -217,7 +238,7 @@ impl FogPipeline {
     }
 
     /// Refuses, before allocating anything, a scene larger than the adapter allows: grid edge
-    /// (3D texture), OPVs, particles, particle–brick lists and lights (one storage binding
+    /// (3D texture), OPVs, particles, particle–bin lists and lights (one storage binding
     /// each) and the image (2D texture and its readback buffer).
     pub fn check_limits(&self, project: &Project, width: u32, height: u32) -> Result<(), GpuError> {
         let limits = &self.ctx.limits;
@@ -267,18 +288,22 @@ impl FogPipeline {
                 ),
             });
         }
-        // Each particle is listed once per 8³ brick its cut-off sphere overlaps; the count is
-        // bounded by particles × bricks, so it is only summed when that bound could exceed.
-        let bricks = binning::brick_dims(&project.grid).as_u64vec3().element_product();
-        if project.particles.len() as u64 * bricks * 4 > binding {
-            let overlaps = binning::overlap_count(&project.grid, &project.particles);
+        // Each particle is listed once per bin its cut-off sphere overlaps; the count is only
+        // summed when its bound (every particle in every bin) could exceed the binding.
+        if binning::overlap_bound(&project.grid, project.particles.len()) * 4 > binding {
+            let overlaps = if self.brute_force_injection {
+                let visible = project.particles.iter().filter(|p| !p.hidden && p.density > 0.0).count() as u64;
+                visible * binning::brick_dims(&project.grid).as_u64vec3().element_product()
+            } else {
+                binning::overlap_count(&project.grid, &project.particles)
+            };
             if overlaps * 4 > binding {
                 return Err(GpuError::Limit {
-                    what: format!("the particle–brick lists of {} particles", project.particles.len()),
+                    what: format!("the particle–bin lists of {} particles", project.particles.len()),
                     needed: overlaps * 4,
                     limit: binding,
                     adapter,
-                    suggestion: "use fewer or smaller particles (each is listed in every 8³-cell brick it reaches), or lower grid.resolution".into(),
+                    suggestion: "use fewer or smaller particles (each is listed in every injection bin it reaches), or lower grid.resolution".into(),
                 });
             }
         }
@@ -410,6 +435,10 @@ impl FogPipeline {
             if g.spec == spec && g.light_count == light_count {
                 return;
             }
+            if g.spec == spec {
+                self.resize_lights(light_count);
+                return;
+            }
         }
         let device = &self.ctx.device;
         let r = spec.resolution;
@@ -432,21 +461,6 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
-        let opv = ["optical depth A", "optical depth B"].map(|label| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: opv_size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        });
-        let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("lights"),
-            size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let bricks = spec.resolution.map(|n| n.div_ceil(binning::BRICK));
         let brick_max = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("brick max extinction"),
@@ -454,13 +468,33 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        let (lights_buf, opv) = light_buffers(device, &spec, light_count);
         self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
     }
 
+    /// Reallocates the per-light buffers for a new light count on the same grid, keeping the
+    /// OPVs of the lights that remain (by index), so adding a light propagates only that one.
+    fn resize_lights(&mut self, light_count: usize) {
+        let Some(g) = &mut self.grid else { return };
+        let device = &self.ctx.device;
+        let (lights_buf, opv) = light_buffers(device, &g.spec, light_count);
+        let kept = g.spec.cell_count() * 4 * g.light_count.min(light_count) as u64;
+        if kept > 0 {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(&g.opv[0], 0, &opv[0], 0, kept);
+            self.ctx.queue.submit([encoder.finish()]);
+        }
+        g.lights_buf = lights_buf;
+        g.opv = opv;
+        g.light_count = light_count;
+        self.baked.opv_inputs.truncate(light_count);
+    }
+
     fn write_lights(&mut self, project: &Project) {
         let Some(g) = &self.grid else { return };
-        let lights: Vec<LightGpu> = project.lights.iter().map(light_gpu).collect();
+        let lights: Vec<LightGpu> =
+            project.lights.iter().map(|l| light_gpu(l, light_is_negligible(project, l))).collect();
         if !lights.is_empty() {
             self.ctx.queue.write_buffer(&g.lights_buf, 0, bytemuck::cast_slice(&lights));
         }
@@ -473,9 +507,18 @@ impl FogPipeline {
             cell: spec.cell_size().to_array(),
             has_base_layer: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == spec) as u32,
             dims: spec.resolution.to_array(),
-            _pad: 0,
+            bin_size: self.bin_size,
         };
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
+    }
+
+    /// Makes every cell evaluate every particle instead of only those binned into its brick:
+    /// the brute-force injection, for measuring what binning saves. Off by default.
+    pub fn set_brute_force_injection(&mut self, on: bool) {
+        if on != self.brute_force_injection {
+            self.brute_force_injection = on;
+            self.baked.ev_inputs = None;
+        }
     }
 
     /// Sets (or clears) a density layer added to every cell of the EV under the particles,
@@ -516,9 +559,17 @@ impl FogPipeline {
     }
 
     fn run_inject(&mut self, project: &Project, bricks: &[u32], counters: &mut Counters) -> Result<(), GpuError> {
+        let bins = if self.brute_force_injection {
+            binning::bin_all(&project.grid, &project.particles)
+        } else {
+            bin_particles(&project.grid, &project.particles)
+        };
+        if bins.bin_size != self.bin_size {
+            self.bin_size = bins.bin_size;
+            self.write_lights(project);
+        }
         let Some(g) = &self.grid else { return Ok(()) };
         let device = &self.ctx.device;
-        let bins = bin_particles(&project.grid, &project.particles);
         let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
         let particles_buf = storage_buffer(device, "particles", bytemuck::cast_slice(&particles));
         let offsets_buf = storage_buffer(device, "brick offsets", bytemuck::cast_slice(&bins.offsets));
@@ -597,9 +648,7 @@ impl FogPipeline {
         counters.dispatches += 1 + groups.len() as u32;
         let cells_per_brick = (binning::BRICK as u64).pow(3);
         counters.cells_injected += (bricks.len() as u64 * cells_per_brick).min(project.grid.cell_count());
-        counters.particle_overlaps +=
-            bricks.iter().map(|&b| (bins.offsets[b as usize + 1] - bins.offsets[b as usize]) as u64).sum::<u64>()
-                * cells_per_brick;
+        counters.particle_evaluations += bins.evaluations(&project.grid, bricks);
         Ok(())
     }
 
@@ -610,7 +659,10 @@ impl FogPipeline {
         let mut active = Vec::new();
         for (i, light) in project.lights.iter().enumerate() {
             let key = (light.position, generation, scheme, project.propagation.sweep_stride);
-            if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
+            if light_is_negligible(project, light) {
+                counters.lights_skipped += 1;
+                counters.lights_culled += 1;
+            } else if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
                 counters.lights_skipped += 1;
             } else {
                 active.push(i as u32);
@@ -697,6 +749,7 @@ impl FogPipeline {
                 counters_binding,
                 g.brick_max.as_entire_binding(),
                 surfaces_buf.as_entire_binding(),
+                self.sun_table.as_entire_binding(),
             ],
         );
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -764,9 +817,49 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-fn light_gpu(l: &Light) -> LightGpu {
-    let rgb = if l.hidden { glam::Vec3::ZERO } else { l.radiance_rgb() };
+fn light_gpu(l: &Light, culled: bool) -> LightGpu {
+    let rgb = if l.hidden || culled { glam::Vec3::ZERO } else { l.radiance_rgb() };
     LightGpu { position: l.position.to_array(), _pad0: 0.0, rgb: rgb.to_array(), _pad1: 0.0 }
+}
+
+/// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
+fn light_buffers(device: &wgpu::Device, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [wgpu::Buffer; 2]) {
+    let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
+    let opv = ["optical depth A", "optical depth B"].map(|label| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: opv_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    });
+    let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("lights"),
+        size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    (lights_buf, opv)
+}
+
+/// Radiance below which a light's whole contribution is dropped: the tone-mapped display
+/// changes by less than exposure × this, far below one 8-bit step.
+pub const CULL_RADIANCE: f32 = 1e-6;
+
+/// Whether light `l` provably adds less than [`CULL_RADIANCE`] / exposure to every pixel.
+/// Only possible without base fog and surfaces: then light is scattered only inside the grid,
+/// and a pixel receives at most I·albedo·max(phase) / d² (d: the light's distance to the grid
+/// box), since ∫σ_t·exp(−τ) along a ray is below 1.
+pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
+    if project.medium.base_extinction > 0.0 || !project.surfaces.is_empty() || project.base_volume.is_some() {
+        return false;
+    }
+    let g = project.grid;
+    let d2 = (l.position - l.position.clamp(g.min, g.max)).length_squared();
+    let gm = project.medium.anisotropy.abs();
+    let max_phase = (1.0 + gm) / (4.0 * std::f32::consts::PI * (1.0 - gm).powi(2));
+    let bound = l.radiance_rgb().max_element() * project.medium.albedo * max_phase / d2;
+    bound * project.render.exposure.max(1e-6) < CULL_RADIANCE
 }
 
 fn particle_gpu(p: &Particle) -> ParticleGpu {
@@ -817,10 +910,8 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
     let aspect = width as f32 / height as f32;
     let step = r.step_factor * project.grid.cell_size().min_element();
     let base = project.medium.base_extinction;
-    // Beyond the grid only base fog remains; march it until its transmittance is 1e-4,
-    // or at most 20 grid diagonals.
-    let diag = project.grid.size().length();
-    let far_distance = if base > 0.0 { (9.21 / base).min(20.0 * diag) } else { 0.0 };
+    // Beyond the grid only base fog remains; follow it until its transmittance is 1e-8.
+    let far_distance = if base > 0.0 { (18.42 / base).min(20.0 * project.grid.size().length()) } else { 0.0 };
     MarchParams {
         origin: cam.position.to_array(),
         step,

@@ -1,0 +1,102 @@
+//! `fogsmith bench`: run time against error for every speed/quality knob of the pipeline,
+//! measured on the bundled demo scenes against the exact reference.
+//!
+//! Suites (each writes records into one list, saved as `bench.json` and `bench.csv`, with
+//! PNG plots beside them):
+//! - `opv`: propagation schemes × grid resolution, GPU time vs transmittance error.
+//! - `march`: step policies × their knob, samples per pixel and time vs image relative RMSE.
+//! - `sun`: Sun et al.'s F table, resolution × layout × interpolation vs error.
+//! - `scaling`: update time vs resolution × lights and vs particle count, for a dynamic
+//!   scene (everything recomputed) and a static one (camera only), with the stage split;
+//!   plus binned vs brute-force injection and empty-space skipping on / off.
+
+mod plot;
+mod suites;
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+pub use suites::Suite;
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub quick: bool,
+    pub out: PathBuf,
+    pub suites: Vec<Suite>,
+}
+
+/// Why a benchmark could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::GpuError),
+    #[error(transparent)]
+    Project(#[from] crate::scene::ProjectError),
+    #[error("{path}: could not write benchmark output: {message}")]
+    Write { path: PathBuf, message: String },
+}
+
+/// Runs the selected suites, writes bench.json, bench.csv and the plots into `opts.out`,
+/// and returns the records. `log` receives one line per measurement.
+pub fn run(opts: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
+    std::fs::create_dir_all(&opts.out).map_err(|e| write_err(&opts.out, e))?;
+    let mut records = Vec::new();
+    let mut ctx = suites::Context::new(opts.quick)?;
+    for suite in &opts.suites {
+        let start = records.len();
+        suites::run(*suite, &mut ctx, &mut records, log)?;
+        plot::plot_suite(*suite, &records[start..], &opts.out).map_err(|message| BenchError::Write {
+            path: opts.out.clone(),
+            message,
+        })?;
+    }
+    write_json(&opts.out.join("bench.json"), &records)?;
+    write_csv(&opts.out.join("bench.csv"), &records)?;
+    Ok(records)
+}
+
+fn write_err(path: &Path, e: impl std::fmt::Display) -> BenchError {
+    BenchError::Write { path: path.to_owned(), message: e.to_string() }
+}
+
+fn write_json(path: &Path, records: &[Value]) -> Result<(), BenchError> {
+    let text = serde_json::to_string_pretty(records).map_err(|e| write_err(path, e))?;
+    crate::scene::io::write_atomic(path, text.as_bytes(), false).map_err(|e| write_err(path, e))
+}
+
+/// One row per record; columns are the union of the records' scalar fields (nested objects
+/// are flattened as `parent.child`).
+fn write_csv(path: &Path, records: &[Value]) -> Result<(), BenchError> {
+    let rows: Vec<Vec<(String, String)>> = records.iter().map(|r| flatten("", r)).collect();
+    let mut columns: Vec<String> = Vec::new();
+    for row in &rows {
+        for (k, _) in row {
+            if !columns.contains(k) {
+                columns.push(k.clone());
+            }
+        }
+    }
+    let mut text = columns.join(",");
+    text.push('\n');
+    for row in &rows {
+        let line: Vec<String> = columns
+            .iter()
+            .map(|c| row.iter().find(|(k, _)| k == c).map(|(_, v)| v.clone()).unwrap_or_default())
+            .collect();
+        text.push_str(&line.join(","));
+        text.push('\n');
+    }
+    crate::scene::io::write_atomic(path, text.as_bytes(), false).map_err(|e| write_err(path, e))
+}
+
+fn flatten(prefix: &str, v: &Value) -> Vec<(String, String)> {
+    match v {
+        Value::Object(map) => map
+            .iter()
+            .flat_map(|(k, v)| flatten(&if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") }, v))
+            .collect(),
+        Value::String(s) => vec![(prefix.to_string(), s.replace(',', ";"))],
+        Value::Null => vec![(prefix.to_string(), String::new())],
+        other => vec![(prefix.to_string(), other.to_string().replace(',', ";"))],
+    }
+}

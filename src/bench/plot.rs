@@ -1,0 +1,179 @@
+//! PNG plots of benchmark records (plotters, log–log axes).
+
+use super::Suite;
+use plotters::prelude::*;
+use serde_json::Value;
+use std::path::Path;
+use std::sync::OnceLock;
+
+const FONT_PATHS: [&str; 2] =
+    ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/dejavu/DejaVuSans.ttf"];
+
+/// Registers a system font with plotters once; the plots need text.
+fn ensure_font() -> Result<(), String> {
+    static FONT: OnceLock<Result<(), String>> = OnceLock::new();
+    FONT.get_or_init(|| {
+        let bytes = FONT_PATHS.iter().find_map(|p| std::fs::read(p).ok()).ok_or_else(|| {
+            format!("no font for the plots at {}; run ./setup.sh (it installs fonts-dejavu-core)", FONT_PATHS[0])
+        })?;
+        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+        plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
+            .map_err(|_| "the plot font could not be parsed".to_string())
+    })
+    .clone()
+}
+
+type Series = Vec<(String, Vec<(f64, f64)>)>;
+
+fn num(v: &Value, key: &str) -> f64 {
+    v.get(key).and_then(Value::as_f64).unwrap_or(f64::NAN)
+}
+
+fn text(v: &Value, key: &str) -> String {
+    v.get(key).and_then(Value::as_str).unwrap_or("").to_string()
+}
+
+/// Groups (x, y) points by a label, keeping the order labels first appear in.
+fn group(records: &[Value], label: impl Fn(&Value) -> Option<String>, xy: impl Fn(&Value) -> (f64, f64)) -> Series {
+    let mut out: Series = Vec::new();
+    for r in records {
+        let Some(l) = label(r) else { continue };
+        let p = xy(r);
+        if !(p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite()) {
+            continue;
+        }
+        match out.iter_mut().find(|(n, _)| *n == l) {
+            Some((_, pts)) => pts.push(p),
+            None => out.push((l, vec![p])),
+        }
+    }
+    for (_, pts) in &mut out {
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    out
+}
+
+fn loglog(path: &Path, title: &str, xlabel: &str, ylabel: &str, series: &Series) -> Result<(), String> {
+    if series.is_empty() {
+        return Ok(());
+    }
+    ensure_font()?;
+    let all: Vec<(f64, f64)> = series.iter().flat_map(|(_, p)| p.iter().copied()).collect();
+    let (x0, x1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    let (y0, y1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+    let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
+    let e = |e: DrawingAreaErrorKind<_>| format!("{}: {e}", path.display());
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 26))
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d((x0 / 1.3..x1 * 1.3).log_scale(), (y0 / 1.5..y1 * 1.5).log_scale())
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc(xlabel)
+        .y_desc(ylabel)
+        .label_style(("sans-serif", 16))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(e)?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
+            .map_err(e)?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3)));
+        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled()))).map_err(e)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)
+}
+
+pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), String> {
+    match suite {
+        Suite::Opv => loglog(
+            &dir.join("opv_pareto.png"),
+            "Opacity propagation: GPU time vs max transmittance error",
+            "propagation time (ms, all lights)",
+            "max |exp(-T) - exp(-T_exact)|",
+            &group(records, |r| Some(format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy"))), |r| {
+                (num(r, "time_ms"), num(r, "error_max"))
+            }),
+        ),
+        Suite::March => loglog(
+            &dir.join("march_pareto.png"),
+            "Ray march: samples per pixel vs image error",
+            "samples per pixel",
+            "relative RMSE vs reference",
+            &group(
+                records,
+                |r| (text(r, "suite") == "march").then(|| format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy"))),
+                |r| (num(r, "samples"), num(r, "error_mean")),
+            ),
+        ),
+        Suite::Sun => {
+            loglog(
+                &dir.join("sun_table.png"),
+                "Sun's F table: L_a relative error (max over the sweep)",
+                "table resolution (entries per axis)",
+                "max relative error of L_a",
+                &group(records, |r| Some(text(r, "scheme_or_policy")), |r| (num(r, "resolution"), num(r, "error_max"))),
+            )?;
+            loglog(
+                &dir.join("sun_f_error.png"),
+                "Sun's F table: F(u, v) relative error on u in [0, 10] (paper's Fig. 6)",
+                "table resolution (entries per axis)",
+                "max relative error of F",
+                &group(records, |r| Some(text(r, "scheme_or_policy")), |r| (num(r, "resolution"), num(r, "f_error_max"))),
+            )
+        }
+        Suite::Scaling => {
+            let res_records: Vec<Value> = records
+                .iter()
+                .filter(|r| text(r, "suite") == "scaling" && num(r, "particles") == 1000.0)
+                .cloned()
+                .collect();
+            loglog(
+                &dir.join("scaling_resolution.png"),
+                "Update time vs grid size (1000 particles)",
+                "cells",
+                "update time (ms)",
+                &group(
+                    &res_records,
+                    |r| Some(format!("{} / {} lights", text(r, "case"), num(r, "lights"))),
+                    |r| (num(r, "resolution").powi(3), num(r, "time_ms")),
+                ),
+            )?;
+            let sweep_res = particle_sweep_resolution(records);
+            let mut part: Series = group(
+                records,
+                |r| {
+                    let sweep = text(r, "suite") == "scaling" && num(r, "lights") == 2.0 && num(r, "resolution") == sweep_res;
+                    sweep.then(|| text(r, "case"))
+                },
+                |r| (num(r, "particles"), num(r, "time_ms")),
+            );
+            part.extend(group(
+                records,
+                |r| (text(r, "suite") == "injection").then(|| format!("inject, {}", text(r, "scheme_or_policy"))),
+                |r| (num(r, "particles"), num(r, "time_ms")),
+            ));
+            loglog(&dir.join("scaling_particles.png"), "Update time vs particle count", "particles", "time (ms)", &part)
+        }
+    }
+}
+
+/// The resolution of the particle-count sweep: the one used by "injection" records.
+fn particle_sweep_resolution(records: &[Value]) -> f64 {
+    records.iter().filter(|r| text(r, "suite") == "injection").map(|r| num(r, "resolution")).fold(f64::NAN, f64::max)
+}
