@@ -42,19 +42,6 @@ fn mean_extinction_at(c: vec3i, s: vec3f, base: u32) -> f32 {
     return opv[base + linear_index(vec3u(c))] / d;
 }
 
-// ∫σ_t over [a, b] by composite Simpson with about one interval per cell.
-fn integrate_segment(a: vec3f, b: vec3f) -> f32 {
-    let len = length(b - a);
-    let n = 2u * max(1u, u32(ceil(0.5 * len / min(grid.cell.x, min(grid.cell.y, grid.cell.z)))));
-    let dt = len / f32(n);
-    let dir = (b - a) / max(len, 1e-30);
-    var acc = sigma_at_point(a) + sigma_at_point(b);
-    for (var k = 1u; k < n; k++) {
-        acc += select(2.0, 4.0, (k & 1u) == 1u) * sigma_at_point(a + dir * (f32(k) * dt));
-    }
-    return acc * dt / 3.0;
-}
-
 fn solve(c: vec3i) {
     let s = lights[sweep.light].position;
     let base = sweep.light * cell_count();
@@ -72,7 +59,7 @@ fn solve(c: vec3i) {
     let stride = f32(sweep.stride);
     var t: f32;
     if mag[a] < stride + 0.5 || abs(rel[a]) < i32(sweep.stride) {
-        t = integrate_segment(x, s);
+        t = integrate_segment(x, s, 1.0);
     } else {
         // P: where the ray to the light crosses the layer `stride` cells back along a; the
         // mean extinction there is interpolated bilinearly within that layer.
@@ -113,7 +100,7 @@ fn solve(c: vec3i) {
             mix(mean_extinction_at(c00 + ed, s, base), mean_extinction_at(c00 + eb + ed, s, base), wb),
             wd,
         );
-        t = mean * length(p - s) + integrate_segment(p, x);
+        t = mean * length(p - s) + integrate_segment(p, x, 1.0);
     }
     opv[base + linear_index(vec3u(c))] = t;
 }

@@ -36,3 +36,18 @@ fn sigma_at_point(x: vec3f) -> f32 {
         f.z,
     );
 }
+
+// ∫σ_t over the segment [a, b] by composite Simpson with about `per_cell` intervals per cell
+// edge travelled (an even count, at least two).
+fn integrate_segment(a: vec3f, b: vec3f, per_cell: f32) -> f32 {
+    let len = length(b - a);
+    let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
+    let n = 2u * max(1u, u32(ceil(0.5 * per_cell * len / h)));
+    let dt = len / f32(n);
+    let dir = (b - a) / max(len, 1e-30);
+    var acc = sigma_at_point(a) + sigma_at_point(b);
+    for (var k = 1u; k < n; k++) {
+        acc += select(2.0, 4.0, (k & 1u) == 1u) * sigma_at_point(a + dir * (f32(k) * dt));
+    }
+    return acc * dt / 3.0;
+}

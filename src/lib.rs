@@ -7,6 +7,7 @@
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 //! - [`editor`]: the interactive editor window (eframe + egui_dock).
 //! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
+//! - [`stress`]: the numerical stress matrix behind `fogsmith stress`.
 
 pub mod bench;
 pub mod cli;
@@ -18,3 +19,4 @@ pub mod measure;
 pub mod output;
 pub mod reference;
 pub mod scene;
+pub mod stress;

@@ -77,22 +77,27 @@ pub fn opv_error_against(light: usize, opv: &Volume, cells: &[[u32; 3]], exact: 
     }
 }
 
-/// Largest relative error of the EV against the analytic σ_t where σ_t > 1e-6
-/// (infinite if the EV holds a NaN or infinity).
-pub fn ev_max_rel_error(project: &Project, ev: &Volume, cells: &[[u32; 3]]) -> f64 {
+/// Cells below this σ_t (1/m) are left out of the EV's relative error: there the particles'
+/// cut-off (each drops below ~1e-6 /m) dominates, and such fog is invisible anyway.
+pub const EV_REL_THRESHOLD: f64 = 1e-3;
+
+/// The EV against the analytic σ_t: largest relative error where σ_t ≥ [`EV_REL_THRESHOLD`]
+/// and largest absolute error everywhere (both infinite if the EV holds a NaN or infinity).
+pub fn ev_error(project: &Project, ev: &Volume, cells: &[[u32; 3]]) -> (f64, f64) {
     let medium = Medium64::from_project(project);
-    let mut worst = 0.0f64;
+    let (mut rel, mut abs) = (0.0f64, 0.0f64);
     for c in cells {
         let got = ev.get(c[0], c[1], c[2]) as f64;
         if !got.is_finite() {
-            return f64::INFINITY;
+            return (f64::INFINITY, f64::INFINITY);
         }
         let want = medium.extinction(crate::reference::cell_center64(&project.grid, c[0], c[1], c[2]));
-        if want > 1e-6 {
-            worst = worst.max((got - want).abs() / want);
+        abs = abs.max((got - want).abs());
+        if want >= EV_REL_THRESHOLD {
+            rel = rel.max((got - want).abs() / want);
         }
     }
-    worst
+    (rel, abs)
 }
 
 /// Relative RMSE (RMS error over the mean reference radiance, all channels) and largest

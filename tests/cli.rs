@@ -68,7 +68,7 @@ fn export_writes_vdb_and_exr_files() {
     assert_eq!(names, ["density", "optical_depth_0", "optical_depth_1"]);
     let grid = fogsmith::export::vdb_read::read_vdb_grid(&vdb, Some("density")).unwrap();
     assert!(grid.active_voxel_count() > 0);
-    assert!(v["exr_atlas"]["layout"].as_str().unwrap().contains("64 slices of 64×48"), "{v}");
+    assert!(v["exr_atlas"]["layout"].as_str().unwrap().contains("64 slices of 64×58"), "{v}");
     assert!(atlas.exists());
 }
 

@@ -238,3 +238,27 @@ fn an_imported_base_layer_adds_under_the_particles() {
     let err = fogsmith::export::load_base_layer(&p, Some(&project_file)).unwrap_err().to_string();
     assert!(err.contains("missing.vdb"), "{err}");
 }
+
+#[test]
+fn negligible_lights_are_culled_without_changing_the_image() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9)]);
+    p.medium.base_extinction = 0.0;
+    gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    let before = gpu.read_image().unwrap();
+
+    // 10 km away with 1 W/sr: at most ~1e-9 of radiance anywhere.
+    p.lights.push(fogsmith::scene::Light::new(Vec3::new(1.0e4, 0.0, 0.0), 1.0, Vec3::ONE));
+    let report = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    assert_eq!(report.counters.lights_culled, 1);
+    assert_eq!(report.counters.lights_propagated, 0, "a culled light is not propagated");
+    let after = gpu.read_image().unwrap();
+    let diff = before.rgba.iter().zip(&after.rgba).map(|(a, b)| (a[0] - b[0]).abs()).fold(0.0f32, f32::max);
+    assert!(diff <= fogsmith::gpu::CULL_RADIANCE, "culling changed the image by {diff}");
+
+    // Brought close, it is no longer negligible.
+    p.lights[1].position = Vec3::new(1.5, 0.0, 0.0);
+    let report = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+    assert_eq!(report.counters.lights_culled, 0);
+    assert_eq!(report.counters.lights_propagated, 1);
+}

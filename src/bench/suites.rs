@@ -73,7 +73,7 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
     let scenes: &[&str] = if ctx.quick { &["cornell"] } else { &["cornell", "cloud", "street"] };
     let resolutions: &[u32] = if ctx.quick { &[32, 48] } else { &[32, 48, 64, 96, 128] };
     let schemes: &[(Scheme, u32)] = if ctx.quick {
-        &[(Scheme::Giroud, 4), (Scheme::Sweep, 4), (Scheme::Exact, 4)]
+        &[(Scheme::Giroud, 8), (Scheme::Sweep, 8), (Scheme::Exact, 8)]
     } else {
         &[(Scheme::Giroud, 4), (Scheme::Sweep, 4), (Scheme::Sweep, 8), (Scheme::Exact, 4)]
     };

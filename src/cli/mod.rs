@@ -10,6 +10,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 mod export;
+mod stress;
 mod verify;
 
 #[derive(Parser)]
@@ -61,6 +62,16 @@ enum Command {
         #[arg(long, default_value_t = 100_000)]
         cells: usize,
         /// Print one JSON object on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Run the numerical stress matrix (extreme densities, radii, particle counts, light and
+    /// camera placements, grid sizes) and check every result for NaN, range and accuracy.
+    Stress {
+        /// A reduced matrix that finishes in a few minutes on a software adapter.
+        #[arg(long)]
+        quick: bool,
+        /// Print the results as a JSON list on stdout.
         #[arg(long)]
         json: bool,
     },
@@ -121,10 +132,12 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
             return Err(format!("{name} must be within 1..=16384, got {v}").into());
         }
     }
-    let layer = load_base_layer(&project, Some(&args.project))?;
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let mut pipeline = FogPipeline::new(ctx);
+    // Before the base layer is resampled and uploaded: it is as large as one light's OPV.
+    pipeline.check_limits(&project, request.width, request.height)?;
+    let layer = load_base_layer(&project, Some(&args.project))?;
     pipeline.set_base_layer(layer);
     let report = pipeline.update(&project, &request)?;
     Ok(Baked { project, pipeline, report, request, adapter })
@@ -165,6 +178,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         Some(Command::Verify { project, scheme, width, cells, json }) => verify::run(&project, scheme, width, cells, json),
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
+        Some(Command::Stress { quick, json }) => stress::run(quick, json),
         Some(Command::Bench { quick, out, suite }) => {
             use crate::bench::Suite;
             let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };

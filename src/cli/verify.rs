@@ -1,7 +1,7 @@
 //! `fogsmith verify`: how far this project's bake and render are from the exact reference.
 
 use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
-use crate::measure::{ev_max_rel_error, image_error, opv_error, sample_cells};
+use crate::measure::{ev_error, image_error, opv_error, sample_cells, EV_REL_THRESHOLD};
 use crate::reference::{render_reference, RefRenderOptions};
 use crate::scene::{load_project, Scheme};
 use std::path::Path;
@@ -25,7 +25,7 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let started = Instant::now();
     let cells = sample_cells(&project.grid, max_cells.max(8));
     let ev = gpu.read_ev()?;
-    let ev_err = ev_max_rel_error(&project, &ev, &cells);
+    let (ev_err, ev_abs) = ev_error(&project, &ev, &cells);
     let mut opv = Vec::new();
     for light in 0..project.lights.len() {
         opv.push(opv_error(&project, light, &gpu.read_opv(light)?, &cells));
@@ -42,6 +42,8 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
             "scheme": request.scheme.to_string(),
             "grid": project.grid.resolution.to_array(),
             "ev_max_rel_error": ev_err,
+            "ev_rel_threshold": EV_REL_THRESHOLD,
+            "ev_max_abs_error": ev_abs,
             "opv": opv,
             "image_rel_rmse": img_err.rel_rmse,
             "image_max_abs_error": img_err.max_abs_error,
@@ -56,7 +58,7 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     } else {
         println!("{} ({} scheme, {} grid) on {adapter}", path.display(), request.scheme, fmt_grid(&project));
         println!(
-            "EV max relative error: {ev_err:.3e} ({} cells{})",
+            "EV max relative error {ev_err:.3e} (where σ_t ≥ {EV_REL_THRESHOLD} /m), max absolute error {ev_abs:.3e} /m ({} cells{})",
             cells.len(),
             if sampled { ", sampled" } else { "" }
         );

@@ -43,6 +43,10 @@ pub fn write_render_exr(path: &Path, width: usize, height: usize, rgba: &[[f32; 
             "pass width × height RGBA pixels",
         ));
     }
+    if half {
+        let flat: Vec<f32> = rgba.iter().flatten().copied().collect();
+        super::vdb::check_half_range(path, "the render", &flat, "write a full-float EXR (no half option)")?;
+    }
     let px = |x: usize, y: usize| rgba[y * width + x];
     write_atomic(path, |tmp| {
         let result = if half {

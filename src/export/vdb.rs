@@ -298,6 +298,9 @@ fn encode_vdb_with_progress(
         return Err(ExportError::invalid(path, format!("threshold {} is negative or NaN", opts.threshold), "use a threshold >= 0"));
     }
     for (n, g) in grids.iter().enumerate() {
+        if opts.half {
+            check_half_range(path, &format!("grid {:?}", g.name), &g.values, "write full floats (no half option)")?;
+        }
         if g.name.is_empty() || g.name.contains('\u{1e}') {
             return Err(ExportError::invalid(path, format!("grid {n} has an empty or invalid name"), "name every grid"));
         }
@@ -598,6 +601,22 @@ pub fn transform_of(spec: &GridSpec) -> ([f64; 3], [f64; 3]) {
 fn is_uniform(s: [f64; 3]) -> bool {
     let tol = 1e-6 * s[0].abs();
     (s[1] - s[0]).abs() <= tol && (s[2] - s[0]).abs() <= tol
+}
+
+/// Refuses values that half floats cannot hold: beyond ±65504 they would be stored as
+/// infinity (dense fog's optical depth easily exceeds it).
+pub(crate) fn check_half_range(path: &Path, what: &str, values: &[f32], fix: &str) -> Result<(), ExportError> {
+    let max = half::f16::MAX.to_f32();
+    let over = values.iter().filter(|v| v.abs() > max).count();
+    if over > 0 {
+        let largest = values.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        return Err(ExportError::invalid(
+            path,
+            format!("{what} has {over} values beyond half precision's ±{max} (largest {largest}); as half floats they would be infinite"),
+            fix,
+        ));
+    }
+    Ok(())
 }
 
 /// f32 → nearest half (ties to even) → f32, as OpenVDB's `truncateRealToHalf`.

@@ -53,6 +53,10 @@ pub const MAX_LEAVES: usize = 1 << 19;
 /// Most tiles (constant blocks) one imported grid may keep: 2²² (about 200 MB of table).
 pub const MAX_TILES: usize = 1 << 22;
 
+/// Most cells a base volume is resampled into: 2³⁰ (4 GiB of f32), more than any adapter
+/// binds as one buffer, so a larger project grid is refused before the dense copy is allocated.
+pub const MAX_IMPORT_CELLS: u64 = 1 << 30;
+
 /// A grid's entry in a file's table of contents.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VdbGridInfo {
@@ -237,8 +241,30 @@ pub fn import_density(path: &Path, name: Option<&str>, target: &GridSpec, scale:
     if !scale.is_finite() || scale < 0.0 {
         return Err(ExportError::invalid(path, format!("import scale {scale} is negative or not finite"), "use a scale >= 0"));
     }
+    if target.cell_count() > MAX_IMPORT_CELLS {
+        let r = target.resolution;
+        return Err(ExportError::invalid(
+            path,
+            format!("the project grid {}×{}×{} has more cells than a base volume may fill ({MAX_IMPORT_CELLS})", r.x, r.y, r.z),
+            "lower grid.resolution",
+        ));
+    }
     let grid = read_vdb_grid(path, name)?;
-    Ok(Volume { grid: *target, data: resample_into(target, &grid, scale) })
+    let data = resample_into(target, &grid, scale);
+    let bad = data.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
+    if let Some(first) = data.iter().position(|v| !v.is_finite() || *v < 0.0) {
+        let r = target.resolution;
+        let cell = [first % r.x as usize, (first / r.x as usize) % r.y as usize, first / (r.x as usize * r.y as usize)];
+        return Err(ExportError::invalid(
+            path,
+            format!(
+                "grid {:?} gives {bad} cells a density that is negative or not finite (first: cell {cell:?}, value {})",
+                grid.name, data[first]
+            ),
+            "a density must be finite and >= 0: import a fog density grid, not a level set, or lower base_volume.scale",
+        ));
+    }
+    Ok(Volume { grid: *target, data })
 }
 
 /// Lists the grids of a VDB file.

@@ -64,6 +64,22 @@ pub fn for_each_brick(dims: UVec3, (lo, hi): (UVec3, UVec3), mut f: impl FnMut(u
     }
 }
 
+/// Particle–bin overlaps [`bin_particles`] would list, counted without allocating.
+pub fn overlap_count(grid: &GridSpec, particles: &[Particle]) -> u64 {
+    let bin = chosen_bin(grid, particles);
+    particles
+        .iter()
+        .filter_map(|p| bin_range(grid, p, bin))
+        .map(|(lo, hi)| (hi - lo + UVec3::ONE).as_u64vec3().element_product())
+        .sum()
+}
+
+/// An upper bound on [`overlap_count`] and on [`bin_all`]'s list: every particle in every
+/// bin of the smallest size.
+pub fn overlap_bound(grid: &GridSpec, particles: usize) -> u64 {
+    particles as u64 * bin_dims(grid, 2).as_u64vec3().element_product()
+}
+
 pub struct Bins {
     /// Edge of a bin in cells.
     pub bin_size: u32,
@@ -99,6 +115,11 @@ impl Bins {
 /// Bins visible particles (indices into `particles`), with the bin edge that minimises the
 /// particle–cell evaluations.
 pub fn bin_particles(grid: &GridSpec, particles: &[Particle]) -> Bins {
+    bin_with(grid, particles, chosen_bin(grid, particles))
+}
+
+/// The bin edge [`bin_particles`] uses: the one of 2, 4, 8 cells with the fewest evaluations.
+pub fn chosen_bin(grid: &GridSpec, particles: &[Particle]) -> u32 {
     let cost = |bin: u32| -> u64 {
         particles
             .iter()
@@ -106,8 +127,7 @@ pub fn bin_particles(grid: &GridSpec, particles: &[Particle]) -> Bins {
             .map(|(lo, hi)| ((hi - lo + 1).as_u64vec3().element_product()) * (bin as u64).pow(3))
             .sum()
     };
-    let bin = [2, 4, 8].into_iter().min_by_key(|&b| cost(b)).unwrap_or(BRICK);
-    bin_with(grid, particles, bin)
+    [2, 4, 8].into_iter().min_by_key(|&b| cost(b)).unwrap_or(BRICK)
 }
 
 fn bin_with(grid: &GridSpec, particles: &[Particle], bin: u32) -> Bins {

@@ -27,4 +27,4 @@ pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext};
 pub use error::GpuError;
 pub use propagate::{giroud_iterations, sweep_steps, EXACT_STEPS_PER_CELL};
-pub use pipeline::{Counters, FogPipeline, FrameReport, FrameRequest, Image, StageTimings};
+pub use pipeline::{light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, StageTimings};

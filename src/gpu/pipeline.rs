@@ -8,6 +8,7 @@ use super::readback::{read_buffer, read_texture};
 use super::propagate::{PropagationInputs, Propagator};
 use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
+use crate::reference::sun::GPU_TABLE_SIZE;
 use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
 use std::time::Instant;
 
@@ -52,8 +53,11 @@ pub struct Counters {
     pub particle_evaluations: u64,
     pub cells_propagated: u64,
     pub lights_propagated: u32,
-    /// Lights whose OPV was up to date or that are hidden / have zero intensity.
+    /// Lights whose OPV was up to date, or that are hidden, dark or culled.
     pub lights_skipped: u32,
+    /// Lights skipped because their contribution is provably negligible
+    /// (see [`light_is_negligible`]).
+    pub lights_culled: u32,
     /// Jacobi iterations (`giroud`) or wavefronts (`sweep`) per light.
     pub propagation_iterations: u32,
     pub samples_marched: u64,
@@ -121,6 +125,8 @@ pub struct FogPipeline {
     march_layout: wgpu::BindGroupLayout,
     march: wgpu::ComputePipeline,
     counters_buf: wgpu::Buffer,
+    /// Sun et al.'s F table (remapped layout) for the closed-form base fog.
+    sun_table: wgpu::Buffer,
     timer: Option<StageTimer>,
     grid: Option<GridResources>,
     image: Option<ImageResources>,
@@ -188,9 +194,17 @@ impl FogPipeline {
                 Slot::StorageWrite,
                 Slot::StorageRead,
                 Slot::StorageRead,
+                Slot::StorageRead,
             ],
         );
-        let march = compute_pipeline(device, "march", &[include_str!("../../shaders/march.wgsl")], &march_layout);
+        let march = compute_pipeline(
+            device,
+            "march",
+            &[include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
+            &march_layout,
+        );
+        let sun = crate::reference::sun::FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
+        let sun_table = storage_buffer(device, "sun F table", bytemuck::cast_slice(&sun.data));
         let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
         let timer = StageTimer::new(&ctx);
         Self {
@@ -203,6 +217,7 @@ impl FogPipeline {
             march_layout,
             march,
             counters_buf,
+            sun_table,
             timer,
             grid: None,
             image: None,
@@ -223,7 +238,9 @@ impl FogPipeline {
         self.last_report
     }
 
-    /// Refuses, before allocating anything, a scene larger than the adapter allows.
+    /// Refuses, before allocating anything, a scene larger than the adapter allows: grid edge
+    /// (3D texture), OPVs, particles, particle–bin lists and lights (one storage binding
+    /// each) and the image (2D texture and its readback buffer).
     pub fn check_limits(&self, project: &Project, width: u32, height: u32) -> Result<(), GpuError> {
         let limits = &self.ctx.limits;
         let adapter = self.ctx.adapter_info.name.clone();
@@ -258,12 +275,65 @@ impl FogPipeline {
                 ),
             });
         }
+        let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        let particle_bytes = project.particles.len() as u64 * std::mem::size_of::<ParticleGpu>() as u64;
+        if particle_bytes > binding {
+            return Err(GpuError::Limit {
+                what: format!("{} particles", project.particles.len()),
+                needed: particle_bytes,
+                limit: binding,
+                adapter,
+                suggestion: format!(
+                    "use at most {} particles, e.g. by merging small ones or importing dense regions as a VDB base volume",
+                    binding / std::mem::size_of::<ParticleGpu>() as u64
+                ),
+            });
+        }
+        // Each particle is listed once per bin its cut-off sphere overlaps; the count is only
+        // summed when its bound (every particle in every bin) could exceed the binding.
+        if binning::overlap_bound(&project.grid, project.particles.len()) * 4 > binding {
+            let overlaps = if self.brute_force_injection {
+                let visible = project.particles.iter().filter(|p| !p.hidden && p.density > 0.0).count() as u64;
+                visible * binning::brick_dims(&project.grid).as_u64vec3().element_product()
+            } else {
+                binning::overlap_count(&project.grid, &project.particles)
+            };
+            if overlaps * 4 > binding {
+                return Err(GpuError::Limit {
+                    what: format!("the particle–bin lists of {} particles", project.particles.len()),
+                    needed: overlaps * 4,
+                    limit: binding,
+                    adapter,
+                    suggestion: "use fewer or smaller particles (each is listed in every injection bin it reaches), or lower grid.resolution".into(),
+                });
+            }
+        }
+        let light_bytes = project.lights.len() as u64 * std::mem::size_of::<LightGpu>() as u64;
+        if light_bytes > binding {
+            return Err(GpuError::Limit {
+                what: format!("{} lights", project.lights.len()),
+                needed: light_bytes,
+                limit: binding,
+                adapter,
+                suggestion: "use fewer lights".into(),
+            });
+        }
         let edge2d = width.max(height);
         if edge2d > limits.max_texture_dimension_2d {
             return Err(GpuError::Limit {
                 what: format!("a {width}×{height} image"),
                 needed: edge2d as u64,
                 limit: limits.max_texture_dimension_2d as u64,
+                adapter,
+                suggestion: "render a smaller image".into(),
+            });
+        }
+        let readback = width as u64 * height as u64 * 16;
+        if readback > limits.max_buffer_size {
+            return Err(GpuError::Limit {
+                what: format!("reading back a {width}×{height} RGBA32F image"),
+                needed: readback,
+                limit: limits.max_buffer_size,
                 adapter,
                 suggestion: "render a smaller image".into(),
             });
@@ -277,7 +347,26 @@ impl FogPipeline {
         project
             .validate(self.ctx.max_grid_edge())
             .map_err(|e| GpuError::Invalid(e.to_string()))?;
+        for (name, v) in [("width", request.width), ("height", request.height)] {
+            if v == 0 || v > 16384 {
+                return Err(GpuError::Invalid(format!("the frame {name} must be within 1..=16384 pixels, got {v}")));
+            }
+        }
         self.check_limits(project, request.width, request.height)?;
+        if request.scheme == Scheme::Giroud {
+            // One dispatch covers every propagated light: z = ⌈nz/4⌉ workgroups per light.
+            let z = project.grid.resolution.z.div_ceil(4) as u64 * project.lights.len() as u64;
+            let limit = self.ctx.limits.max_compute_workgroups_per_dimension as u64;
+            if z > limit {
+                return Err(GpuError::Limit {
+                    what: format!("the giroud scheme with {} lights on a grid {} cells deep", project.lights.len(), project.grid.resolution.z),
+                    needed: z,
+                    limit,
+                    adapter: self.ctx.adapter_info.name.clone(),
+                    suggestion: "use the sweep scheme, fewer lights or a lower grid.resolution.z".into(),
+                });
+            }
+        }
         if let Some((v, _)) = &self.base_layer {
             if v.grid != project.grid {
                 return Err(GpuError::Invalid(
@@ -347,6 +436,10 @@ impl FogPipeline {
             if g.spec == spec && g.light_count == light_count {
                 return;
             }
+            if g.spec == spec {
+                self.resize_lights(light_count);
+                return;
+            }
         }
         let device = &self.ctx.device;
         let r = spec.resolution;
@@ -369,21 +462,6 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
-        let opv = ["optical depth A", "optical depth B"].map(|label| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: opv_size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        });
-        let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("lights"),
-            size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let bricks = spec.resolution.map(|n| n.div_ceil(binning::BRICK));
         let brick_max = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("brick max extinction"),
@@ -391,13 +469,33 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        let (lights_buf, opv) = light_buffers(device, &spec, light_count);
         self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
     }
 
+    /// Reallocates the per-light buffers for a new light count on the same grid, keeping the
+    /// OPVs of the lights that remain (by index), so adding a light propagates only that one.
+    fn resize_lights(&mut self, light_count: usize) {
+        let Some(g) = &mut self.grid else { return };
+        let device = &self.ctx.device;
+        let (lights_buf, opv) = light_buffers(device, &g.spec, light_count);
+        let kept = g.spec.cell_count() * 4 * g.light_count.min(light_count) as u64;
+        if kept > 0 {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(&g.opv[0], 0, &opv[0], 0, kept);
+            self.ctx.queue.submit([encoder.finish()]);
+        }
+        g.lights_buf = lights_buf;
+        g.opv = opv;
+        g.light_count = light_count;
+        self.baked.opv_inputs.truncate(light_count);
+    }
+
     fn write_lights(&mut self, project: &Project) {
         let Some(g) = &self.grid else { return };
-        let lights: Vec<LightGpu> = project.lights.iter().map(light_gpu).collect();
+        let lights: Vec<LightGpu> =
+            project.lights.iter().map(|l| light_gpu(l, light_is_negligible(project, l))).collect();
         if !lights.is_empty() {
             self.ctx.queue.write_buffer(&g.lights_buf, 0, bytemuck::cast_slice(&lights));
         }
@@ -428,8 +526,13 @@ impl FogPipeline {
     /// such as a VDB grid resampled into the project's grid. It must match the grid of the
     /// projects passed to [`update`](Self::update).
     pub fn set_base_layer(&mut self, layer: Option<Volume>) {
+        let limits = &self.ctx.limits;
+        let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
         self.base_layer = layer.map(|v| {
-            let buf = storage_buffer(&self.ctx.device, "base layer", bytemuck::cast_slice(&v.data));
+            // A layer too large to bind is not uploaded (wgpu would panic): it is as large as
+            // one light's OPV, so `update` refuses its grid with the limit named.
+            let bytes: &[u8] = bytemuck::cast_slice(&v.data);
+            let buf = storage_buffer(&self.ctx.device, "base layer", if bytes.len() as u64 > binding { &[] } else { bytes });
             (v, buf)
         });
         self.base_layer_generation += 1;
@@ -481,20 +584,36 @@ impl FogPipeline {
                 &no_layer
             }
         };
-        let bg = bind_group(
-            device,
-            "inject",
-            &self.inject_layout,
-            &[
-                g.grid_buf.as_entire_binding(),
-                particles_buf.as_entire_binding(),
-                offsets_buf.as_entire_binding(),
-                items_buf.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&g.ev_view),
-                bricks_buf.as_entire_binding(),
-                layer_buf.as_entire_binding(),
-            ],
-        );
+        // One workgroup pair per brick, at most max_compute_workgroups_per_dimension per
+        // dispatch: larger grids take several dispatches over aligned slices of the list.
+        let align = (self.ctx.limits.min_storage_buffer_offset_alignment as usize / 4).max(1);
+        let chunk = (self.ctx.limits.max_compute_workgroups_per_dimension as usize / align).max(1) * align;
+        let groups: Vec<(wgpu::BindGroup, u32)> = bricks
+            .chunks(chunk)
+            .enumerate()
+            .map(|(n, part)| {
+                let slice = wgpu::BufferBinding {
+                    buffer: &bricks_buf,
+                    offset: (n * chunk * 4) as u64,
+                    size: wgpu::BufferSize::new(part.len() as u64 * 4),
+                };
+                let bg = bind_group(
+                    device,
+                    "inject",
+                    &self.inject_layout,
+                    &[
+                        g.grid_buf.as_entire_binding(),
+                        particles_buf.as_entire_binding(),
+                        offsets_buf.as_entire_binding(),
+                        items_buf.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(&g.ev_view),
+                        wgpu::BindingResource::Buffer(slice),
+                        layer_buf.as_entire_binding(),
+                    ],
+                );
+                (bg, part.len() as u32)
+            })
+            .collect();
         let r = project.grid.resolution;
         let mut encoder = device.create_command_encoder(&Default::default());
         {
@@ -503,8 +622,10 @@ impl FogPipeline {
                 timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::INJECT)),
             });
             pass.set_pipeline(&self.inject);
-            pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(bricks.len() as u32, 2, 1);
+            for (bg, count) in &groups {
+                pass.set_bind_group(0, bg, &[]);
+                pass.dispatch_workgroups(*count, 2, 1);
+            }
             let occ = bind_group(
                 device,
                 "occupancy",
@@ -525,7 +646,7 @@ impl FogPipeline {
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
-        counters.dispatches += 2;
+        counters.dispatches += 1 + groups.len() as u32;
         let cells_per_brick = (binning::BRICK as u64).pow(3);
         counters.cells_injected += (bricks.len() as u64 * cells_per_brick).min(project.grid.cell_count());
         counters.particle_evaluations += bins.evaluations(&project.grid, bricks);
@@ -539,7 +660,10 @@ impl FogPipeline {
         let mut active = Vec::new();
         for (i, light) in project.lights.iter().enumerate() {
             let key = (light.position, generation, scheme, project.propagation.sweep_stride);
-            if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
+            if light_is_negligible(project, light) {
+                counters.lights_skipped += 1;
+                counters.lights_culled += 1;
+            } else if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
                 counters.lights_skipped += 1;
             } else {
                 active.push(i as u32);
@@ -626,6 +750,7 @@ impl FogPipeline {
                 counters_binding,
                 g.brick_max.as_entire_binding(),
                 surfaces_buf.as_entire_binding(),
+                self.sun_table.as_entire_binding(),
             ],
         );
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -693,9 +818,49 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-fn light_gpu(l: &Light) -> LightGpu {
-    let rgb = if l.hidden { glam::Vec3::ZERO } else { l.radiance_rgb() };
+fn light_gpu(l: &Light, culled: bool) -> LightGpu {
+    let rgb = if l.hidden || culled { glam::Vec3::ZERO } else { l.radiance_rgb() };
     LightGpu { position: l.position.to_array(), _pad0: 0.0, rgb: rgb.to_array(), _pad1: 0.0 }
+}
+
+/// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
+fn light_buffers(device: &wgpu::Device, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [wgpu::Buffer; 2]) {
+    let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
+    let opv = ["optical depth A", "optical depth B"].map(|label| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: opv_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    });
+    let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("lights"),
+        size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    (lights_buf, opv)
+}
+
+/// Radiance below which a light's whole contribution is dropped: the tone-mapped display
+/// changes by less than exposure × this, far below one 8-bit step.
+pub const CULL_RADIANCE: f32 = 1e-6;
+
+/// Whether light `l` provably adds less than [`CULL_RADIANCE`] / exposure to every pixel.
+/// Only possible without base fog and surfaces: then light is scattered only inside the grid,
+/// and a pixel receives at most I·albedo·max(phase) / d² (d: the light's distance to the grid
+/// box), since ∫σ_t·exp(−τ) along a ray is below 1.
+pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
+    if project.medium.base_extinction > 0.0 || !project.surfaces.is_empty() || project.base_volume.is_some() {
+        return false;
+    }
+    let g = project.grid;
+    let d2 = (l.position - l.position.clamp(g.min, g.max)).length_squared();
+    let gm = project.medium.anisotropy.abs();
+    let max_phase = (1.0 + gm) / (4.0 * std::f32::consts::PI * (1.0 - gm).powi(2));
+    let bound = l.radiance_rgb().max_element() * project.medium.albedo * max_phase / d2;
+    bound * project.render.exposure.max(1e-6) < CULL_RADIANCE
 }
 
 fn particle_gpu(p: &Particle) -> ParticleGpu {
@@ -746,10 +911,8 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
     let aspect = width as f32 / height as f32;
     let step = r.step_factor * project.grid.cell_size().min_element();
     let base = project.medium.base_extinction;
-    // Beyond the grid only base fog remains; march it until its transmittance is 1e-4,
-    // or at most 20 grid diagonals.
-    let diag = project.grid.size().length();
-    let far_distance = if base > 0.0 { (9.21 / base).min(20.0 * diag) } else { 0.0 };
+    // Beyond the grid only base fog remains; follow it until its transmittance is 1e-8.
+    let far_distance = if base > 0.0 { (18.42 / base).min(20.0 * project.grid.size().length()) } else { 0.0 };
     MarchParams {
         origin: cam.position.to_array(),
         step,

@@ -187,16 +187,12 @@ impl Propagator {
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
         counters: &mut Counters,
     ) {
-        let steps: Vec<SweepStep> =
-            active.iter().flat_map(|&l| sweep_steps(inputs.grid, inputs.positions[l as usize], l, inputs.sweep_stride)).collect();
-        let (bg, _buf) = self.per_dispatch_bind_group(device, inputs, &steps);
-        let stride = (std::mem::size_of::<SweepStep>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate sweep"), timestamp_writes: timestamps });
-        pass.set_pipeline(&self.sweep);
-        for (i, s) in steps.iter().enumerate() {
-            pass.set_bind_group(0, &bg, &[(i as u64 * stride) as u32]);
-            pass.dispatch_workgroups(s.size[0].div_ceil(8), s.size[1].div_ceil(8), 1);
-        }
+        let steps: Vec<SweepStep> = active
+            .iter()
+            .flat_map(|&l| sweep_steps(inputs.grid, inputs.positions[l as usize], l, inputs.sweep_stride))
+            .collect();
+        let groups: Vec<[u32; 3]> = steps.iter().map(|s| [s.size[0].div_ceil(8), s.size[1].div_ceil(8), 1]).collect();
+        self.encode_dispatches(device, encoder, inputs, &self.sweep, "propagate sweep", &steps, &groups, timestamps);
         counters.dispatches += steps.len() as u32;
         counters.propagation_iterations = counters.propagation_iterations.max(steps.len() as u32 / active.len() as u32);
         counters.cells_propagated += inputs.grid.cell_count() * active.len() as u64;
@@ -211,26 +207,50 @@ impl Propagator {
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
         counters: &mut Counters,
     ) {
-        let params: Vec<ExactParams> =
-            active.iter().map(|&l| ExactParams { light: l, steps_per_cell: EXACT_STEPS_PER_CELL, _pad: [0; 2] }).collect();
-        let (bg, _buf) = self.per_dispatch_bind_group(device, inputs, &params);
-        let stride = (std::mem::size_of::<ExactParams>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
+        let params: Vec<ExactParams> = active
+            .iter()
+            .map(|&l| ExactParams { light: l, steps_per_cell: EXACT_STEPS_PER_CELL, _pad: [0; 2] })
+            .collect();
         let r = inputs.grid.resolution;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate exact"), timestamp_writes: timestamps });
-        pass.set_pipeline(&self.exact);
-        for i in 0..params.len() {
-            pass.set_bind_group(0, &bg, &[(i as u64 * stride) as u32]);
-            pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4));
-        }
+        let groups = vec![[r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4)]; params.len()];
+        self.encode_dispatches(device, encoder, inputs, &self.exact, "propagate exact", &params, &groups, timestamps);
         counters.dispatches += params.len() as u32;
         counters.propagation_iterations = counters.propagation_iterations.max(1);
         counters.cells_propagated += inputs.grid.cell_count() * active.len() as u64;
     }
+
+    /// One pass of `pipeline` with one dispatch per entry, each seeing its own entry as the
+    /// dynamic-offset uniform.
+    #[allow(clippy::too_many_arguments)]
+    fn encode_dispatches<T: bytemuck::Pod>(
+        &self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &PropagationInputs,
+        pipeline: &wgpu::ComputePipeline,
+        label: &str,
+        entries: &[T],
+        groups: &[[u32; 3]],
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) {
+        let (bg, _buf) = self.per_dispatch_bind_group(device, inputs, entries);
+        let stride = (std::mem::size_of::<T>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: timestamps });
+        pass.set_pipeline(pipeline);
+        for (i, g) in groups.iter().enumerate() {
+            pass.set_bind_group(0, &bg, &[(i as u64 * stride) as u32]);
+            pass.dispatch_workgroups(g[0], g[1], g[2]);
+        }
+    }
 }
 
-/// The light's cell index (may lie outside the grid).
+/// The light's cell index (may lie outside the grid). A light far outside is moved, per
+/// axis, to 2²⁰ cells beyond the grid: the sweep only compares Manhattan distances between
+/// grid cells, which that keeps, and the level arithmetic then stays far inside i32.
 fn light_cell(grid: &GridSpec, light: Vec3) -> IVec3 {
-    ((light - grid.min) / grid.cell_size()).floor().as_ivec3()
+    const FAR: f32 = (1 << 20) as f32;
+    let c = ((light - grid.min) / grid.cell_size()).floor();
+    c.clamp(Vec3::splat(-FAR), grid.resolution.as_vec3() + FAR).as_ivec3()
 }
 
 /// The wavefronts of the sweep for one light: for every Manhattan distance ("level") from

@@ -59,7 +59,12 @@ pub fn to_ron_string(project: &Project) -> Result<String, ProjectError> {
 
 /// Saves atomically, keeping the previous version as `<path>.bak`.
 pub fn save_project(path: &Path, project: &Project) -> Result<(), ProjectError> {
-    debug_assert_eq!(project.version, PROJECT_VERSION);
+    if project.version != PROJECT_VERSION {
+        return Err(ProjectError::Serialize(format!(
+            "the project has version {}, but this build writes only version {PROJECT_VERSION}",
+            project.version
+        )));
+    }
     let text = to_ron_string(project)?;
     write_atomic(path, text.as_bytes(), true).map_err(|source| ProjectError::Io { path: path.to_owned(), source })
 }

@@ -7,11 +7,12 @@
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
 
 pub mod io;
+pub mod recovery;
 mod validate;
 mod volume;
 
 pub use io::{load_project, parse_project, save_project, ProjectError};
-pub use validate::{ValidationError, MAX_RESOLUTION_DEFAULT};
+pub use validate::{ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_INTENSITY, MAX_RESOLUTION_DEFAULT};
 pub use volume::Volume;
 
 use glam::{UVec3, Vec3};
@@ -420,13 +421,14 @@ pub struct PropagationSettings {
     /// Default `sweep`.
     pub scheme: Scheme,
     /// Layers the `sweep` scheme steps back per interpolation, 3..=16: larger is less
-    /// diffusive and costs more per cell. Default 4.
+    /// diffusive and costs more per cell. Default 8 (on the demos: max transmittance error
+    /// 5.1e-3 to 1.3e-2 against 7.6e-3 to 2.0e-2 with 4, at about the same time).
     pub sweep_stride: u32,
 }
 
 impl Default for PropagationSettings {
     fn default() -> Self {
-        Self { scheme: Scheme::default(), sweep_stride: 4 }
+        Self { scheme: Scheme::default(), sweep_stride: 8 }
     }
 }
 

@@ -41,6 +41,37 @@ fn finite3(field: &str, v: Vec3) -> Result<(), ValidationError> {
     }
 }
 
+/// Largest coordinate, in metres, of any position. Squared distances between positions then
+/// stay far inside f32 (≈1e19 of 3.4e38), which the GPU's distance and optical-depth
+/// arithmetic needs: a light at 1e30 m turned whole frames into NaN.
+pub const MAX_COORDINATE: f32 = 1e9;
+/// Largest extinction, in 1/m, of the base fog or of one particle (opaque within a
+/// picometre). With [`MAX_COORDINATE`] every optical depth stays finite in f32.
+pub const MAX_EXTINCTION: f32 = 1e12;
+
+/// Largest radiant intensity per channel (intensity × colour), in W/sr. Radiance near a point
+/// light grows like 1/distance², so brighter lights overflowed f32 into infinite pixels.
+pub const MAX_INTENSITY: f32 = 1e15;
+
+fn position(field: &str, v: Vec3) -> Result<(), ValidationError> {
+    finite3(field, v)?;
+    if v.abs().max_element() > MAX_COORDINATE {
+        return Err(err(
+            field,
+            format!("must be within ±{MAX_COORDINATE:e} m on every axis, got ({}, {}, {}); move it closer", v.x, v.y, v.z),
+        ));
+    }
+    Ok(())
+}
+
+fn extinction(field: &str, v: f32) -> Result<(), ValidationError> {
+    at_least(field, v, 0.0)?;
+    if v > MAX_EXTINCTION {
+        return Err(err(field, format!("must be at most {MAX_EXTINCTION:e} /m (already opaque within a picometre), got {v}")));
+    }
+    Ok(())
+}
+
 fn at_least(field: &str, v: f32, min: f32) -> Result<(), ValidationError> {
     finite(field, v)?;
     if v >= min {
@@ -53,8 +84,8 @@ fn at_least(field: &str, v: f32, min: f32) -> Result<(), ValidationError> {
 impl GridSpec {
     /// Checks bounds and resolution against `max_resolution` cells per axis.
     pub fn validate(&self, max_resolution: u32) -> Result<(), ValidationError> {
-        finite3("grid.min", self.min)?;
-        finite3("grid.max", self.max)?;
+        position("grid.min", self.min)?;
+        position("grid.max", self.max)?;
         for (axis, (lo, hi)) in ["x", "y", "z"].iter().zip(self.min.to_array().into_iter().zip(self.max.to_array())) {
             if lo >= hi {
                 return Err(err(format!("grid.max.{axis}"), format!("must be greater than grid.min.{axis} ({lo}), got {hi}")));
@@ -83,7 +114,7 @@ impl Project {
         }
         self.grid.validate(max_resolution)?;
         let m = &self.medium;
-        at_least("medium.base_extinction", m.base_extinction, 0.0)?;
+        extinction("medium.base_extinction", m.base_extinction)?;
         at_least("medium.albedo", m.albedo, 0.0)?;
         if m.albedo > 1.0 {
             return Err(err("medium.albedo", format!("must be within [0, 1], got {}", m.albedo)));
@@ -93,24 +124,34 @@ impl Project {
             return Err(err("medium.anisotropy", format!("must be within (−1, 1), got {}", m.anisotropy)));
         }
         for (i, p) in self.particles.iter().enumerate() {
-            finite3(&format!("particles[{i}].center"), p.center)?;
+            position(&format!("particles[{i}].center"), p.center)?;
             finite(&format!("particles[{i}].radius"), p.radius)?;
             if p.radius <= 0.0 {
                 return Err(err(format!("particles[{i}].radius"), format!("must be > 0, got {}", p.radius)));
             }
-            at_least(&format!("particles[{i}].density"), p.density, 0.0)?;
+            if p.radius > MAX_COORDINATE {
+                return Err(err(format!("particles[{i}].radius"), format!("must be at most {MAX_COORDINATE:e} m, got {}", p.radius)));
+            }
+            extinction(&format!("particles[{i}].density"), p.density)?;
         }
         for (i, l) in self.lights.iter().enumerate() {
-            finite3(&format!("lights[{i}].position"), l.position)?;
+            position(&format!("lights[{i}].position"), l.position)?;
             at_least(&format!("lights[{i}].intensity"), l.intensity, 0.0)?;
             finite3(&format!("lights[{i}].color"), l.color)?;
             if l.color.min_element() < 0.0 {
                 return Err(err(format!("lights[{i}].color"), "components must be ≥ 0"));
             }
+            let peak = l.intensity as f64 * l.color.max_element() as f64;
+            if peak > MAX_INTENSITY as f64 {
+                return Err(err(
+                    format!("lights[{i}].intensity"),
+                    format!("intensity × colour must be at most {MAX_INTENSITY:e} W/sr per channel, got {peak:e}; lower the intensity or the colour"),
+                ));
+            }
         }
         let c = &self.camera;
-        finite3("camera.position", c.position)?;
-        finite3("camera.target", c.target)?;
+        position("camera.position", c.position)?;
+        position("camera.target", c.target)?;
         finite3("camera.up", c.up)?;
         let fwd = c.target - c.position;
         if fwd.length_squared() < 1e-12 {
@@ -157,13 +198,16 @@ impl Project {
         let albedo_ok = |v: Vec3| v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 1.0;
         if let Some(g) = &self.surfaces.ground {
             finite("surfaces.ground.height", g.height)?;
+            if g.height.abs() > MAX_COORDINATE {
+                return Err(err("surfaces.ground.height", format!("must be within ±{MAX_COORDINATE:e} m, got {}", g.height)));
+            }
             if !albedo_ok(g.albedo) {
                 return Err(err("surfaces.ground.albedo", "components must be within [0, 1]"));
             }
         }
         for (i, b) in self.surfaces.boxes.iter().enumerate() {
-            finite3(&format!("surfaces.boxes[{i}].min"), b.min)?;
-            finite3(&format!("surfaces.boxes[{i}].max"), b.max)?;
+            position(&format!("surfaces.boxes[{i}].min"), b.min)?;
+            position(&format!("surfaces.boxes[{i}].max"), b.max)?;
             if b.min.cmpge(b.max).any() {
                 return Err(err(format!("surfaces.boxes[{i}].max"), "must be greater than min on every axis"));
             }

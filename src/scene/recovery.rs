@@ -1,0 +1,119 @@
+//! Crash recovery files. While a project has unsaved changes the editor writes it here every
+//! few seconds (atomically, like a save); a clean save or exit removes the file. At the next
+//! start, any file left behind means the editor did not exit cleanly, and it offers to
+//! restore the work.
+//!
+//! Files live in `$FOGSMITH_STATE_DIR`, else `$XDG_STATE_HOME/fogsmith/recovery`, else
+//! `~/.local/state/fogsmith/recovery`. Each is named after the project it protects (a hash
+//! of its path, or of the process id for an untitled project), so several editors never
+//! overwrite each other's.
+
+use super::io::{write_atomic, ProjectError};
+use super::Project;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// What a recovery file holds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Recovery {
+    /// The project file the work belongs to; None for an untitled project.
+    pub original: Option<PathBuf>,
+    /// Seconds since the Unix epoch when it was written.
+    pub saved_unix: u64,
+    pub project: Project,
+}
+
+/// The folder recovery files go to (see the module doc).
+pub fn state_dir() -> PathBuf {
+    if let Some(dir) = std::env::var_os("FOGSMITH_STATE_DIR") {
+        return PathBuf::from(dir);
+    }
+    let base = std::env::var_os("XDG_STATE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/state")))
+        .unwrap_or_else(std::env::temp_dir);
+    base.join("fogsmith").join("recovery")
+}
+
+/// The recovery file for `original` (or for this process's untitled project) in `dir`.
+pub fn recovery_path(dir: &Path, original: Option<&Path>) -> PathBuf {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    match original {
+        Some(p) => std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()).hash(&mut h),
+        None => ("untitled", std::process::id()).hash(&mut h),
+    }
+    dir.join(format!("{:016x}.recovery.ron", h.finish()))
+}
+
+/// Writes `project` as the recovery file of `original` in `dir`, atomically.
+pub fn write_recovery(dir: &Path, original: Option<&Path>, project: &Project) -> Result<PathBuf, ProjectError> {
+    let path = recovery_path(dir, original);
+    let io_err = |source| ProjectError::Io { path: path.clone(), source };
+    std::fs::create_dir_all(dir).map_err(io_err)?;
+    let saved_unix = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let rec = Recovery { original: original.map(Path::to_path_buf), saved_unix, project: project.clone() };
+    let text = ron::ser::to_string_pretty(&rec, ron::ser::PrettyConfig::new())
+        .map_err(|e| ProjectError::Serialize(e.to_string()))?;
+    write_atomic(&path, text.as_bytes(), false).map_err(io_err)?;
+    Ok(path)
+}
+
+/// Every readable recovery file in `dir` with its path, newest first. Unreadable ones are
+/// reported as errors rather than dropped, so nothing is lost silently.
+pub fn find_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectError>> {
+    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
+    let mut out: Vec<Result<(PathBuf, Recovery), ProjectError>> = entries
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.to_string_lossy().ends_with(".recovery.ron"))
+        .map(|path| {
+            let text = std::fs::read_to_string(&path).map_err(|source| ProjectError::Io { path: path.clone(), source })?;
+            let rec: Recovery = ron::from_str(&text).map_err(|e| ProjectError::Syntax {
+                path: path.clone(),
+                line: e.position.line,
+                col: e.position.col,
+                message: e.code.to_string(),
+            })?;
+            Ok((path, rec))
+        })
+        .collect();
+    out.sort_by_key(|r| std::cmp::Reverse(r.as_ref().map_or(0, |(_, rec)| rec.saved_unix)));
+    out
+}
+
+/// Removes a recovery file once its work is saved or deliberately discarded.
+pub fn remove_recovery(path: &Path) -> Result<(), ProjectError> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(ProjectError::Io { path: path.to_owned(), source: e }),
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Particle;
+    use glam::Vec3;
+
+    #[test]
+    fn write_find_remove() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = Project::default();
+        p.particles.push(Particle::new(Vec3::ONE, 0.5, 2.0));
+        let original = dir.path().join("fog.ron");
+        let path = write_recovery(dir.path(), Some(&original), &p).unwrap();
+        let found = find_recoveries(dir.path());
+        assert_eq!(found.len(), 1);
+        let (fp, rec) = found[0].as_ref().unwrap();
+        assert_eq!(fp, &path);
+        assert_eq!(rec.project, p);
+        assert_eq!(rec.original.as_deref(), Some(original.as_path()));
+        remove_recovery(&path).unwrap();
+        assert!(find_recoveries(dir.path()).is_empty());
+        std::fs::write(dir.path().join("bad.recovery.ron"), "not ron").unwrap();
+        assert!(find_recoveries(dir.path())[0].is_err(), "a damaged file is reported, not dropped");
+    }
+}
