@@ -170,7 +170,9 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
     let cli = Cli::parse_from(args);
     match cli.command {
         None => {
-            let options = crate::editor::EditorOptions { screenshot: cli.screenshot, measure_fps: cli.measure_fps };
+            let scripted = cli.screenshot.is_some() || cli.measure_fps.is_some();
+            let options =
+                crate::editor::EditorOptions { screenshot: cli.screenshot, measure_fps: cli.measure_fps, recovery: !scripted };
             crate::editor::run(cli.project, options)?;
             Ok(())
         }

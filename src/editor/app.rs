@@ -91,6 +91,8 @@ struct Persisted {
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
+/// Seconds between recovery files while there are unsaved changes.
+const RECOVERY_INTERVAL_S: f64 = 5.0;
 /// Time the march may take per frame while the camera moves.
 const MOVE_BUDGET_MS: f64 = 50.0;
 /// Time the march may take for a still frame in [`Quality::Balanced`].
@@ -342,6 +344,11 @@ pub struct EditorState {
     title: String,
     quit_confirmed: bool,
     ctx: Context,
+    /// Where recovery files go, when enabled.
+    recovery_dir: Option<PathBuf>,
+    recovery_written: Option<(u64, u64, f64)>,
+    /// Work left by an earlier run that did not exit cleanly, offered at start.
+    pub(crate) recoveries: Vec<(PathBuf, crate::scene::recovery::Recovery)>,
 }
 
 /// The slice currently shown and what it was made from.
@@ -411,7 +418,20 @@ impl EditorApp {
             title: String::new(),
             quit_confirmed: false,
             ctx: cc.egui_ctx.clone(),
+            recovery_dir: None,
+            recovery_written: None,
+            recoveries: Vec::new(),
         };
+        if state.options.recovery {
+            let dir = crate::scene::recovery::state_dir();
+            for found in crate::scene::recovery::find_recoveries(&dir) {
+                match found {
+                    Ok(r) => state.recoveries.push(r),
+                    Err(e) => state.error(format!("A recovery file could not be read: {e}")),
+                }
+            }
+            state.recovery_dir = Some(dir);
+        }
         if let Some(e) = start.error {
             state.error(e);
         }
@@ -550,6 +570,10 @@ impl eframe::App for EditorApp {
         self.state.end_frame(&ctx);
     }
 
+    fn on_exit(&mut self) {
+        self.state.drop_recovery();
+    }
+
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
         let persisted = Persisted {
             dock: Some(self.dock.clone()),
@@ -636,6 +660,7 @@ impl EditorState {
     }
 
     fn replace_project(&mut self, project: Project, path: Option<PathBuf>, name: &str) {
+        self.drop_recovery();
         self.session.replace(project, path, name);
         self.epoch += 1;
         self.gesture = None;
@@ -791,6 +816,7 @@ impl EditorState {
                 self.error(format!("Could not open the project: {e}"));
             }
             JobResult::Saved { path, generation, result: Ok(()) } => {
+                self.drop_recovery();
                 self.session.mark_saved(path.clone(), generation);
                 self.info(format!("Saved {}", path.display()));
                 self.push_recent(path);
@@ -825,6 +851,72 @@ impl EditorState {
         });
     }
 
+    /// Removes this session's recovery file: its work was saved or deliberately dropped.
+    fn drop_recovery(&mut self) {
+        if let (Some(dir), Some(_)) = (&self.recovery_dir, self.recovery_written.take()) {
+            let path = crate::scene::recovery::recovery_path(dir, self.session.path());
+            if let Err(e) = crate::scene::recovery::remove_recovery(&path) {
+                self.error(e.to_string());
+            }
+        }
+    }
+
+    /// Every few seconds while there are unsaved changes, writes a recovery file in the
+    /// background.
+    fn write_recovery(&mut self, now: f64) {
+        let Some(dir) = self.recovery_dir.clone() else { return };
+        if !self.session.is_dirty() {
+            return;
+        }
+        let key = (self.epoch, self.session.content_generation());
+        if let Some((epoch, generation, at)) = self.recovery_written {
+            if (epoch, generation) == key || now - at < RECOVERY_INTERVAL_S {
+                return;
+            }
+        }
+        self.recovery_written = Some((key.0, key.1, now));
+        let project = self.session.project().clone();
+        let original = self.session.path().map(Path::to_owned);
+        let tx = self.jobs_tx.clone();
+        std::thread::spawn(move || {
+            if let Err(e) = crate::scene::recovery::write_recovery(&dir, original.as_deref(), &project) {
+                let _ = tx.send(JobResult::Exported { path: dir, result: Err(format!("could not write the recovery file: {e}")) });
+            }
+        });
+    }
+
+    fn recovery_dialog(&mut self, ctx: &Context) {
+        if self.recoveries.is_empty() {
+            return;
+        }
+        let mut action = None;
+        egui::Window::new("Recover unsaved work").collapsible(false).resizable(false).show(ctx, |ui| {
+            ui.label("Fogsmith did not exit cleanly last time. This work was not saved:");
+            for (i, (_, rec)) in self.recoveries.iter().enumerate() {
+                ui.horizontal(|ui| {
+                    let name = rec.original.as_ref().map_or("untitled project".to_string(), |p| p.display().to_string());
+                    ui.label(format!("{name} ({} particles, {} lights)", rec.project.particles.len(), rec.project.lights.len()));
+                    if ui.button("Restore").on_hover_text("Open this work (unsaved) in place of the current project").clicked() {
+                        action = Some((i, true));
+                    }
+                    if ui.button("Discard").on_hover_text("Delete the recovery file").clicked() {
+                        action = Some((i, false));
+                    }
+                });
+            }
+        });
+        if let Some((i, restore)) = action {
+            let (file, rec) = self.recoveries.remove(i);
+            if restore {
+                self.replace_project(rec.project, rec.original, "recovered.ron");
+                self.session.mark_unsaved();
+            }
+            if let Err(e) = crate::scene::recovery::remove_recovery(&file) {
+                self.error(e.to_string());
+            }
+        }
+    }
+
     fn begin_frame(&mut self, ctx: &Context) {
         self.clock.tick();
         self.frames += 1;
@@ -851,6 +943,8 @@ impl EditorState {
     }
 
     fn end_frame(&mut self, ctx: &Context) {
+        self.write_recovery(ctx.input(|i| i.time));
+        self.recovery_dialog(ctx);
         self.confirm_dialog(ctx);
         self.shortcuts_window(ctx);
         self.show_toasts(ctx);

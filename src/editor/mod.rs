@@ -51,6 +51,9 @@ pub struct EditorOptions {
     /// Redraw continuously for this many seconds (half still, half orbiting), print the
     /// frame rates, then exit.
     pub measure_fps: Option<f32>,
+    /// Write crash recovery files while there are unsaved changes, and offer to restore
+    /// those left by an earlier run (see [`crate::scene::recovery`]).
+    pub recovery: bool,
 }
 
 /// The project a bare `fogsmith` opens.

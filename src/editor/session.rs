@@ -117,6 +117,11 @@ impl Session {
         self.saved_generation = Some(generation);
     }
 
+    /// Marks the current state as not saved (restored recovery work).
+    pub fn mark_unsaved(&mut self) {
+        self.saved_generation = None;
+    }
+
     /// A fresh tag for a multi-event edit such as a brush stroke.
     pub fn new_tag(&mut self) -> EditTag {
         self.next_tag += 1;
