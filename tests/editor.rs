@@ -18,11 +18,15 @@ fn demo() -> StartProject {
 }
 
 fn harness(start: StartProject) -> Harness<'static, EditorApp> {
+    harness_with(start, EditorOptions::default())
+}
+
+fn harness_with(start: StartProject, options: EditorOptions) -> Harness<'static, EditorApp> {
     let mut h = Harness::builder()
         .with_size(Vec2::new(1280.0, 800.0))
         .wgpu_setup(fogsmith::editor::wgpu_setup())
         .build_eframe(|cc| {
-            let mut app = EditorApp::new(cc, start, EditorOptions::default());
+            let mut app = EditorApp::new(cc, start, options);
             app.set_quality(Quality::Full);
             app
         });
@@ -235,4 +239,34 @@ fn default_layout_snapshot() {
     // The preview comes from a software rasteriser or a GPU; small differences are allowed.
     let options = SnapshotOptions::new().threshold(6.0).max_failed_pixels(4000);
     h.snapshot_options("editor_layout", &options);
+}
+
+#[test]
+fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // Only this test enables recovery, so no other test reads this variable.
+    std::env::set_var("FOGSMITH_STATE_DIR", dir.path());
+    let options = EditorOptions { recovery: true, ..EditorOptions::default() };
+    let mut h = harness_with(demo(), options.clone());
+    h.state_mut().session_mut().select_all();
+    h.key_press(egui::Key::Delete);
+    h.step();
+    let mut files = Vec::new();
+    for _ in 0..400 {
+        h.step();
+        files = std::fs::read_dir(dir.path()).expect("state dir").filter_map(Result::ok).map(|e| e.path()).collect();
+        if !files.is_empty() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert_eq!(files.len(), 1, "one recovery file while there are unsaved changes");
+    drop(h);
+
+    let mut h = harness_with(demo(), options);
+    h.get_by_label("Recover unsaved work");
+    h.get_by_label("Restore").click();
+    h.run_steps(2);
+    assert!(h.state().session().project().particles.is_empty(), "the recovered work replaced the demo");
+    assert!(h.state().session().is_dirty(), "recovered work is unsaved");
 }
