@@ -142,8 +142,7 @@ pub struct FogPipeline {
 
 pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;
-    // Bindings must not be empty, and must hold at least one element of the largest
-    // per-element struct (a light is 32 bytes).
+    // Bindings must not be empty.
     let padded;
     let contents = if bytes.is_empty() {
         padded = [0u8; 256];
