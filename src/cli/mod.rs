@@ -32,6 +32,10 @@ struct Cli {
     /// Redraw the editor continuously for SECONDS (half still, half orbiting), print the frame rates, then exit.
     #[arg(long, value_name = "SECONDS", hide = true)]
     measure_fps: Option<f32>,
+    /// Paint COUNT particles as one stroke right after opening (the crash-recovery test uses
+    /// it to have unsaved work without a pointer).
+    #[arg(long, value_name = "COUNT", hide = true)]
+    scripted_stroke: Option<usize>,
 }
 
 #[derive(Subcommand)]
@@ -171,8 +175,12 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
         None => {
             let scripted = cli.screenshot.is_some() || cli.measure_fps.is_some();
-            let options =
-                crate::editor::EditorOptions { screenshot: cli.screenshot, measure_fps: cli.measure_fps, recovery: !scripted };
+            let options = crate::editor::EditorOptions {
+                screenshot: cli.screenshot,
+                measure_fps: cli.measure_fps,
+                recovery: !scripted,
+                scripted_stroke: cli.scripted_stroke,
+            };
             crate::editor::run(cli.project, options)?;
             Ok(())
         }

@@ -91,8 +91,18 @@ struct Persisted {
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
-/// Seconds between recovery files while there are unsaved changes.
-const RECOVERY_INTERVAL_S: f64 = 5.0;
+/// Seconds between recovery files while there are unsaved changes: `FOGSMITH_AUTOSAVE_SECS`,
+/// default 5.
+fn recovery_interval_s() -> f64 {
+    static SECS: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *SECS.get_or_init(|| {
+        std::env::var("FOGSMITH_AUTOSAVE_SECS")
+            .ok()
+            .and_then(|v| v.parse::<f64>().ok())
+            .filter(|s| s.is_finite() && *s >= 0.0)
+            .unwrap_or(5.0)
+    })
+}
 /// Time the march may take per frame while the camera moves.
 const MOVE_BUDGET_MS: f64 = 50.0;
 /// Time the march may take for a still frame in [`Quality::Balanced`].
@@ -434,6 +444,19 @@ impl EditorApp {
         }
         if let Some(e) = start.error {
             state.error(e);
+        }
+        if let Some(n) = state.options.scripted_stroke {
+            let g = state.session.project().grid;
+            let (centre, span) = ((g.min + g.max) * 0.5, (g.max - g.min) * 0.3);
+            let tag = state.session.new_tag();
+            state.session.add_particles(
+                tag,
+                (0..n).map(|i| {
+                    let f = if n > 1 { i as f32 / (n - 1) as f32 - 0.5 } else { 0.0 };
+                    crate::scene::Particle::new(centre + span * f, span.min_element() * 0.2, 2.0)
+                }),
+            );
+            state.session.end_edit();
         }
         if let Some(p) = state.session.path().map(Path::to_owned) {
             state.push_recent(p);
@@ -870,7 +893,7 @@ impl EditorState {
         }
         let key = (self.epoch, self.session.content_generation());
         if let Some((epoch, generation, at)) = self.recovery_written {
-            if (epoch, generation) == key || now - at < RECOVERY_INTERVAL_S {
+            if (epoch, generation) == key || now - at < recovery_interval_s() {
                 return;
             }
         }

@@ -54,6 +54,8 @@ pub struct EditorOptions {
     /// Write crash recovery files while there are unsaved changes, and offer to restore
     /// those left by an earlier run (see [`crate::scene::recovery`]).
     pub recovery: bool,
+    /// Paint this many particles as one stroke once the editor has opened.
+    pub scripted_stroke: Option<usize>,
 }
 
 /// The project a bare `fogsmith` opens.
