@@ -379,7 +379,7 @@ impl FogPipeline {
             self.baked = Baked::default();
         }
         self.ensure_grid(project);
-        self.write_lights(project);
+        self.write_scene_uniforms(project);
 
         let bricks = self.bricks_to_inject(project);
         if !bricks.is_empty() {
@@ -491,7 +491,8 @@ impl FogPipeline {
         self.baked.opv_inputs.truncate(light_count);
     }
 
-    fn write_lights(&mut self, project: &Project) {
+    /// Uploads the lights (culled and hidden ones dark) and the grid parameters every stage reads.
+    fn write_scene_uniforms(&mut self, project: &Project) {
         let Some(g) = &self.grid else { return };
         let lights: Vec<LightGpu> =
             project.lights.iter().map(|l| light_gpu(l, light_is_negligible(project, l))).collect();
@@ -566,7 +567,7 @@ impl FogPipeline {
         };
         if bins.bin_size != self.bin_size {
             self.bin_size = bins.bin_size;
-            self.write_lights(project);
+            self.write_scene_uniforms(project);
         }
         let Some(g) = &self.grid else { return Ok(()) };
         let device = &self.ctx.device;
