@@ -13,12 +13,7 @@ use serde::Serialize;
 pub fn sample_cells(grid: &GridSpec, max: usize) -> Vec<[u32; 3]> {
     let r = grid.resolution;
     let n = grid.cell_count() as usize;
-    let cell = |idx: usize| {
-        let i = (idx % r.x as usize) as u32;
-        let j = ((idx / r.x as usize) % r.y as usize) as u32;
-        let k = (idx / (r.x as usize * r.y as usize)) as u32;
-        [i, j, k]
-    };
+    let cell = |idx: usize| grid.cell_of(idx);
     if n <= max {
         return (0..n).map(cell).collect();
     }

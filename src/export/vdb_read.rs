@@ -253,8 +253,7 @@ pub fn import_density(path: &Path, name: Option<&str>, target: &GridSpec, scale:
     let data = resample_into(target, &grid, scale);
     let bad = data.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
     if let Some(first) = data.iter().position(|v| !v.is_finite() || *v < 0.0) {
-        let r = target.resolution;
-        let cell = [first % r.x as usize, (first / r.x as usize) % r.y as usize, first / (r.x as usize * r.y as usize)];
+        let cell = target.cell_of(first);
         return Err(ExportError::invalid(
             path,
             format!(

@@ -169,9 +169,7 @@ pub fn optical_depth_volume(project: &Project, light: usize) -> Vec<f64> {
     let source = project.lights[light].position.as_dvec3();
     let mut out = vec![0.0; cells];
     par_fill(&mut out, r.x.max(1) as usize, |idx| {
-        let i = (idx % r.x as usize) as u32;
-        let j = ((idx / r.x as usize) % r.y as usize) as u32;
-        let k = (idx / (r.x as usize * r.y as usize)) as u32;
+        let [i, j, k] = grid.cell_of(idx);
         medium.optical_depth(cell_center64(&grid, i, j, k), source)
     });
     out

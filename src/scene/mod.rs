@@ -118,6 +118,12 @@ impl GridSpec {
     pub fn cell_center(&self, i: u32, j: u32, k: u32) -> Vec3 {
         self.min + (UVec3::new(i, j, k).as_vec3() + 0.5) * self.cell_size()
     }
+    /// Cell (i, j, k) of a linear index: the inverse of [`index`](Self::index).
+    pub fn cell_of(&self, index: usize) -> [u32; 3] {
+        let (nx, ny) = (self.resolution.x as usize, self.resolution.y as usize);
+        [(index % nx) as u32, ((index / nx) % ny) as u32, (index / (nx * ny)) as u32]
+    }
+
     /// Linear index of cell (i, j, k), x fastest.
     pub fn index(&self, i: u32, j: u32, k: u32) -> usize {
         let r = self.resolution;

@@ -8,11 +8,7 @@ use glam::{UVec3, Vec3};
 /// The real pipeline on whatever adapter wgpu finds (lavapipe on CI). A missing adapter
 /// fails the test loudly: GPU tests are never skipped.
 pub fn pipeline() -> FogPipeline {
-    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
-        let dir = std::env::temp_dir().join("fogsmith-test-xdg");
-        let _ = std::fs::create_dir_all(&dir);
-        std::env::set_var("XDG_RUNTIME_DIR", dir);
-    }
+    fogsmith::cli::ensure_runtime_dir();
     match GpuContext::new_headless() {
         Ok(ctx) => FogPipeline::new(ctx),
         Err(e) => panic!("GPU tests need an adapter and none is available: {e}"),
