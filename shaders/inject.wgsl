@@ -21,7 +21,6 @@ struct ParticleGpu {
 // An imported density layer (e.g. from a VDB file) under the particles, when has_base_layer.
 @group(0) @binding(6) var<storage, read> base_layer: array<f32>;
 
-const BRICK: u32 = 8u;
 
 @compute @workgroup_size(8, 8, 4)
 fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {

@@ -39,7 +39,7 @@ struct MarchParams {
     min_step: f32,
     max_step: f32,
     surface_count: u32,
-    _pad0: u32,
+    row_offset: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -70,7 +70,6 @@ const PI: f32 = 3.14159265358979;
 const POLICY_FIXED: u32 = 0u;
 const POLICY_TWO_LEVEL: u32 = 1u;
 const POLICY_ADAPTIVE: u32 = 2u;
-const BRICK: u32 = 8u;
 
 var<private> radiance: vec3f;
 var<private> transmittance: f32;
@@ -461,7 +460,8 @@ fn tonemap(c: vec3f) -> vec3f {
 }
 
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) id: vec3u) {
+fn main(@builtin(global_invocation_id) gid: vec3u) {
+    let id = gid + vec3u(0u, params.row_offset, 0u);
     if any(id.xy >= params.size) {
         return;
     }

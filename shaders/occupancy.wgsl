@@ -6,7 +6,6 @@
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read_write> brick_max: array<f32>;
 
-const BRICK: u32 = 8u;
 
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) b: vec3u) {

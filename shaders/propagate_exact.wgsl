@@ -6,7 +6,8 @@
 struct ExactParams {
     light: u32,
     steps_per_cell: u32,
-    _pad: vec2u,
+    z_offset: u32,
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
@@ -16,7 +17,8 @@ struct ExactParams {
 @group(0) @binding(4) var<storage, read_write> opv: array<f32>;
 
 @compute @workgroup_size(4, 4, 4)
-fn main(@builtin(global_invocation_id) id: vec3u) {
+fn main(@builtin(global_invocation_id) gid: vec3u) {
+    let id = gid + vec3u(0u, 0u, exact.z_offset);
     if any(id >= grid.dims) {
         return;
     }

@@ -5,15 +5,8 @@
 // The including shader declares the table, 64·64 f32 with u fastest:
 //     var<storage, read> sun_table: array<f32>;
 
-const SUN_NU: u32 = 64u;
-const SUN_NV: u32 = 64u;
 const SUN_PI: f32 = 3.14159265358979;
 const SUN_HALF_PI: f32 = 1.57079632679490;
-const SUN_U_SCALE: f32 = 3.0;
-const SUN_K_SCALE: f32 = 1.0;
-const SUN_GAMMA_MIN: f32 = 1e-6;
-const SUN_FAR_SKIP: f32 = 40.0;
-const SUN_SHORT_RATIO: f32 = 0.5;
 
 // Bilinear sample at fractional table coordinates x (u axis) and y (k axis) in [0, 1].
 fn sun_sample(x: f32, y: f32) -> f32 {

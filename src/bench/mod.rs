@@ -9,7 +9,10 @@
 //! - `scaling`: update time vs resolution × lights and vs particle count, for a dynamic
 //!   scene (everything recomputed) and a static one (camera only), with the stage split;
 //!   plus binned vs brute-force injection and empty-space skipping on / off.
+//! - `interaction`: the editor under scripted input (see `interaction`): frame times, input
+//!   to preview latency and time to convergence; run on request only.
 
+mod interaction;
 mod plot;
 mod suites;
 
@@ -32,6 +35,8 @@ pub enum BenchError {
     Gpu(#[from] crate::gpu::GpuError),
     #[error(transparent)]
     Project(#[from] crate::scene::ProjectError),
+    #[error("the interaction benchmark: {0}")]
+    Editor(String),
     #[error("{path}: could not write benchmark output: {message}")]
     Write { path: PathBuf, message: String },
 }

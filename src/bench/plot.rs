@@ -101,6 +101,7 @@ fn loglog(path: &Path, title: &str, xlabel: &str, ylabel: &str, series: &Series)
 
 pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), String> {
     match suite {
+        Suite::Interaction => frame_times(&dir.join("interaction_frames.png"), records),
         Suite::Opv => loglog(
             &dir.join("opv_pareto.png"),
             "Opacity propagation: GPU time vs max transmittance error",
@@ -176,4 +177,52 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
 /// The resolution of the particle-count sweep: the one used by "injection" records.
 fn particle_sweep_resolution(records: &[Value]) -> f64 {
     records.iter().filter(|r| text(r, "suite") == "injection").map(|r| num(r, "resolution")).fold(f64::NAN, f64::max)
+}
+
+/// Every frame's wall time of each interaction, frame by frame, with the 100 ms line.
+fn frame_times(path: &Path, records: &[Value]) -> Result<(), String> {
+    let series: Series = records
+        .iter()
+        .filter(|r| text(r, "suite") == "interaction")
+        .map(|r| {
+            let times = r.get("frame_times_ms").and_then(Value::as_array).cloned().unwrap_or_default();
+            let pts = times.iter().enumerate().map(|(i, v)| (i as f64, v.as_f64().unwrap_or(f64::NAN))).collect();
+            (format!("{} / {}", text(r, "case"), text(r, "quality")), pts)
+        })
+        .collect();
+    if series.is_empty() {
+        return Ok(());
+    }
+    ensure_font()?;
+    let frames = series.iter().map(|(_, p)| p.len()).max().unwrap_or(1) as f64;
+    let top = series.iter().flat_map(|(_, p)| p.iter().map(|q| q.1)).filter(|v| v.is_finite()).fold(100.0, f64::max);
+    let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
+    let e = |e: DrawingAreaErrorKind<_>| format!("{}: {e}", path.display());
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Editor frame times during scripted interactions", ("sans-serif", 26))
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..frames, (1.0..top * 1.5).log_scale())
+        .map_err(e)?;
+    chart.configure_mesh().x_desc("frame of the interaction").y_desc("frame wall time (ms)").label_style(("sans-serif", 16)).draw().map_err(e)?;
+    chart.draw_series(LineSeries::new([(0.0, 100.0), (frames, 100.0)], BLACK.mix(0.5).stroke_width(1))).map_err(e)?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
+            .map_err(e)?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)
 }

@@ -18,6 +18,9 @@ pub enum Suite {
     March,
     Sun,
     Scaling,
+    /// The editor under scripted input (not part of the default run: it needs the editor's
+    /// frame loop and takes about a minute per quality mode).
+    Interaction,
 }
 
 pub struct Context {
@@ -52,6 +55,15 @@ pub fn run(suite: Suite, ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn 
             Ok(())
         }
         Suite::Scaling => scaling(ctx, out, log),
+        Suite::Interaction => {
+            use crate::editor::app::Quality;
+            // Blocking (every frame renders to convergence) is the editor before the frame budget.
+            let modes = if ctx.quick { vec![Quality::Balanced] } else { vec![Quality::Balanced, Quality::Full] };
+            for quality in modes {
+                out.extend(super::interaction::run(quality, log)?);
+            }
+            Ok(())
+        }
     }
 }
 

@@ -88,9 +88,12 @@ enum Command {
         /// Output folder.
         #[arg(long, default_value = "bench-out")]
         out: PathBuf,
-        /// Suites to run (default: all).
+        /// Suites to run (default: all but `interaction`).
         #[arg(long, value_enum, value_delimiter = ',')]
         suite: Vec<crate::bench::Suite>,
+        /// Print the records as JSON on stdout (progress lines go to stderr).
+        #[arg(long)]
+        json: bool,
     },
     /// Print the GPU adapter Fogsmith would use and its limits.
     Info {
@@ -189,13 +192,21 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
         Some(Command::Stress { quick, json }) => stress::run(quick, json),
-        Some(Command::Bench { quick, out, suite }) => {
+        Some(Command::Bench { quick, out, suite, json }) => {
             use crate::bench::Suite;
             let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };
             let started = std::time::Instant::now();
             let records = crate::bench::run(&crate::bench::BenchOptions { quick, out: out.clone(), suites }, &mut |line| {
-                println!("{line}")
+                if json {
+                    eprintln!("{line}")
+                } else {
+                    println!("{line}")
+                }
             })?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&records)?);
+                return Ok(());
+            }
             println!(
                 "{} records in {:.0} s; wrote {}/bench.json, bench.csv and *.png",
                 records.len(),

@@ -6,7 +6,7 @@ use super::session::Session;
 use super::slices::{Slice, SliceSettings};
 use super::tools::{Brush, Stroke, Tool};
 use super::{EditorError, EditorOptions};
-use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
+use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext, Progress};
 use crate::scene::{load_project, save_project, Project};
 use eframe::egui_wgpu::{self, wgpu};
 use egui::{Context, Id, Key, KeyboardShortcut, Modifiers};
@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// The dockable panels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -103,32 +103,23 @@ fn recovery_interval_s() -> f64 {
             .unwrap_or(5.0)
     })
 }
-/// Time the march may take per frame while the camera moves.
-const MOVE_BUDGET_MS: f64 = 50.0;
-/// Time the march may take for a still frame in [`Quality::Balanced`].
-const STILL_BUDGET_MS: f64 = 800.0;
+/// GPU time the preview may take per frame. The rest of a frame (egui's layout and
+/// painting) stays well within 100 ms on a software adapter, so the window keeps following
+/// the pointer while the pipeline refines the preview over the following frames.
+pub const FRAME_BUDGET_MS: f64 = 40.0;
 
-/// How the preview resolution follows the adapter's speed.
+/// How the preview trades responsiveness for finished frames.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Quality {
-    /// Full resolution when still if the march fits a short budget, lower otherwise.
+    /// Frame-budgeted: every frame shows the edit at once (reduced resolution, optical
+    /// depths possibly stale), and the full image catches up over the next frames.
     #[default]
     Balanced,
-    /// Always full resolution when still (may take seconds per frame on software adapters).
+    /// Every frame waits for the converged full-resolution image (the window freezes while
+    /// it renders; for screenshots and comparisons).
     Full,
 }
 
-/// The largest size with the aspect of `full` whose march should fit `budget_ms`, in
-/// sixteenths of the full size.
-fn budget_size(full: [u32; 2], budget_ms: f64, ms_per_pixel: f64) -> [u32; 2] {
-    let [w, h] = full;
-    let pixels = (w as f64 * h as f64).max(1.0);
-    let affordable = (budget_ms / ms_per_pixel.max(1e-9)).clamp(64.0 * 64.0, pixels);
-    let s = ((affordable / pixels).sqrt() * 16.0).floor().max(1.0) / 16.0;
-    [((w as f64 * s) as u32).max(16), ((h as f64 * s) as u32).max(16)]
-}
-/// Inject + propagate time above which rebakes wait for the end of a gesture.
-const SLOW_BAKE_MS: f64 = 150.0;
 const MAX_RECENT: usize = 10;
 
 /// An action that would discard unsaved changes.
@@ -187,17 +178,20 @@ pub(crate) struct GpuView {
     render_state: egui_wgpu::RenderState,
     pub pipeline: FogPipeline,
     pub texture: Option<(egui::TextureId, [u32; 2])>,
-    rendered: Option<(u64, u64, [u32; 2])>,
-    /// The last report in which a stage ran.
+    /// Inputs of the last converged preview: nothing to do until they change.
+    converged: Option<(u64, u64, [u32; 2])>,
+    /// The last progress in which a stage ran.
     pub report: FrameReport,
+    pub progress: Progress,
     pub error: Option<String>,
+    /// Images shown so far.
     pub renders: u64,
-    /// Measured march cost, to size the preview while the camera moves.
-    march_ms_per_pixel: f64,
-    /// Time of the last inject + propagate that did work.
-    pub bake_ms: f64,
-    /// Wall time of the last pipeline update, all stages and waits included.
+    /// Wall time of the last pipeline call, all items and waits included.
     pub update_ms: f64,
+    /// Frame at which the pipeline last ran, so that it runs once per frame.
+    last_frame: u64,
+    /// Epoch and session generation of the image on show.
+    shown: Option<(u64, u64)>,
 }
 
 impl GpuView {
@@ -208,66 +202,87 @@ impl GpuView {
             render_state: render_state.clone(),
             pipeline: FogPipeline::new(ctx),
             texture: None,
-            rendered: None,
+            converged: None,
             report: FrameReport::default(),
+            progress: Progress::default(),
             error: None,
             renders: 0,
-            march_ms_per_pixel: 1e-4,
-            bake_ms: 0.0,
             update_ms: 0.0,
+            last_frame: u64::MAX,
+            shown: None,
         }
     }
 
-    /// Brings the pipeline up to date with the session at `size` pixels; returns whether a
-    /// new frame was rendered.
-    fn render(&mut self, session: &Session, epoch: u64, size: [u32; 2]) -> bool {
+    /// Whether the preview still has work to do for the current inputs.
+    pub fn refining(&self) -> bool {
+        self.converged.is_none() && self.error.is_none()
+    }
+
+    /// Advances the pipeline towards the session's scene at `size` pixels within `budget`
+    /// (None: to convergence); returns whether a new image is on show.
+    fn render(&mut self, session: &Session, epoch: u64, size: [u32; 2], budget: Option<Duration>) -> bool {
         let key = (epoch, session.generation(), size);
-        if self.rendered == Some(key) {
+        if self.converged == Some(key) {
             return false;
         }
-        self.rendered = Some(key);
+        self.converged = None;
         let project = session.project();
         let request = FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
         let started = Instant::now();
-        let result = self.pipeline.update(project, &request);
+        let result = self.pipeline.advance(project, &request, budget);
         self.update_ms = started.elapsed().as_secs_f64() * 1e3;
-        match result {
-            Ok(report) => {
-                if report.counters.dispatches > 0 {
-                    self.report = report;
-                }
-                if report.timings_ms.march > 0.0 {
-                    let per_pixel = report.timings_ms.march / (size[0] as f64 * size[1] as f64).max(1.0);
-                    self.march_ms_per_pixel = 0.5 * (self.march_ms_per_pixel + per_pixel);
-                }
-                if report.counters.cells_injected > 0 || report.counters.lights_propagated > 0 {
-                    self.bake_ms = report.timings_ms.inject + report.timings_ms.propagate;
-                }
-                self.error = None;
-                self.renders += 1;
-            }
+        let progress = match result {
+            Ok(p) => p,
             Err(e) => {
                 self.error = Some(e.to_string());
+                self.converged = Some(key);
                 return false;
             }
+        };
+        self.error = None;
+        if progress.report.counters.dispatches > 0 {
+            self.report = progress.report;
         }
-        if let Some(view) = self.pipeline.display_view() {
+        self.progress = progress;
+        if progress.converged() {
+            self.converged = Some(key);
+        }
+        if !progress.new_image {
+            return false;
+        }
+        self.renders += 1;
+        self.shown = Some((epoch, session.generation()));
+        if let Some((view, shown)) = self.pipeline.display_view() {
             let mut renderer = self.render_state.renderer.write();
             let device = &self.render_state.device;
             match self.texture {
                 None => {
                     let id = renderer.register_native_texture(device, view, wgpu::FilterMode::Linear);
-                    self.texture = Some((id, size));
+                    self.texture = Some((id, shown));
                 }
-                Some((id, old)) if old != size => {
+                Some((id, _)) => {
+                    // Quick and full images live in different textures.
                     renderer.update_egui_texture_from_wgpu_texture(device, view, wgpu::FilterMode::Linear, id);
-                    self.texture = Some((id, size));
+                    self.texture = Some((id, shown));
                 }
-                Some(_) => {}
             }
         }
         true
     }
+}
+
+/// What the preview shows, for scripted drivers of the editor (tests, `bench`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreviewStatus {
+    /// Session generation of the scene the image on show was rendered from.
+    pub shown_generation: Option<u64>,
+    /// Full resolution with fresh optical depths, nothing left to do.
+    pub converged: bool,
+    /// The image on show reads optical depths that lag the scene.
+    pub shadows_stale: bool,
+    pub shown_size: [u32; 2],
+    /// Images shown so far.
+    pub renders: u64,
 }
 
 /// Frame times of the last couple of seconds.
@@ -341,6 +356,8 @@ pub struct EditorState {
     pub(crate) clock: FrameClock,
     pub(crate) continuous: bool,
     pub(crate) slice: SliceCache,
+    /// An export waiting for the bake to complete.
+    pending_export: Option<(Export, PathBuf)>,
     pub(crate) rename: Option<(super::tools::Hit, String)>,
     pub(crate) outliner_anchor: Option<super::tools::Hit>,
     jobs_tx: mpsc::Sender<JobResult>,
@@ -415,6 +432,7 @@ impl EditorApp {
             clock: FrameClock::default(),
             continuous: options.measure_fps.is_some(),
             slice: SliceCache::default(),
+            pending_export: None,
             rename: None,
             outliner_anchor: None,
             jobs_tx,
@@ -501,6 +519,18 @@ impl EditorApp {
     pub fn messages(&self) -> Vec<(bool, String)> {
         self.state.toasts.iter().map(|t| (t.error, t.text.clone())).collect()
     }
+    /// Where the preview stands: what it shows and what is left to refine.
+    pub fn preview_status(&self) -> Option<PreviewStatus> {
+        let gpu = self.state.gpu.as_ref()?;
+        Some(PreviewStatus {
+            shown_generation: gpu.shown.filter(|&(e, _)| e == self.state.epoch).map(|(_, g)| g),
+            converged: !gpu.refining(),
+            shadows_stale: gpu.progress.shadows_stale,
+            shown_size: gpu.progress.shown_size,
+            renders: gpu.renders,
+        })
+    }
+
     pub fn gpu_error(&self) -> Option<String> {
         self.state.gpu.as_ref().and_then(|g| g.error.clone()).or_else(|| self.state.gpu_missing.clone())
     }
@@ -657,25 +687,23 @@ impl EditorState {
         self.recent.truncate(MAX_RECENT);
     }
 
-    /// Renders the preview if the project changed. While the camera moves the frame is
-    /// rendered at a resolution whose march fits a frame budget (full resolution once
-    /// still); while the pointer is down for an edit and a rebake is slow on this adapter,
-    /// the rebake waits for the release (the overlays follow the edit meanwhile).
+    /// Advances the preview once per frame within the frame budget (or to convergence in
+    /// [`Quality::Full`]); while work remains, asks for another frame.
     pub(crate) fn render_preview(&mut self) {
         let Some(gpu) = &mut self.gpu else { return };
-        let pointer_down = self.ctx.input(|i| i.pointer.any_down());
-        let editing = self.modal.is_some() || (pointer_down && !matches!(self.gesture, Some(Gesture::Orbit | Gesture::Pan)));
-        if editing && gpu.bake_ms > SLOW_BAKE_MS && gpu.rendered.is_some() {
+        if gpu.last_frame == self.frames {
             return;
         }
-        let budget_ms = match (self.interacting, self.quality) {
-            (true, _) => MOVE_BUDGET_MS,
-            (false, Quality::Balanced) => STILL_BUDGET_MS,
-            (false, Quality::Full) => f64::INFINITY,
+        gpu.last_frame = self.frames;
+        let budget = match self.quality {
+            Quality::Balanced => Some(Duration::from_secs_f64(FRAME_BUDGET_MS * 1e-3)),
+            Quality::Full => None,
         };
-        let size = budget_size(self.preview_size, budget_ms, gpu.march_ms_per_pixel);
         let before = gpu.error.clone();
-        gpu.render(&self.session, self.epoch, size);
+        gpu.render(&self.session, self.epoch, self.preview_size, budget);
+        if gpu.refining() {
+            self.ctx.request_repaint();
+        }
         if gpu.error.is_some() && gpu.error != before {
             let message = gpu.error.clone().unwrap_or_default();
             self.error(format!("Preview failed: {message}"));
@@ -778,11 +806,19 @@ impl EditorState {
 
     /// Reads the baked volumes back (brief) and writes them in a background thread.
     pub(crate) fn export_to(&mut self, kind: Export, path: PathBuf) {
-        self.render_preview();
         let Some(gpu) = &self.gpu else {
             self.error("Nothing to export: the pipeline is not running");
             return;
         };
+        if gpu.refining() {
+            // The volumes are still being baked: export once they are complete.
+            if self.pending_export.is_none() {
+                self.info(format!("Exporting {} once the bake completes…", path.display()));
+            }
+            self.pending_export = Some((kind, path));
+            self.ctx.request_repaint();
+            return;
+        }
         let project = self.session.project();
         let volumes = gpu.pipeline.read_ev().and_then(|ev| {
             let opvs = (0..project.lights.len()).map(|i| gpu.pipeline.read_opv(i)).collect::<Result<Vec<_>, _>>()?;
@@ -962,7 +998,6 @@ impl EditorState {
             self.session.end_edit();
         }
         self.shortcuts(ctx);
-        self.render_preview();
     }
 
     fn end_frame(&mut self, ctx: &Context) {
@@ -978,6 +1013,12 @@ impl EditorState {
         }
         if self.continuous || !self.busy.is_empty() {
             ctx.request_repaint();
+        }
+        // After every panel has applied this frame's input, so the preview shows it in the
+        // frame being painted.
+        self.render_preview();
+        if let Some((kind, path)) = self.pending_export.take() {
+            self.export_to(kind, path);
         }
         self.scripted(ctx);
     }

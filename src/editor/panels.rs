@@ -159,11 +159,12 @@ fn colour_bar(painter: &egui::Painter, rect: Rect, cmap: Colormap, scale: &Scale
 /// Reads back and colours the slice if the project or the settings changed.
 fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
     let settings = state.slices;
-    let key = (state.epoch, state.session.content_generation(), settings);
+    // The volumes change when the pipeline finishes baking them, frames after the edit.
+    let baked = state.gpu.as_ref().map_or(0, |g| g.pipeline.volumes_generation());
+    let key = (state.epoch, baked, settings);
     if state.slice.key == Some(key) {
         return;
     }
-    state.render_preview();
     let Some(gpu) = &state.gpu else {
         state.slice.error = state.gpu_missing.clone();
         return;
@@ -591,7 +592,24 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
             ui.end_row();
         }
     });
-    ui.label(format!("Last update: {:.1} ms wall", gpu.update_ms)).on_hover_text("All stages and waits of the last pipeline update");
+    ui.label(format!("Last update: {:.1} ms wall", gpu.update_ms)).on_hover_text("All work items and waits of the last frame's pipeline call");
+    let p = gpu.progress;
+    let stage = match p.stage {
+        crate::gpu::Stage::Inject => "injecting".to_string(),
+        crate::gpu::Stage::Propagate { lights } => format!("propagating {lights} light{}", if lights == 1 { "" } else { "s" }),
+        crate::gpu::Stage::March => "marching at full resolution".to_string(),
+        crate::gpu::Stage::Done => "converged".to_string(),
+    };
+    if p.stage == crate::gpu::Stage::Done {
+        ui.label(format!("Preview: {stage}, {}×{} px", p.shown_size[0], p.shown_size[1]));
+    } else {
+        ui.label(format!("Preview: {stage} ({:.0} %), showing {}×{} px", p.stage_fraction * 100.0, p.shown_size[0], p.shown_size[1]))
+            .on_hover_text("Each frame runs pipeline work within a frame budget; the preview refines over the next frames");
+    }
+    if p.shadows_stale {
+        ui.colored_label(ui.visuals().warn_fg_color, "Shadows are stale while propagation catches up")
+            .on_hover_text("The preview reads optical depths computed before the last edit");
+    }
     ui.separator();
     let c = serde_json::to_value(r.counters).unwrap_or_default();
     egui::Grid::new("stats-counters").striped(true).num_columns(2).show(ui, |ui| {

@@ -23,7 +23,6 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     let size = [((rect.width() * ppp).round() as u32).clamp(16, 4096), ((rect.height() * ppp).round() as u32).clamp(16, 4096)];
     state.preview_size = size;
     handle_input(state, ui, &response, rect);
-    state.render_preview();
 
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 0.0, Color32::from_gray(8));

@@ -57,7 +57,9 @@ pub struct MarchParams {
     pub min_step: f32,
     pub max_step: f32,
     pub surface_count: u32,
-    pub _pad: [u32; 3],
+    /// First image row of this dispatch (the march runs in bands of rows).
+    pub row_offset: u32,
+    pub _pad: [u32; 2],
 }
 
 #[repr(C)]
@@ -88,5 +90,47 @@ pub struct SweepStep {
 pub struct ExactParams {
     pub light: u32,
     pub steps_per_cell: u32,
-    pub _pad: [u32; 2],
+    /// First z layer of this dispatch's slab.
+    pub z_offset: u32,
+    pub _pad: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::layout::{shader_source, VOLUME_LOOKUP};
+    use wgpu::naga;
+
+    /// Size of WGSL struct `name` in the pipeline built from `sources`.
+    fn wgsl_size(sources: &[&str], name: &str) -> u32 {
+        let module = naga::front::wgsl::parse_str(&shader_source(sources)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).expect("layout");
+        let (handle, _) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no struct {name} in the shader"));
+        layouter[handle].size
+    }
+
+    #[test]
+    fn every_gpu_struct_has_the_size_of_its_wgsl_twin() {
+        let inject = [include_str!("../../shaders/inject.wgsl")];
+        let march = [include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")];
+        let sweep = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")];
+        let exact = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
+        let cases: [(&[&str], &str, usize); 7] = [
+            (&inject, "GridParams", std::mem::size_of::<GridParams>()),
+            (&inject, "LightGpu", std::mem::size_of::<LightGpu>()),
+            (&inject, "ParticleGpu", std::mem::size_of::<ParticleGpu>()),
+            (&march, "MarchParams", std::mem::size_of::<MarchParams>()),
+            (&march, "Surface", std::mem::size_of::<SurfaceGpu>()),
+            (&sweep, "SweepStep", std::mem::size_of::<SweepStep>()),
+            (&exact, "ExactParams", std::mem::size_of::<ExactParams>()),
+        ];
+        for (sources, name, rust) in cases {
+            assert_eq!(wgsl_size(sources, name) as usize, rust, "{name}: WGSL and Rust sizes differ");
+        }
+    }
 }

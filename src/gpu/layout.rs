@@ -70,18 +70,49 @@ pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> 
 /// `shaders/volume_lookup.wgsl`, for shaders that sample σ_t between cells.
 pub const VOLUME_LOOKUP: &str = include_str!("../../shaders/volume_lookup.wgsl");
 
-/// A compute pipeline from `shaders/common.wgsl` followed by `sources`, entry point `main`.
+/// Constants the Rust side and the shaders share, written once here for WGSL.
+pub fn shared_constants() -> String {
+    use crate::reference::sun;
+    format!(
+        "// Generated from the Rust constants (src/gpu/layout.rs).\n\
+         const BRICK: u32 = {}u;\n\
+         const SUN_NU: u32 = {}u;\n\
+         const SUN_NV: u32 = {}u;\n\
+         const SUN_U_SCALE: f32 = {:?};\n\
+         const SUN_K_SCALE: f32 = {:?};\n\
+         const SUN_GAMMA_MIN: f32 = {:e};\n\
+         const SUN_FAR_SKIP: f32 = {:?};\n\
+         const SUN_SHORT_RATIO: f32 = {:?};\n",
+        super::binning::BRICK,
+        sun::GPU_TABLE_SIZE,
+        sun::GPU_TABLE_SIZE,
+        sun::U_SCALE,
+        sun::K_SCALE,
+        sun::GAMMA_MIN,
+        sun::FAR_SKIP,
+        sun::SHORT_RATIO,
+    )
+}
+
+/// The WGSL of a pipeline: the shared constants, `shaders/common.wgsl`, then `sources`.
+pub fn shader_source(sources: &[&str]) -> String {
+    let mut code = shared_constants();
+    code.push_str(include_str!("../../shaders/common.wgsl"));
+    for s in sources {
+        code.push('\n');
+        code.push_str(s);
+    }
+    code
+}
+
+/// A compute pipeline from [`shader_source`], entry point `main`.
 pub fn compute_pipeline(
     device: &wgpu::Device,
     label: &str,
     sources: &[&str],
     layout: &wgpu::BindGroupLayout,
 ) -> wgpu::ComputePipeline {
-    let mut code = String::from(include_str!("../../shaders/common.wgsl"));
-    for s in sources {
-        code.push('\n');
-        code.push_str(s);
-    }
+    let code = shader_source(sources);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(code.into()),

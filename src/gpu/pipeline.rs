@@ -1,16 +1,24 @@
-//! [`FogPipeline`]: the long-lived object that owns the compute pipelines and the scene's GPU
-//! resources, decides which stages a change requires, runs them and reads results back.
+//! [`FogPipeline`]: the long-lived object that owns one object per stage ([`Injector`],
+//! [`Propagator`], [`Marcher`]) and the scene's GPU resources, decides which work a change
+//! requires, and runs it as a queue of small work items within a time budget.
+//!
+//! [`advance`](FogPipeline::advance) runs items until its budget is spent: dirty bricks of the
+//! injection, batches of propagation dispatches, bands of rows of the march. With a bounded
+//! budget, a changed scene is first shown by a quick, lower-resolution march that reads the
+//! optical depths the GPU has (possibly stale); propagation and the full-resolution march then
+//! catch up over the following calls, and the full image replaces the quick one only once it
+//! is complete. [`update`](FogPipeline::update) runs the same items to completion.
 
 use super::binning::{self, bin_particles};
 use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
-use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
+use super::inject::{InjectInputs, InjectJob, Injector};
+use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
+use super::propagate::{PropagationInputs, PropagationJob, Propagator};
 use super::readback::{read_buffer, read_texture};
-use super::propagate::{PropagationInputs, Propagator};
 use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
-use crate::reference::sun::GPU_TABLE_SIZE;
 use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// What to render this frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,7 +43,7 @@ impl FrameRequest {
 }
 
 /// Time per stage in milliseconds: GPU timestamps on hardware adapters that have them (see
-/// [`FrameReport::gpu_timestamps`]), else wall time of the stage's host work, submit and a
+/// [`FrameReport::gpu_timestamps`]), else wall time of the stage's host work, submits and
 /// drained queue.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct StageTimings {
@@ -44,7 +52,7 @@ pub struct StageTimings {
     pub march: f64,
 }
 
-/// What the last update did. Tests read these to prove that work was skipped.
+/// What a call did. Tests read these to prove that work was skipped.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counters {
     pub dispatches: u32,
@@ -75,6 +83,42 @@ pub struct FrameReport {
     pub counters: Counters,
 }
 
+/// The stage a pipeline is working on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub enum Stage {
+    Inject,
+    /// Propagating `lights` lights' optical depths.
+    Propagate { lights: u32 },
+    /// The full-resolution march.
+    March,
+    /// Nothing left: the shown image is full resolution with fresh optical depths.
+    #[default]
+    Done,
+}
+
+/// What [`FogPipeline::advance`] left behind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Progress {
+    /// What this call ran.
+    pub report: FrameReport,
+    /// A new image is on show since the previous call.
+    pub new_image: bool,
+    /// Size of the image on show (smaller than requested while the preview is refining).
+    pub shown_size: [u32; 2],
+    /// The image on show reads optical depths that lag the scene (moved lights, edited fog).
+    pub shadows_stale: bool,
+    /// The stage still to run, [`Stage::Done`] once converged.
+    pub stage: Stage,
+    /// Fraction of that stage done, in [0, 1].
+    pub stage_fraction: f64,
+}
+
+impl Progress {
+    pub fn converged(&self) -> bool {
+        self.stage == Stage::Done
+    }
+}
+
 /// Linear HDR radiance read back from the GPU: RGB plus alpha = 1 − transmittance.
 #[derive(Clone, Debug)]
 pub struct Image {
@@ -95,42 +139,109 @@ struct GridResources {
     brick_max: wgpu::Buffer,
 }
 
-struct ImageResources {
-    width: u32,
-    height: u32,
-    hdr: wgpu::Texture,
-    ldr_view: wgpu::TextureView,
-    params_buf: wgpu::Buffer,
+impl GridResources {
+    fn bytes(&self) -> u64 {
+        self.spec.cell_count() * 4 + self.grid_buf.size() + self.lights_buf.size() + self.opv.iter().map(|b| b.size()).sum::<u64>() + self.brick_max.size()
+    }
 }
 
-/// What the GPU currently holds, to decide what a new project state invalidates.
+/// What the extinction volume was injected from.
+#[derive(Clone, Debug, PartialEq)]
+struct EvKey {
+    grid: GridSpec,
+    base_extinction: f32,
+    layer_generation: u64,
+    brute_force: bool,
+}
+
+/// What a light's optical-depth volume was propagated from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct OpvKey {
+    position: glam::Vec3,
+    ev_generation: u64,
+    scheme: Scheme,
+    stride: u32,
+}
+
+/// Everything a march reads: two marches with equal keys give identical images.
+#[derive(Clone, Debug, PartialEq)]
+struct ImageKey {
+    params: MarchParams,
+    grid: GridParams,
+    lights: Vec<LightGpu>,
+    surfaces: Vec<SurfaceGpu>,
+    ev_generation: u64,
+    opvs: Vec<Option<OpvKey>>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Level {
+    Quick,
+    Full,
+}
+
+/// What the GPU holds, to decide what a new project state invalidates.
 #[derive(Default)]
 struct Baked {
-    /// Grid, base extinction, base layer generation and particles of the EV on the GPU.
-    ev_inputs: Option<(GridSpec, f32, u64, Vec<Particle>)>,
-    /// Per light: position baked into its OPV and the EV generation it used.
-    opv_inputs: Vec<Option<(glam::Vec3, u64, Scheme, u32)>>,
+    ev: Option<(EvKey, Vec<Particle>)>,
     ev_generation: u64,
-    image_inputs: Option<String>,
+    /// Per light: the inputs of the OPV on the GPU (None: never propagated).
+    opvs: Vec<Option<OpvKey>>,
+    /// The image on show.
+    shown: Option<(ImageKey, Level)>,
+}
+
+/// Work in progress, dropped whenever its inputs change.
+#[derive(Default)]
+struct Jobs {
+    inject: Option<InjectJob>,
+    propagate: Option<(PropagationJob, Vec<(usize, OpvKey)>)>,
+    march: Option<(MarchJob, ImageKey)>,
+}
+
+/// Measured cost of one unit of a stage's work (a cell, a particle evaluation, a pixel),
+/// smoothed, to size the next work item to the time left.
+#[derive(Clone, Copy, Debug)]
+struct Rate {
+    ms_per_unit: f64,
+}
+
+impl Rate {
+    fn new(ms_per_unit: f64) -> Self {
+        Self { ms_per_unit }
+    }
+    fn observe(&mut self, units: u64, ms: f64) {
+        // Small items are dominated by fixed submit costs; they would make the rate optimistic.
+        if units > 0 && ms > 0.5 {
+            let r = ms / units as f64;
+            self.ms_per_unit = if self.ms_per_unit > 0.0 { 0.5 * (self.ms_per_unit + r) } else { r };
+        }
+    }
+    /// Units that fit in `ms` (a bounded budget), else everything.
+    fn units_in(&self, ms: Option<f64>) -> u64 {
+        match ms {
+            Some(ms) => (ms.max(0.0) / self.ms_per_unit.max(1e-12)) as u64,
+            None => u64::MAX,
+        }
+    }
+    fn ms_for(&self, units: u64) -> f64 {
+        units as f64 * self.ms_per_unit
+    }
 }
 
 /// The GPU fog pipeline: injection → propagation → ray march, plus readback.
 pub struct FogPipeline {
     ctx: GpuContext,
-    inject_layout: wgpu::BindGroupLayout,
-    inject: wgpu::ComputePipeline,
-    occupancy_layout: wgpu::BindGroupLayout,
-    occupancy: wgpu::ComputePipeline,
+    injector: Injector,
     propagator: Propagator,
-    march_layout: wgpu::BindGroupLayout,
-    march: wgpu::ComputePipeline,
-    counters_buf: wgpu::Buffer,
-    /// Sun et al.'s F table (remapped layout) for the closed-form base fog.
-    sun_table: wgpu::Buffer,
+    marcher: Marcher,
     timer: Option<StageTimer>,
     grid: Option<GridResources>,
-    image: Option<ImageResources>,
+    quick: Option<ImageTarget>,
+    full: Option<ImageTarget>,
     baked: Baked,
+    jobs: Jobs,
+    rates: [Rate; 3],
     last_report: FrameReport,
     /// Imported density added under the particles, and a counter bumped when it changes.
     base_layer: Option<(Volume, wgpu::Buffer)>,
@@ -138,6 +249,7 @@ pub struct FogPipeline {
     brute_force_injection: bool,
     /// Bin edge of the last injection's particle lists (see `binning`).
     bin_size: u32,
+    volumes_generation: u64,
 }
 
 pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -157,75 +269,35 @@ pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -
     })
 }
 
+/// Share of a bounded budget the quick preview march may take.
+const QUICK_SHARE: f64 = 0.5;
+
 impl FogPipeline {
     pub fn new(ctx: GpuContext) -> Self {
         let device = &ctx.device;
-        let inject_layout = bind_group_layout(
-            device,
-            "inject",
-            &[
-                Slot::Uniform,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageTexture3d(wgpu::TextureFormat::R32Float),
-                Slot::StorageRead,
-                Slot::StorageRead,
-            ],
-        );
-        let inject = compute_pipeline(device, "inject", &[include_str!("../../shaders/inject.wgsl")], &inject_layout);
-        let occupancy_layout =
-            bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
-        let occupancy =
-            compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
+        let injector = Injector::new(device);
         let propagator = Propagator::new(device);
-        let march_layout = bind_group_layout(
-            device,
-            "march",
-            &[
-                Slot::Uniform,
-                Slot::Uniform,
-                Slot::Texture3d,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageTexture2d(wgpu::TextureFormat::Rgba32Float),
-                Slot::StorageTexture2d(wgpu::TextureFormat::Rgba8Unorm),
-                Slot::StorageWrite,
-                Slot::StorageRead,
-                Slot::StorageRead,
-                Slot::StorageRead,
-            ],
-        );
-        let march = compute_pipeline(
-            device,
-            "march",
-            &[include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
-            &march_layout,
-        );
-        let sun = crate::reference::sun::FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
-        let sun_table = storage_buffer(device, "sun F table", bytemuck::cast_slice(&sun.data));
-        let counters_buf = storage_buffer(device, "counters", &[0u8; 16]);
+        let marcher = Marcher::new(device);
         let timer = StageTimer::new(&ctx);
         Self {
             ctx,
-            inject_layout,
-            inject,
-            occupancy_layout,
-            occupancy,
+            injector,
             propagator,
-            march_layout,
-            march,
-            counters_buf,
-            sun_table,
+            marcher,
             timer,
             grid: None,
-            image: None,
+            quick: None,
+            full: None,
             baked: Baked::default(),
+            jobs: Jobs::default(),
+            // Pessimistic starting costs (software adapters); corrected after the first items.
+            rates: [Rate::new(1e-4), Rate::new(1e-3), Rate::new(3e-3)],
             last_report: FrameReport::default(),
             base_layer: None,
             base_layer_generation: 0,
             brute_force_injection: false,
             bin_size: binning::BRICK,
+            volumes_generation: 0,
         }
     }
 
@@ -233,6 +305,13 @@ impl FogPipeline {
         &self.ctx
     }
 
+    /// A counter bumped whenever the extinction volume or an optical-depth volume on the GPU
+    /// changes, for views that read them back.
+    pub fn volumes_generation(&self) -> u64 {
+        self.volumes_generation
+    }
+
+    /// The report of the last [`update`](Self::update) or [`advance`](Self::advance).
     pub fn last_report(&self) -> FrameReport {
         self.last_report
     }
@@ -340,9 +419,33 @@ impl FogPipeline {
         Ok(())
     }
 
-    /// Brings the GPU state up to date with `project`, running only the stages the changes
-    /// since the last call require, and renders the frame.
+    /// Brings the GPU state up to date with `project` and renders the frame at full
+    /// resolution, running every work item the changes since the last call require.
     pub fn update(&mut self, project: &Project, request: &FrameRequest) -> Result<FrameReport, GpuError> {
+        let progress = self.advance(project, request, None)?;
+        debug_assert!(progress.converged());
+        Ok(progress.report)
+    }
+
+    /// Runs work items for `project` until `budget` is spent (None: until converged) and
+    /// says what is on show and what is left. Call it again, with the same or a newer
+    /// project, to continue: work whose inputs changed is dropped and replanned. At least
+    /// one item runs per call, and one item is never planned larger than the budget left
+    /// (down to a single brick chunk, dispatch or band of rows).
+    pub fn advance(&mut self, project: &Project, request: &FrameRequest, budget: Option<Duration>) -> Result<Progress, GpuError> {
+        let started = Instant::now();
+        self.check_request(project, request)?;
+        let scope = ErrorScope::push(&self.ctx.device);
+        let result = self.run_items(project, request, budget.map(|b| started + b));
+        scope.pop("update")?;
+        let mut progress = result?;
+        progress.report.gpu_timestamps = self.timer.is_some();
+        self.last_report = progress.report;
+        Ok(progress)
+    }
+
+    /// Refuses an invalid project or request, or one the adapter cannot hold.
+    fn check_request(&self, project: &Project, request: &FrameRequest) -> Result<(), GpuError> {
         project
             .validate(self.ctx.max_grid_edge())
             .map_err(|e| GpuError::Invalid(e.to_string()))?;
@@ -373,59 +476,357 @@ impl FogPipeline {
                 ));
             }
         }
-        let scope = ErrorScope::push(&self.ctx.device);
-        let mut report = FrameReport::default();
+        Ok(())
+    }
+
+    fn run_items(&mut self, project: &Project, request: &FrameRequest, deadline: Option<Instant>) -> Result<Progress, GpuError> {
+        let left = |now: Instant| deadline.map(|d| d.saturating_duration_since(now).as_secs_f64() * 1e3);
+        let mut progress = Progress::default();
         if request.force {
             self.baked = Baked::default();
+            self.jobs = Jobs::default();
         }
         self.ensure_grid(project);
         self.write_scene_uniforms(project);
 
-        let bricks = self.bricks_to_inject(project);
-        if !bricks.is_empty() {
+        // 1. Injection: every preview frame shows the current extinction volume.
+        self.plan_inject(project);
+        while self.jobs.inject.is_some() {
             let t = Instant::now();
-            self.run_inject(project, &bricks, &mut report.counters)?;
-            report.timings_ms.inject = self.stage_ms(timer::INJECT, t)?;
-            self.baked.ev_generation += 1;
+            let units = self.inject_item(project, left(t), &mut progress.report.counters)?;
+            progress.report.timings_ms.inject += self.item_ms(timer::INJECT, t, units)?;
+            if self.jobs.inject.as_ref().is_some_and(InjectJob::done) {
+                self.jobs.inject = None;
+                self.baked.ev_generation += 1;
+                self.volumes_generation += 1;
+            } else if left(Instant::now()).is_some_and(|ms| ms <= 0.0) {
+                progress.stage = Stage::Inject;
+                progress.stage_fraction = self.jobs.inject.as_ref().map_or(0.0, InjectJob::fraction);
+                return Ok(self.finish(progress, project, request));
+            }
         }
-        self.baked.ev_inputs =
-            Some((project.grid, project.medium.base_extinction, self.base_layer_generation, project.particles.clone()));
 
-        let t = Instant::now();
-        self.run_propagation(project, request.scheme, &mut report.counters)?;
-        if report.counters.lights_propagated > 0 {
-            report.timings_ms.propagate = self.stage_ms(timer::PROPAGATE, t)?;
+        // 2. Propagation targets: lights whose OPV lags their position or the EV.
+        let targets = self.opv_targets(project, request.scheme, &mut progress.report.counters);
+        if self.jobs.propagate.as_ref().is_some_and(|(_, keys)| *keys != targets) {
+            self.jobs.propagate = None;
         }
 
-        let image_key = format!(
-            "{:?}{:?}{:?}{:?}{:?}{}x{}{}",
-            project.camera,
-            project.surfaces,
-            project.render,
-            project.medium,
-            project.lights,
-            request.width,
-            request.height,
-            self.baked.ev_generation
-        );
-        if self.baked.image_inputs.as_deref() != Some(image_key.as_str()) || report.counters.lights_propagated > 0 {
+        // 3. A quick look at the change, with the optical depths the GPU has, when the full
+        //    image cannot be ready within this call.
+        let key = self.image_key(project, request.width, request.height);
+        let shown_current = self.baked.shown.as_ref().is_some_and(|(k, _)| *k == key);
+        if !shown_current && deadline.is_some() {
+            let full_ms = self.rates[timer::MARCH as usize].ms_for(request.width as u64 * request.height as u64);
+            let fits = left(Instant::now()).is_some_and(|ms| full_ms <= ms);
+            if !targets.is_empty() || !fits {
+                let t = Instant::now();
+                let budget = left(t).map(|ms| ms * QUICK_SHARE);
+                self.quick_march(project, request, key.clone(), budget, &mut progress.report.counters)?;
+                progress.report.timings_ms.march += ms(t);
+                progress.new_image = true;
+            }
+        }
+
+        // 4. Propagation, in batches of dispatches.
+        if !targets.is_empty() {
+            if self.jobs.propagate.is_none() {
+                self.plan_propagation(project, request.scheme, targets);
+            }
+            loop {
+                let t = Instant::now();
+                let units = self.propagate_item(left(t), &mut progress.report.counters);
+                progress.report.timings_ms.propagate += self.item_ms(timer::PROPAGATE, t, units)?;
+                let (job, keys) = self.jobs.propagate.as_ref().expect("a planned job");
+                if job.done() {
+                    for &(i, k) in keys {
+                        self.baked.opvs[i] = Some(k);
+                    }
+                    self.jobs.propagate = None;
+                    self.volumes_generation += 1;
+                    break;
+                }
+                if left(Instant::now()).is_some_and(|ms| ms <= 0.0) {
+                    progress.stage = Stage::Propagate { lights: job.lights.len() as u32 };
+                    progress.stage_fraction = job.fraction();
+                    return Ok(self.finish(progress, project, request));
+                }
+            }
+        }
+
+        // 5. The full-resolution march, in bands of rows, shown once complete.
+        let key = self.image_key(project, request.width, request.height);
+        if self.baked.shown.as_ref() == Some(&(key.clone(), Level::Full)) {
+            return Ok(self.finish(progress, project, request));
+        }
+        if self.jobs.march.as_ref().is_some_and(|(_, k)| *k != key) {
+            self.jobs.march = None;
+        }
+        if self.jobs.march.is_none() {
+            let target = match self.full.take() {
+                Some(t) if t.width == request.width && t.height == request.height => t,
+                _ => ImageTarget::new(&self.ctx.device, request.width, request.height),
+            };
+            let job = self.begin_march(project, &target, key.clone());
+            self.full = Some(target);
+            self.jobs.march = Some((job, key.clone()));
+        }
+        loop {
             let t = Instant::now();
-            self.run_march(project, request, &mut report.counters)?;
-            report.timings_ms.march = self.stage_ms(timer::MARCH, t)?;
-            self.baked.image_inputs = Some(image_key);
+            let rows = {
+                let (job, _) = self.jobs.march.as_mut().expect("a started march");
+                let per_row = request.width as u64;
+                let rows = (self.rates[timer::MARCH as usize].units_in(left(t)) / per_row.max(1)).clamp(BAND_ROWS as u64, u32::MAX as u64) as u32;
+                let target = self.full.as_ref().expect("the full target");
+                let before = job.next_row;
+                let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+                let stamps = self.timer.as_ref().map(|t| t.writes(timer::MARCH));
+                self.marcher.encode_band(&self.ctx, target, &mut encoder, job, rows, stamps);
+                if let Some(t) = &self.timer {
+                    t.resolve(&mut encoder, timer::MARCH);
+                }
+                self.ctx.queue.submit([encoder.finish()]);
+                self.ctx.wait()?;
+                progress.report.counters.dispatches += 1;
+                (job.next_row - before) as u64 * per_row
+            };
+            progress.report.timings_ms.march += self.item_ms(timer::MARCH, t, rows)?;
+            let (job, _) = self.jobs.march.as_ref().expect("a started march");
+            if job.done() {
+                let (_, key) = self.jobs.march.take().expect("a started march");
+                self.marcher.read_counters(&self.ctx, &mut progress.report.counters)?;
+                self.baked.shown = Some((key, Level::Full));
+                progress.new_image = true;
+                return Ok(self.finish(progress, project, request));
+            }
+            if left(Instant::now()).is_some_and(|ms| ms <= 0.0) {
+                progress.stage = Stage::March;
+                progress.stage_fraction = job.fraction();
+                return Ok(self.finish(progress, project, request));
+            }
         }
-        scope.pop("update")?;
-        report.gpu_timestamps = self.timer.is_some();
-        self.last_report = report;
-        Ok(report)
     }
 
-    /// GPU time of a completed stage, or wall time since `started` without timestamps.
-    fn stage_ms(&self, stage: u32, started: Instant) -> Result<f64, GpuError> {
+    /// Fills in what is on show.
+    fn finish(&self, mut progress: Progress, project: &Project, request: &FrameRequest) -> Progress {
+        if let Some((key, level)) = &self.baked.shown {
+            let target = match level {
+                Level::Quick => &self.quick,
+                Level::Full => &self.full,
+            };
+            progress.shown_size = target.as_ref().map_or([0, 0], |t| [t.width, t.height]);
+            let fresh: Vec<Option<OpvKey>> = project
+                .lights
+                .iter()
+                .enumerate()
+                .map(|(i, l)| self.opv_key(project, l, request.scheme).and_then(|k| (key.opvs.get(i).copied().flatten() == Some(k)).then_some(k)))
+                .collect();
+            progress.shadows_stale = project
+                .lights
+                .iter()
+                .enumerate()
+                .any(|(i, l)| self.opv_key(project, l, request.scheme).is_some() && fresh[i].is_none());
+        }
+        progress
+    }
+
+    /// Wall (or GPU) time of a finished item; feeds the stage's rate.
+    fn item_ms(&mut self, stage: u32, started: Instant, units: u64) -> Result<f64, GpuError> {
+        let wall = ms(started);
+        self.rates[stage as usize].observe(units, wall);
         match &self.timer {
             Some(t) => t.read_ms(&self.ctx, stage),
-            None => Ok(ms(started)),
+            None => Ok(wall),
         }
+    }
+
+    /// Starts (or extends) the injection of what changed since the EV on the GPU.
+    fn plan_inject(&mut self, project: &Project) {
+        let key = EvKey {
+            grid: project.grid,
+            base_extinction: project.medium.base_extinction,
+            layer_generation: self.base_layer_generation,
+            brute_force: self.brute_force_injection,
+        };
+        let mut bricks: Vec<u32> = match &self.baked.ev {
+            Some((k, particles)) if *k == key => {
+                if *particles == project.particles {
+                    return;
+                }
+                binning::dirty_bricks(&project.grid, particles, &project.particles)
+            }
+            _ => {
+                let dims = binning::brick_dims(&project.grid);
+                (0..dims.x * dims.y * dims.z).collect()
+            }
+        };
+        if bricks.is_empty() && self.jobs.inject.is_none() {
+            // Only names or other fields the EV does not read changed.
+            self.baked.ev = Some((key, project.particles.clone()));
+            return;
+        }
+        // Bricks of an unfinished injection still need the new particles.
+        if let Some(job) = self.jobs.inject.take() {
+            bricks.extend(job.bricks[job.next..].iter().copied().chain(job.bricks[..job.next].iter().copied()));
+            bricks.sort_unstable();
+            bricks.dedup();
+        }
+        let bins = if self.brute_force_injection {
+            binning::bin_all(&project.grid, &project.particles)
+        } else {
+            bin_particles(&project.grid, &project.particles)
+        };
+        if bins.bin_size != self.bin_size {
+            self.bin_size = bins.bin_size;
+            self.write_scene_uniforms(project);
+        }
+        let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
+        self.jobs.inject = Some(self.injector.begin(&self.ctx, &particles, bins, bricks));
+        self.baked.ev = Some((key, project.particles.clone()));
+    }
+
+    /// Runs one chunk of the injection sized to `left_ms`; returns its cost units.
+    fn inject_item(&mut self, project: &Project, left_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> Result<u64, GpuError> {
+        let (Some(g), Some(job)) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
+        let rate = self.rates[timer::INJECT as usize];
+        let budget_units = rate.units_in(left_ms);
+        let mut count = Injector::chunk_align(&self.ctx);
+        while job.next + count < job.bricks.len() && Injector::units(job, &project.grid, count * 2) <= budget_units {
+            count *= 2;
+        }
+        if left_ms.is_none() {
+            count = job.bricks.len().max(1);
+        }
+        let units = Injector::units(job, &project.grid, count);
+        let layer = match &self.base_layer {
+            Some((v, buf)) if v.grid == project.grid => Some(buf),
+            _ => None,
+        };
+        let inputs = InjectInputs { grid: &g.spec, grid_buf: &g.grid_buf, ev_view: &g.ev_view, brick_max: &g.brick_max, layer };
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        let stamps = self.timer.as_ref().map(|t| t.writes(timer::INJECT));
+        self.injector.encode_next(&self.ctx, &mut encoder, job, &inputs, count, stamps, counters);
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::INJECT);
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()?;
+        Ok(units)
+    }
+
+    /// The OPV inputs light `l` needs, or None when it is not propagated at all (hidden,
+    /// dark or culled).
+    fn opv_key(&self, project: &Project, l: &Light, scheme: Scheme) -> Option<OpvKey> {
+        if l.hidden || l.intensity <= 0.0 || light_is_negligible(project, l) {
+            return None;
+        }
+        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride })
+    }
+
+    /// Lights whose OPV must be (re)propagated, with the inputs it will have; counts the rest.
+    fn opv_targets(&mut self, project: &Project, scheme: Scheme, counters: &mut crate::gpu::Counters) -> Vec<(usize, OpvKey)> {
+        self.baked.opvs.resize(project.lights.len(), None);
+        let mut targets = Vec::new();
+        for (i, light) in project.lights.iter().enumerate() {
+            match self.opv_key(project, light, scheme) {
+                None => {
+                    counters.lights_skipped += 1;
+                    counters.lights_culled += light_is_negligible(project, light) as u32;
+                }
+                Some(k) if self.baked.opvs[i] == Some(k) => counters.lights_skipped += 1,
+                Some(k) => targets.push((i, k)),
+            }
+        }
+        targets
+    }
+
+    fn plan_propagation(&mut self, project: &Project, scheme: Scheme, targets: Vec<(usize, OpvKey)>) {
+        let Some(g) = &self.grid else { return };
+        let positions: Vec<glam::Vec3> = project.lights.iter().map(|l| l.position).collect();
+        let inputs = PropagationInputs {
+            grid: &g.spec,
+            grid_buf: &g.grid_buf,
+            ev_view: &g.ev_view,
+            lights_buf: &g.lights_buf,
+            opv: &g.opv,
+            positions: &positions,
+            sweep_stride: project.propagation.sweep_stride,
+        };
+        let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
+        let job = self.propagator.plan(&self.ctx.device, &inputs, scheme, &active);
+        self.jobs.propagate = Some((job, targets));
+    }
+
+    /// Runs the next batch of propagation dispatches sized to `left_ms`; returns its cells.
+    fn propagate_item(&mut self, left_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> u64 {
+        let Some((job, _)) = self.jobs.propagate.as_mut() else { return 0 };
+        let count = job.fitting(self.rates[timer::PROPAGATE as usize].units_in(left_ms));
+        let units = job.units(count);
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        let stamps = self.timer.as_ref().map(|t| t.writes(timer::PROPAGATE));
+        self.propagator.encode_next(&mut encoder, job, count, stamps, counters);
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, timer::PROPAGATE);
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        // A lost device surfaces as an error of the next readback or update.
+        let _ = self.ctx.wait();
+        units
+    }
+
+    fn image_key(&self, project: &Project, width: u32, height: u32) -> ImageKey {
+        let surfaces = surfaces_gpu(project);
+        ImageKey {
+            params: march_params(project, width, height, surfaces.len() as u32),
+            grid: self.grid_params(project),
+            lights: project.lights.iter().map(|l| light_gpu(l, light_is_negligible(project, l))).collect(),
+            surfaces,
+            ev_generation: self.baked.ev_generation,
+            opvs: self.baked.opvs.clone(),
+        }
+    }
+
+    fn begin_march(&mut self, project: &Project, target: &ImageTarget, key: ImageKey) -> MarchJob {
+        let g = self.grid.as_ref().expect("ensure_grid ran");
+        let _ = project;
+        let inputs = MarchInputs {
+            grid_buf: &g.grid_buf,
+            ev_view: &g.ev_view,
+            lights_buf: &g.lights_buf,
+            opv: &g.opv[0],
+            brick_max: &g.brick_max,
+            surfaces: &key.surfaces,
+            params: MarchParams { size: [target.width, target.height], ..key.params },
+        };
+        self.marcher.begin(&self.ctx, target, &inputs)
+    }
+
+    /// Marches the whole image at the largest size whose cost fits `budget_ms` (at most
+    /// half the requested size per axis) and shows it.
+    fn quick_march(&mut self, project: &Project, request: &FrameRequest, key: ImageKey, budget_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> Result<(), GpuError> {
+        let rate = self.rates[timer::MARCH as usize];
+        let pixels = (request.width as f64 * request.height as f64).max(1.0);
+        let affordable = rate.units_in(budget_ms) as f64;
+        // Sixteenths of the full size, so small changes in the measured rate keep the target.
+        let s = ((affordable / pixels).sqrt() * 16.0).floor().clamp(1.0, 8.0) / 16.0;
+        let w = ((request.width as f64 * s) as u32).max(16).min(request.width);
+        let h = ((request.height as f64 * s) as u32).max(16).min(request.height);
+        let target = match self.quick.take() {
+            Some(t) if t.width == w && t.height == h => t,
+            _ => ImageTarget::new(&self.ctx.device, w, h),
+        };
+        let t = Instant::now();
+        let mut job = self.begin_march(project, &target, key.clone());
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        self.marcher.encode_band(&self.ctx, &target, &mut encoder, &mut job, h, None);
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()?;
+        self.rates[timer::MARCH as usize].observe(w as u64 * h as u64, ms(t));
+        counters.dispatches += 1;
+        self.marcher.read_counters(&self.ctx, counters)?;
+        self.quick = Some(target);
+        self.baked.shown = Some((key, Level::Quick));
+        Ok(())
     }
 
     fn ensure_grid(&mut self, project: &Project) {
@@ -471,6 +872,7 @@ impl FogPipeline {
         let (lights_buf, opv) = light_buffers(device, &spec, light_count);
         self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
+        self.jobs = Jobs::default();
     }
 
     /// Reallocates the per-light buffers for a new light count on the same grid, keeping the
@@ -488,7 +890,24 @@ impl FogPipeline {
         g.lights_buf = lights_buf;
         g.opv = opv;
         g.light_count = light_count;
-        self.baked.opv_inputs.truncate(light_count);
+        self.baked.opvs.truncate(light_count);
+        // In-flight work binds the old buffers.
+        self.jobs.propagate = None;
+        self.jobs.march = None;
+    }
+
+    fn grid_params(&self, project: &Project) -> GridParams {
+        let spec = project.grid;
+        GridParams {
+            min: spec.min.to_array(),
+            base_extinction: project.medium.base_extinction,
+            max: spec.max.to_array(),
+            light_count: project.lights.len() as u32,
+            cell: spec.cell_size().to_array(),
+            has_base_layer: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == spec) as u32,
+            dims: spec.resolution.to_array(),
+            bin_size: self.bin_size,
+        }
     }
 
     /// Uploads the lights (culled and hidden ones dark) and the grid parameters every stage reads.
@@ -499,27 +918,14 @@ impl FogPipeline {
         if !lights.is_empty() {
             self.ctx.queue.write_buffer(&g.lights_buf, 0, bytemuck::cast_slice(&lights));
         }
-        let spec = project.grid;
-        let params = GridParams {
-            min: spec.min.to_array(),
-            base_extinction: project.medium.base_extinction,
-            max: spec.max.to_array(),
-            light_count: project.lights.len() as u32,
-            cell: spec.cell_size().to_array(),
-            has_base_layer: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == spec) as u32,
-            dims: spec.resolution.to_array(),
-            bin_size: self.bin_size,
-        };
+        let params = self.grid_params(project);
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
     }
 
     /// Makes every cell evaluate every particle instead of only those binned into its brick:
     /// the brute-force injection, for measuring what binning saves. Off by default.
     pub fn set_brute_force_injection(&mut self, on: bool) {
-        if on != self.brute_force_injection {
-            self.brute_force_injection = on;
-            self.baked.ev_inputs = None;
-        }
+        self.brute_force_injection = on;
     }
 
     /// Sets (or clears) a density layer added to every cell of the EV under the particles,
@@ -536,244 +942,6 @@ impl FogPipeline {
             (v, buf)
         });
         self.base_layer_generation += 1;
-    }
-
-    /// Every brick after a change of grid, base fog or base layer, else only those whose
-    /// particles changed.
-    fn bricks_to_inject(&self, project: &Project) -> Vec<u32> {
-        let dims = binning::brick_dims(&project.grid);
-        let all = || (0..dims.x * dims.y * dims.z).collect();
-        match &self.baked.ev_inputs {
-            Some((grid, base, layer, particles))
-                if *grid == project.grid
-                    && *base == project.medium.base_extinction
-                    && *layer == self.base_layer_generation =>
-            {
-                if *particles == project.particles {
-                    Vec::new()
-                } else {
-                    binning::dirty_bricks(grid, particles, &project.particles)
-                }
-            }
-            _ => all(),
-        }
-    }
-
-    fn run_inject(&mut self, project: &Project, bricks: &[u32], counters: &mut Counters) -> Result<(), GpuError> {
-        let bins = if self.brute_force_injection {
-            binning::bin_all(&project.grid, &project.particles)
-        } else {
-            bin_particles(&project.grid, &project.particles)
-        };
-        if bins.bin_size != self.bin_size {
-            self.bin_size = bins.bin_size;
-            self.write_scene_uniforms(project);
-        }
-        let Some(g) = &self.grid else { return Ok(()) };
-        let device = &self.ctx.device;
-        let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
-        let particles_buf = storage_buffer(device, "particles", bytemuck::cast_slice(&particles));
-        let offsets_buf = storage_buffer(device, "brick offsets", bytemuck::cast_slice(&bins.offsets));
-        let items_buf = storage_buffer(device, "brick items", bytemuck::cast_slice(&bins.items));
-        let bricks_buf = storage_buffer(device, "dirty bricks", bytemuck::cast_slice(bricks));
-        let no_layer;
-        let layer_buf = match &self.base_layer {
-            Some((v, buf)) if v.grid == project.grid => buf,
-            _ => {
-                no_layer = storage_buffer(device, "no base layer", &[]);
-                &no_layer
-            }
-        };
-        // One workgroup pair per brick, at most max_compute_workgroups_per_dimension per
-        // dispatch: larger grids take several dispatches over aligned slices of the list.
-        let align = (self.ctx.limits.min_storage_buffer_offset_alignment as usize / 4).max(1);
-        let chunk = (self.ctx.limits.max_compute_workgroups_per_dimension as usize / align).max(1) * align;
-        let groups: Vec<(wgpu::BindGroup, u32)> = bricks
-            .chunks(chunk)
-            .enumerate()
-            .map(|(n, part)| {
-                let slice = wgpu::BufferBinding {
-                    buffer: &bricks_buf,
-                    offset: (n * chunk * 4) as u64,
-                    size: wgpu::BufferSize::new(part.len() as u64 * 4),
-                };
-                let bg = bind_group(
-                    device,
-                    "inject",
-                    &self.inject_layout,
-                    &[
-                        g.grid_buf.as_entire_binding(),
-                        particles_buf.as_entire_binding(),
-                        offsets_buf.as_entire_binding(),
-                        items_buf.as_entire_binding(),
-                        wgpu::BindingResource::TextureView(&g.ev_view),
-                        wgpu::BindingResource::Buffer(slice),
-                        layer_buf.as_entire_binding(),
-                    ],
-                );
-                (bg, part.len() as u32)
-            })
-            .collect();
-        let r = project.grid.resolution;
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("inject"),
-                timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::INJECT)),
-            });
-            pass.set_pipeline(&self.inject);
-            for (bg, count) in &groups {
-                pass.set_bind_group(0, bg, &[]);
-                pass.dispatch_workgroups(*count, 2, 1);
-            }
-            let occ = bind_group(
-                device,
-                "occupancy",
-                &self.occupancy_layout,
-                &[
-                    g.grid_buf.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&g.ev_view),
-                    g.brick_max.as_entire_binding(),
-                ],
-            );
-            let b = r.map(|n| n.div_ceil(binning::BRICK));
-            pass.set_pipeline(&self.occupancy);
-            pass.set_bind_group(0, &occ, &[]);
-            pass.dispatch_workgroups(b.x.div_ceil(4), b.y.div_ceil(4), b.z.div_ceil(4));
-        }
-        if let Some(t) = &self.timer {
-            t.resolve(&mut encoder, timer::INJECT);
-        }
-        self.ctx.queue.submit([encoder.finish()]);
-        self.ctx.wait()?;
-        counters.dispatches += 1 + groups.len() as u32;
-        let cells_per_brick = (binning::BRICK as u64).pow(3);
-        counters.cells_injected += (bricks.len() as u64 * cells_per_brick).min(project.grid.cell_count());
-        counters.particle_evaluations += bins.evaluations(&project.grid, bricks);
-        Ok(())
-    }
-
-    fn run_propagation(&mut self, project: &Project, scheme: Scheme, counters: &mut Counters) -> Result<(), GpuError> {
-        let Some(g) = &self.grid else { return Ok(()) };
-        let generation = self.baked.ev_generation;
-        self.baked.opv_inputs.resize(project.lights.len(), None);
-        let mut active = Vec::new();
-        for (i, light) in project.lights.iter().enumerate() {
-            let key = (light.position, generation, scheme, project.propagation.sweep_stride);
-            if light_is_negligible(project, light) {
-                counters.lights_skipped += 1;
-                counters.lights_culled += 1;
-            } else if light.hidden || light.intensity <= 0.0 || self.baked.opv_inputs[i] == Some(key) {
-                counters.lights_skipped += 1;
-            } else {
-                active.push(i as u32);
-                self.baked.opv_inputs[i] = Some(key);
-            }
-        }
-        if active.is_empty() {
-            return Ok(());
-        }
-        let positions: Vec<glam::Vec3> = project.lights.iter().map(|l| l.position).collect();
-        let inputs = PropagationInputs {
-            grid: &g.spec,
-            grid_buf: &g.grid_buf,
-            ev_view: &g.ev_view,
-            lights_buf: &g.lights_buf,
-            opv: &g.opv,
-            positions: &positions,
-            sweep_stride: project.propagation.sweep_stride,
-        };
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        let timestamps = self.timer.as_ref().map(|t| t.writes(timer::PROPAGATE));
-        self.propagator.encode(&self.ctx.device, &mut encoder, &inputs, scheme, &active, timestamps, counters);
-        if let Some(t) = &self.timer {
-            t.resolve(&mut encoder, timer::PROPAGATE);
-        }
-        self.ctx.queue.submit([encoder.finish()]);
-        self.ctx.wait()
-    }
-
-    fn ensure_image(&mut self, width: u32, height: u32) {
-        if let Some(img) = &self.image {
-            if img.width == width && img.height == height {
-                return;
-            }
-        }
-        let device = &self.ctx.device;
-        let make = |label: &str, format: wgpu::TextureFormat, extra: wgpu::TextureUsages| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING | extra,
-                view_formats: &[],
-            })
-        };
-        let hdr = make("radiance (linear)", wgpu::TextureFormat::Rgba32Float, wgpu::TextureUsages::COPY_SRC);
-        let ldr = make("radiance (tone-mapped)", wgpu::TextureFormat::Rgba8Unorm, wgpu::TextureUsages::COPY_SRC);
-        let ldr_view = ldr.create_view(&Default::default());
-        let params_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("march params"),
-            size: std::mem::size_of::<MarchParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        self.image = Some(ImageResources { width, height, hdr, ldr_view, params_buf });
-    }
-
-    fn run_march(&mut self, project: &Project, request: &FrameRequest, counters: &mut Counters) -> Result<(), GpuError> {
-        self.ensure_image(request.width, request.height);
-        let (Some(g), Some(img)) = (&self.grid, &self.image) else { return Ok(()) };
-        let device = &self.ctx.device;
-        let surfaces = surfaces_gpu(project);
-        let surfaces_buf = storage_buffer(device, "surfaces", bytemuck::cast_slice(&surfaces));
-        let params = march_params(project, request.width, request.height, surfaces.len() as u32);
-        self.ctx.queue.write_buffer(&img.params_buf, 0, bytemuck::bytes_of(&params));
-        self.ctx.queue.write_buffer(&self.counters_buf, 0, &[0u8; 16]);
-        let counters_binding = self.counters_buf.as_entire_binding();
-        let hdr_view = img.hdr.create_view(&Default::default());
-        let bg = bind_group(
-            device,
-            "march",
-            &self.march_layout,
-            &[
-                g.grid_buf.as_entire_binding(),
-                img.params_buf.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&g.ev_view),
-                g.lights_buf.as_entire_binding(),
-                g.opv[0].as_entire_binding(),
-                wgpu::BindingResource::TextureView(&hdr_view),
-                wgpu::BindingResource::TextureView(&img.ldr_view),
-                counters_binding,
-                g.brick_max.as_entire_binding(),
-                surfaces_buf.as_entire_binding(),
-                self.sun_table.as_entire_binding(),
-            ],
-        );
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("march"),
-                timestamp_writes: self.timer.as_ref().map(|t| t.writes(timer::MARCH)),
-            });
-            pass.set_pipeline(&self.march);
-            pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(request.width.div_ceil(8), request.height.div_ceil(8), 1);
-        }
-        if let Some(t) = &self.timer {
-            t.resolve(&mut encoder, timer::MARCH);
-        }
-        self.ctx.queue.submit([encoder.finish()]);
-        self.ctx.wait()?;
-        let c: Vec<u32> = read_buffer(&self.ctx, &self.counters_buf, 0, 4)?;
-        counters.samples_marched += c[0] as u64;
-        counters.bricks_skipped += c[1] as u64;
-        counters.rays_terminated += c[2] as u64;
-        counters.dispatches += 1;
-        Ok(())
     }
 
     /// The extinction volume σ_t at cell centres.
@@ -794,23 +962,35 @@ impl FogPipeline {
         Ok(Volume::new(g.spec, data))
     }
 
-    /// The last rendered frame as linear HDR radiance.
+    fn shown_target(&self) -> Option<&ImageTarget> {
+        match self.baked.shown.as_ref()?.1 {
+            Level::Quick => self.quick.as_ref(),
+            Level::Full => self.full.as_ref(),
+        }
+    }
+
+    /// The image on show as linear HDR radiance (after [`update`](Self::update): the full frame).
     pub fn read_image(&self) -> Result<Image, GpuError> {
-        let img = self.image.as_ref().ok_or_else(|| GpuError::Invalid("nothing rendered yet: call update first".into()))?;
+        let img = self.shown_target().ok_or_else(|| GpuError::Invalid("nothing rendered yet: call update first".into()))?;
         let rgba = read_texture(&self.ctx, &img.hdr, [img.width, img.height, 1], 16)?;
         Ok(Image { width: img.width, height: img.height, rgba })
     }
 
-    /// The tone-mapped frame (rgba8unorm), for display by the editor without a CPU round trip.
-    pub fn display_view(&self) -> Option<&wgpu::TextureView> {
-        self.image.as_ref().map(|i| &i.ldr_view)
+    /// The tone-mapped image on show (rgba8unorm) and its size, for display by the editor
+    /// without a CPU round trip. Its view changes when the preview switches resolution.
+    pub fn display_view(&self) -> Option<(&wgpu::TextureView, [u32; 2])> {
+        self.shown_target().map(|t| (&t.ldr_view, [t.width, t.height]))
     }
 
-    /// Size in bytes of the GPU resources the pipeline holds for the current scene.
+    /// Bytes of GPU memory the pipeline's live resources hold.
     pub fn memory_bytes(&self) -> u64 {
-        let grid = self.grid.as_ref().map_or(0, |g| g.spec.cell_count() * 4 * (1 + 2 * g.light_count.max(1) as u64));
-        let image = self.image.as_ref().map_or(0, |i| i.width as u64 * i.height as u64 * 20);
-        grid + image
+        let layer = self.base_layer.as_ref().map_or(0, |(_, b)| b.size());
+        self.grid.as_ref().map_or(0, GridResources::bytes)
+            + self.quick.as_ref().map_or(0, ImageTarget::bytes)
+            + self.full.as_ref().map_or(0, ImageTarget::bytes)
+            + self.injector.bytes()
+            + self.marcher.bytes()
+            + layer
     }
 }
 
@@ -938,7 +1118,8 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
         min_step: 0.25 * step,
         max_step: 4.0 * step,
         surface_count,
-        _pad: [0; 3],
+        row_offset: 0,
+        _pad: [0; 2],
     }
 }
 

@@ -69,84 +69,123 @@ impl Propagator {
         Self { giroud_layout, giroud, sweep_layout, sweep, exact, uniform_align }
     }
 
-    /// Records the propagation of the `active` lights into `encoder`.
-    pub fn encode(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        inputs: &PropagationInputs,
-        scheme: Scheme,
-        active: &[u32],
-        timestamps: Option<wgpu::ComputePassTimestampWrites>,
-        counters: &mut Counters,
-    ) {
-        if active.is_empty() {
-            return;
-        }
-        match scheme {
-            Scheme::Giroud => self.encode_giroud(device, encoder, inputs, active, timestamps, counters),
-            Scheme::Sweep => self.encode_sweep(device, encoder, inputs, active, timestamps, counters),
-            Scheme::Exact => self.encode_exact(device, encoder, inputs, active, timestamps, counters),
-        }
-        counters.lights_propagated += active.len() as u32;
-    }
-
-    fn encode_giroud(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        inputs: &PropagationInputs,
-        active: &[u32],
-        timestamps: Option<wgpu::ComputePassTimestampWrites>,
-        counters: &mut Counters,
-    ) {
-        let iterations = active
-            .iter()
-            .map(|&l| giroud_iterations(inputs.grid, inputs.positions[l as usize]))
-            .max()
-            .unwrap_or(1);
-        // An even count leaves the result in buffer A, where every other light's OPV is.
-        let iterations = iterations + iterations % 2;
-        let active_buf = super::pipeline::storage_buffer(device, "active lights", bytemuck::cast_slice(active));
-        let make = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
-            bind_group(
-                device,
-                "propagate_giroud",
-                &self.giroud_layout,
-                &[
-                    inputs.grid_buf.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(inputs.ev_view),
-                    inputs.lights_buf.as_entire_binding(),
-                    active_buf.as_entire_binding(),
-                    src.as_entire_binding(),
-                    dst.as_entire_binding(),
-                ],
-            )
+    /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
+    /// order by [`encode_next`](Self::encode_next), in one submit or spread over many.
+    pub fn plan(&self, device: &wgpu::Device, inputs: &PropagationInputs, scheme: Scheme, active: &[u32]) -> PropagationJob {
+        let cells = inputs.grid.cell_count();
+        let (work, groups, units, iterations) = match scheme {
+            Scheme::Giroud => {
+                let iterations = active
+                    .iter()
+                    .map(|&l| giroud_iterations(inputs.grid, inputs.positions[l as usize]))
+                    .max()
+                    .unwrap_or(1);
+                // An even count leaves the result in buffer A, where every other light's OPV is.
+                let iterations = iterations + iterations % 2;
+                let active_buf = super::pipeline::storage_buffer(device, "active lights", bytemuck::cast_slice(active));
+                let make = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
+                    bind_group(
+                        device,
+                        "propagate_giroud",
+                        &self.giroud_layout,
+                        &[
+                            inputs.grid_buf.as_entire_binding(),
+                            wgpu::BindingResource::TextureView(inputs.ev_view),
+                            inputs.lights_buf.as_entire_binding(),
+                            active_buf.as_entire_binding(),
+                            src.as_entire_binding(),
+                            dst.as_entire_binding(),
+                        ],
+                    )
+                };
+                let [a, b] = inputs.opv;
+                let work = Work::Giroud { ab: make(a, b), ba: make(b, a), a: a.clone(), b: b.clone(), _active: active_buf };
+                let r = inputs.grid.resolution;
+                let g = [r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4) * active.len() as u32];
+                (work, vec![g; iterations as usize], vec![cells * active.len() as u64; iterations as usize], iterations)
+            }
+            Scheme::Sweep => {
+                let steps: Vec<SweepStep> = active
+                    .iter()
+                    .flat_map(|&l| sweep_steps(inputs.grid, inputs.positions[l as usize], l, inputs.sweep_stride))
+                    .collect();
+                let groups = steps.iter().map(|s| [s.size[0].div_ceil(8), s.size[1].div_ceil(8), 1]).collect();
+                let units = steps.iter().map(|s| s.size[0] as u64 * s.size[1] as u64).collect();
+                let iterations = steps.len() as u32 / active.len() as u32;
+                (self.per_dispatch(device, inputs, &steps, Which::Sweep), groups, units, iterations)
+            }
+            Scheme::Exact => {
+                let r = inputs.grid.resolution;
+                // One dispatch per light and slab of 4 layers, so the work can be spread.
+                let params: Vec<ExactParams> = active
+                    .iter()
+                    .flat_map(|&l| {
+                        (0..r.z.div_ceil(4)).map(move |s| ExactParams {
+                            light: l,
+                            steps_per_cell: EXACT_STEPS_PER_CELL,
+                            z_offset: 4 * s,
+                            _pad: 0,
+                        })
+                    })
+                    .collect();
+                let groups = vec![[r.x.div_ceil(4), r.y.div_ceil(4), 1]; params.len()];
+                let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
+                (self.per_dispatch(device, inputs, &params, Which::Exact), groups, units, 1)
+            }
         };
-        let [a, b] = inputs.opv;
-        let ab = make(a, b);
-        let ba = make(b, a);
-        let r = inputs.grid.resolution;
-        // Lights not being updated must survive in B too, since B feeds back into A.
-        encoder.copy_buffer_to_buffer(a, 0, b, 0, None);
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate giroud"), timestamp_writes: timestamps });
-        pass.set_pipeline(&self.giroud);
-        for it in 0..iterations {
-            pass.set_bind_group(0, if it % 2 == 0 { &ab } else { &ba }, &[]);
-            pass.dispatch_workgroups(r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4) * active.len() as u32);
-        }
-        counters.dispatches += iterations;
-        counters.propagation_iterations = counters.propagation_iterations.max(iterations);
-        counters.cells_propagated += inputs.grid.cell_count() * active.len() as u64 * iterations as u64;
+        PropagationJob { lights: active.to_vec(), work, groups, units, next: 0, iterations, cells }
     }
 
-    /// Uploads one uniform entry per dispatch and returns the bind group over it.
-    fn per_dispatch_bind_group<T: bytemuck::Pod>(
+    /// Encodes up to `count` further dispatches of `job` into `encoder` and counts them.
+    pub fn encode_next(
         &self,
-        device: &wgpu::Device,
-        inputs: &PropagationInputs,
-        entries: &[T],
-    ) -> (wgpu::BindGroup, wgpu::Buffer) {
+        encoder: &mut wgpu::CommandEncoder,
+        job: &mut PropagationJob,
+        count: usize,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+        counters: &mut Counters,
+    ) {
+        let range = job.next..(job.next + count.max(1)).min(job.groups.len());
+        if let (Work::Giroud { a, b, .. }, 0) = (&job.work, job.next) {
+            // Lights not being updated must survive in B too, since B feeds back into A.
+            encoder.copy_buffer_to_buffer(a, 0, b, 0, None);
+        }
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: timestamps });
+            match &job.work {
+                Work::Giroud { ab, ba, .. } => {
+                    pass.set_pipeline(&self.giroud);
+                    for it in range.clone() {
+                        pass.set_bind_group(0, if it % 2 == 0 { ab } else { ba }, &[]);
+                        let g = job.groups[it];
+                        pass.dispatch_workgroups(g[0], g[1], g[2]);
+                    }
+                }
+                Work::PerDispatch { which, bind_group, stride, .. } => {
+                    pass.set_pipeline(match which {
+                        Which::Sweep => &self.sweep,
+                        Which::Exact => &self.exact,
+                    });
+                    for i in range.clone() {
+                        pass.set_bind_group(0, bind_group, &[(i as u64 * stride) as u32]);
+                        let g = job.groups[i];
+                        pass.dispatch_workgroups(g[0], g[1], g[2]);
+                    }
+                }
+            }
+        }
+        counters.dispatches += range.len() as u32;
+        job.next = range.end;
+        if job.done() {
+            counters.propagation_iterations = counters.propagation_iterations.max(job.iterations);
+            counters.lights_propagated += job.lights.len() as u32;
+            let passes = if matches!(job.work, Work::Giroud { .. }) { job.iterations as u64 } else { 1 };
+            counters.cells_propagated += job.cells * job.lights.len() as u64 * passes;
+        }
+    }
+
+    /// Uploads one uniform entry per dispatch and returns the work over it.
+    fn per_dispatch<T: bytemuck::Pod>(&self, device: &wgpu::Device, inputs: &PropagationInputs, entries: &[T], which: Which) -> Work {
         use wgpu::util::DeviceExt;
         let stride = (std::mem::size_of::<T>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
         let mut bytes = vec![0u8; stride as usize * entries.len().max(1)];
@@ -159,7 +198,7 @@ impl Propagator {
             contents: &bytes,
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let bg = bind_group(
+        let bind_group = bind_group(
             device,
             "propagate",
             &self.sweep_layout,
@@ -175,72 +214,65 @@ impl Propagator {
                 inputs.opv[0].as_entire_binding(),
             ],
         );
-        (bg, buf)
+        Work::PerDispatch { which, bind_group, stride, _buf: buf }
     }
+}
 
-    fn encode_sweep(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        inputs: &PropagationInputs,
-        active: &[u32],
-        timestamps: Option<wgpu::ComputePassTimestampWrites>,
-        counters: &mut Counters,
-    ) {
-        let steps: Vec<SweepStep> = active
-            .iter()
-            .flat_map(|&l| sweep_steps(inputs.grid, inputs.positions[l as usize], l, inputs.sweep_stride))
-            .collect();
-        let groups: Vec<[u32; 3]> = steps.iter().map(|s| [s.size[0].div_ceil(8), s.size[1].div_ceil(8), 1]).collect();
-        self.encode_dispatches(device, encoder, inputs, &self.sweep, "propagate sweep", &steps, &groups, timestamps);
-        counters.dispatches += steps.len() as u32;
-        counters.propagation_iterations = counters.propagation_iterations.max(steps.len() as u32 / active.len() as u32);
-        counters.cells_propagated += inputs.grid.cell_count() * active.len() as u64;
+#[derive(Clone, Copy)]
+enum Which {
+    Sweep,
+    Exact,
+}
+
+enum Work {
+    /// Jacobi iterations ping-ponging between the two OPV buffers.
+    Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: wgpu::Buffer, b: wgpu::Buffer, _active: wgpu::Buffer },
+    /// One dispatch per uniform entry, each seeing its entry through a dynamic offset.
+    PerDispatch { which: Which, bind_group: wgpu::BindGroup, stride: u64, _buf: wgpu::Buffer },
+}
+
+/// The dispatches that bring the OPVs of some lights up to date, each valid to run once the
+/// ones before it have completed, in this or an earlier submit.
+pub struct PropagationJob {
+    /// The lights this job propagates.
+    pub lights: Vec<u32>,
+    work: Work,
+    groups: Vec<[u32; 3]>,
+    /// Cells each dispatch computes: the unit of its cost.
+    units: Vec<u64>,
+    next: usize,
+    iterations: u32,
+    cells: u64,
+}
+
+impl PropagationJob {
+    pub fn done(&self) -> bool {
+        self.next >= self.groups.len()
     }
-
-    fn encode_exact(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        inputs: &PropagationInputs,
-        active: &[u32],
-        timestamps: Option<wgpu::ComputePassTimestampWrites>,
-        counters: &mut Counters,
-    ) {
-        let params: Vec<ExactParams> = active
-            .iter()
-            .map(|&l| ExactParams { light: l, steps_per_cell: EXACT_STEPS_PER_CELL, _pad: [0; 2] })
-            .collect();
-        let r = inputs.grid.resolution;
-        let groups = vec![[r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4)]; params.len()];
-        self.encode_dispatches(device, encoder, inputs, &self.exact, "propagate exact", &params, &groups, timestamps);
-        counters.dispatches += params.len() as u32;
-        counters.propagation_iterations = counters.propagation_iterations.max(1);
-        counters.cells_propagated += inputs.grid.cell_count() * active.len() as u64;
+    /// Cells of the next `count` dispatches.
+    pub fn units(&self, count: usize) -> u64 {
+        self.units[self.next.min(self.units.len())..(self.next + count).min(self.units.len())].iter().sum()
     }
-
-    /// One pass of `pipeline` with one dispatch per entry, each seeing its own entry as the
-    /// dynamic-offset uniform.
-    #[allow(clippy::too_many_arguments)]
-    fn encode_dispatches<T: bytemuck::Pod>(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        inputs: &PropagationInputs,
-        pipeline: &wgpu::ComputePipeline,
-        label: &str,
-        entries: &[T],
-        groups: &[[u32; 3]],
-        timestamps: Option<wgpu::ComputePassTimestampWrites>,
-    ) {
-        let (bg, _buf) = self.per_dispatch_bind_group(device, inputs, entries);
-        let stride = (std::mem::size_of::<T>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: timestamps });
-        pass.set_pipeline(pipeline);
-        for (i, g) in groups.iter().enumerate() {
-            pass.set_bind_group(0, &bg, &[(i as u64 * stride) as u32]);
-            pass.dispatch_workgroups(g[0], g[1], g[2]);
+    /// How many of the next dispatches fit in `units` cells (at least one).
+    pub fn fitting(&self, units: u64) -> usize {
+        let mut sum = 0u64;
+        let mut n = 0;
+        for &u in &self.units[self.next..] {
+            if n > 0 && sum.saturating_add(u) > units {
+                break;
+            }
+            sum = sum.saturating_add(u);
+            n += 1;
         }
+        n.max(1)
+    }
+    /// Fraction of the job's cells computed.
+    pub fn fraction(&self) -> f64 {
+        let total: u64 = self.units.iter().sum();
+        if total == 0 {
+            return 1.0;
+        }
+        self.units[..self.next].iter().sum::<u64>() as f64 / total as f64
     }
 }
 

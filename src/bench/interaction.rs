@@ -1,0 +1,238 @@
+//! `bench --suite interaction`: the editor as an artist meets it. Drives the real editor
+//! (egui_kittest on the real pipeline and device, every frame painted) with scripted input on
+//! the cloud demo, timed by the wall clock:
+//! - a 40-dab paint stroke over 2 s;
+//! - a 1 s drag of a light (Select tool);
+//! - 5 wheel steps of the Scale tool on a selection;
+//! - an erase stroke over 1 s.
+//!
+//! For each it records every frame's wall time (p50, p95, p99, max), the time from each input
+//! to the end of the first frame whose preview shows it, and the time from the end of the
+//! interaction to the converged image (full resolution, fresh optical depths).
+
+use super::BenchError;
+use crate::editor::app::{Quality, StartProject};
+use crate::editor::tools::Tool;
+use crate::editor::view::ViewProjection;
+use crate::editor::{EditorApp, EditorOptions};
+use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
+use egui_kittest::Harness;
+use serde_json::{json, Value};
+use std::time::{Duration, Instant};
+
+/// Longest wait for the preview to converge after an interaction.
+const CONVERGE_LIMIT: Duration = Duration::from_secs(30);
+
+struct Driver {
+    h: Harness<'static, EditorApp>,
+    /// Wall time of every frame of the current interaction, in ms.
+    frames: Vec<f64>,
+    /// Per input: when it was queued and the session generation it produced.
+    inputs: Vec<(Instant, u64)>,
+    /// Per frame: when it ended and the generation on show.
+    shown: Vec<(Instant, Option<u64>)>,
+}
+
+impl Driver {
+    /// One frame, painted, with `event` (if any) as its input.
+    fn frame(&mut self, event: Option<Event>) -> Result<(), BenchError> {
+        let queued = Instant::now();
+        let is_input = event.is_some();
+        if let Some(e) = event {
+            self.h.event(e);
+        }
+        self.h.step();
+        self.h.render().map_err(|message| BenchError::Editor(format!("painting a frame failed: {message}")))?;
+        let end = Instant::now();
+        self.frames.push((end - queued).as_secs_f64() * 1e3);
+        let status = self.h.state().preview_status().ok_or_else(|| BenchError::Editor("the editor has no GPU preview".into()))?;
+        let generation = self.h.state().session().generation();
+        if is_input && self.inputs.last().is_none_or(|&(_, g)| g != generation) {
+            self.inputs.push((queued, generation));
+        }
+        self.shown.push((end, status.shown_generation));
+        if let Some(e) = self.h.state().gpu_error() {
+            return Err(BenchError::Editor(format!("the preview failed: {e}")));
+        }
+        Ok(())
+    }
+
+    fn converged(&self) -> bool {
+        self.h.state().preview_status().is_some_and(|s| s.converged)
+    }
+
+    /// Frames until the preview converges; returns the time it took.
+    fn settle(&mut self) -> Result<f64, BenchError> {
+        let start = Instant::now();
+        while !self.converged() {
+            if start.elapsed() > CONVERGE_LIMIT {
+                return Err(BenchError::Editor(format!("the preview did not converge within {} s", CONVERGE_LIMIT.as_secs())));
+            }
+            self.frame(None)?;
+        }
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+
+    fn begin(&mut self) {
+        self.frames.clear();
+        self.inputs.clear();
+        self.shown.clear();
+    }
+
+    /// Runs frames for `duration`, feeding the pointer along `path(t)` (t in [0, 1]) at the
+    /// wall-clock rate of `steps` inputs over the duration; the newest due input goes into
+    /// each frame, as a real pointer's moves coalesce between frames.
+    fn pointer_path(&mut self, duration: Duration, steps: usize, path: impl Fn(f32) -> Pos2) -> Result<(), BenchError> {
+        let start = Instant::now();
+        let mut sent = 0;
+        while sent < steps {
+            let due = ((start.elapsed().as_secs_f64() / duration.as_secs_f64()) * steps as f64).floor() as usize;
+            let due = due.min(steps);
+            if due > sent {
+                sent = due;
+                self.frame(Some(Event::PointerMoved(path(sent as f32 / steps as f32))))?;
+            } else {
+                self.frame(None)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn press(&mut self, pos: Pos2, pressed: bool) -> Result<(), BenchError> {
+        self.frame(Some(Event::PointerButton { pos, button: PointerButton::Primary, pressed, modifiers: Modifiers::NONE }))
+    }
+
+    /// The figures of the interaction just run, after waiting for convergence.
+    fn record(&mut self, name: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Value, BenchError> {
+        let frames = self.frames.clone();
+        let converge_ms = self.settle()?;
+        let mut latencies = Vec::new();
+        for (i, &(t, _)) in self.inputs.iter().enumerate() {
+            let later: Vec<u64> = self.inputs[i..].iter().map(|&(_, g)| g).collect();
+            if let Some(&(end, _)) = self.shown.iter().find(|&&(end, g)| end >= t && g.is_some_and(|g| later.contains(&g))) {
+                latencies.push((end - t).as_secs_f64() * 1e3);
+            }
+        }
+        let unseen = self.inputs.len() - latencies.len();
+        let f = percentiles(&frames);
+        let l = percentiles(&latencies);
+        let record = json!({
+            "suite": "interaction",
+            "scene": "cloud",
+            "case": name,
+            "quality": format!("{quality:?}"),
+            "frames": frames.len(),
+            "frame_ms": {"p50": f[0], "p95": f[1], "p99": f[2], "max": f[3]},
+            "inputs": self.inputs.len(),
+            "inputs_never_shown": unseen,
+            "input_to_preview_ms": {"p50": l[0], "p95": l[1], "p99": l[2], "max": l[3]},
+            "end_to_converged_ms": converge_ms,
+            "frame_times_ms": frames,
+        });
+        log(&format!(
+            "interaction {name:<12} {:?}: {} frames, frame ms p50 {:.0} p95 {:.0} p99 {:.0} max {:.0}; input→preview ms p50 {:.0} max {:.0} ({} inputs, {} never shown); end→converged {:.0} ms",
+            quality, frames.len(), f[0], f[1], f[2], f[3], l[0], l[3], self.inputs.len(), unseen, converge_ms
+        ));
+        Ok(record)
+    }
+}
+
+/// p50, p95, p99 and max (NaN for no samples).
+fn percentiles(v: &[f64]) -> [f64; 4] {
+    if v.is_empty() {
+        return [f64::NAN; 4];
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let at = |q: f64| s[((q * (s.len() - 1) as f64).round() as usize).min(s.len() - 1)];
+    [at(0.5), at(0.95), at(0.99), s[s.len() - 1]]
+}
+
+/// Runs the script on the cloud demo with the preview in `quality`.
+pub fn run(quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
+    let project = crate::demos::demo("cloud")?;
+    let start = StartProject { project, path: None, name: "cloud.ron".into(), error: None };
+    let h = Harness::builder()
+        .with_size(Vec2::new(1280.0, 800.0))
+        .wgpu_setup(crate::editor::wgpu_setup())
+        .build_eframe(move |cc| {
+            let mut app = EditorApp::new(cc, start, EditorOptions::default());
+            app.set_quality(quality);
+            app
+        });
+    let mut d = Driver { h, frames: Vec::new(), inputs: Vec::new(), shown: Vec::new() };
+    d.frame(None)?;
+    d.settle()?;
+    let rect = d.h.state().viewport_rect().ok_or_else(|| BenchError::Editor("the viewport is not shown".into()))?;
+    log(&format!(
+        "interaction: viewport {:.0}×{:.0} points, adapter {}",
+        rect.width(),
+        rect.height(),
+        d.h.state().pipeline().map(|p| p.context().adapter_summary()).unwrap_or_default()
+    ));
+    let mut records = Vec::new();
+    let centre = rect.center();
+    let across = |t: f32| centre + Vec2::new((t - 0.5) * rect.width() * 0.5, (t - 0.5) * rect.height() * 0.15);
+
+    // A paint stroke: 40 dabs over 2 s.
+    d.h.state_mut().set_tool(Tool::Paint);
+    d.begin();
+    d.frame(Some(Event::PointerMoved(across(0.0))))?;
+    d.press(across(0.0), true)?;
+    d.pointer_path(Duration::from_secs(2), 40, across)?;
+    d.press(across(1.0), false)?;
+    records.push(d.record("paint", quality, log)?);
+
+    // Drag the light nearest the view's centre for 1 s.
+    let project = d.h.state().session().project().clone();
+    let view = ViewProjection::new(&project.camera, rect);
+    let light = project
+        .lights
+        .iter()
+        .filter_map(|l| view.project(l.position).map(|(p, _)| p))
+        .filter(|p| rect.shrink(20.0).contains(*p))
+        .min_by(|a, b| a.distance(centre).total_cmp(&b.distance(centre)))
+        .ok_or_else(|| BenchError::Editor("no light of the scene is in view".into()))?;
+    d.h.state_mut().set_tool(Tool::Select);
+    d.begin();
+    d.frame(Some(Event::PointerMoved(light)))?;
+    d.press(light, true)?;
+    let drag = |t: f32| light + Vec2::new(t * rect.width() * 0.15, -t * rect.height() * 0.1);
+    d.pointer_path(Duration::from_secs(1), 30, drag)?;
+    d.press(drag(1.0), false)?;
+    records.push(d.record("light_drag", quality, log)?);
+
+    // Five wheel steps of Scale on a selection of particles.
+    {
+        let state = d.h.state_mut();
+        let n = state.session().project().particles.len();
+        state.session_mut().selection.clear();
+        state.session_mut().selection.particles.extend(0..n.min(12));
+        state.set_tool(Tool::Scale);
+    }
+    d.begin();
+    d.frame(Some(Event::PointerMoved(centre)))?;
+    for _ in 0..5 {
+        let t = Instant::now();
+        d.frame(Some(Event::MouseWheel {
+            unit: egui::MouseWheelUnit::Point,
+            delta: Vec2::new(0.0, 40.0),
+            phase: egui::TouchPhase::Move,
+            modifiers: Modifiers::NONE,
+        }))?;
+        while t.elapsed() < Duration::from_millis(100) {
+            d.frame(None)?;
+        }
+    }
+    records.push(d.record("scale_wheel", quality, log)?);
+
+    // An erase stroke across the painted one, over 1 s.
+    d.h.state_mut().set_tool(Tool::Erase);
+    d.begin();
+    d.frame(Some(Event::PointerMoved(across(0.0))))?;
+    d.press(across(0.0), true)?;
+    d.pointer_path(Duration::from_secs(1), 20, across)?;
+    d.press(across(1.0), false)?;
+    records.push(d.record("erase", quality, log)?);
+    Ok(records)
+}

@@ -1,0 +1,200 @@
+//! The injection stage: particles (binned on the CPU, see `binning`) and the base fog and
+//! layer into the extinction volume (`shaders/inject.wgsl`), in chunks of 8³ bricks, then the
+//! brick occupancy the march skips empty space with (`shaders/occupancy.wgsl`).
+//!
+//! [`Injector`] is long-lived: it owns both pipelines, their layouts and the particle and
+//! bin buffers, which it reuses across updates and grows only when a scene outgrows them.
+
+use super::binning::{self, Bins};
+use super::gpu_types::ParticleGpu;
+use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
+use super::{Counters, GpuContext};
+use crate::scene::GridSpec;
+
+/// What one injection reads besides the particles.
+pub struct InjectInputs<'a> {
+    pub grid: &'a GridSpec,
+    pub grid_buf: &'a wgpu::Buffer,
+    pub ev_view: &'a wgpu::TextureView,
+    pub brick_max: &'a wgpu::Buffer,
+    /// The imported density layer, or None.
+    pub layer: Option<&'a wgpu::Buffer>,
+}
+
+/// Dirty bricks still to inject; the occupancy pass runs after the last chunk.
+pub struct InjectJob {
+    pub bricks: Vec<u32>,
+    pub next: usize,
+    bins: Bins,
+    occupancy_done: bool,
+}
+
+impl InjectJob {
+    pub fn done(&self) -> bool {
+        self.occupancy_done
+    }
+    pub fn fraction(&self) -> f64 {
+        self.next as f64 / self.bricks.len().max(1) as f64
+    }
+}
+
+/// Cells of brick `b` inside the grid.
+fn brick_cells(grid: &GridSpec, b: u32) -> u64 {
+    let dims = binning::brick_dims(grid);
+    let at = glam::UVec3::new(b % dims.x, (b / dims.x) % dims.y, b / (dims.x * dims.y));
+    let n = grid.resolution;
+    (0..3).map(|a| (n[a] - at[a] * binning::BRICK).min(binning::BRICK) as u64).product()
+}
+
+pub struct Injector {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    occupancy_layout: wgpu::BindGroupLayout,
+    occupancy: wgpu::ComputePipeline,
+    particles: wgpu::Buffer,
+    offsets: wgpu::Buffer,
+    items: wgpu::Buffer,
+    bricks: wgpu::Buffer,
+    no_layer: wgpu::Buffer,
+}
+
+/// Writes `bytes` into `buf`, replacing it by a larger one (1.5× headroom) when it is too small.
+fn upload(ctx: &GpuContext, buf: &mut wgpu::Buffer, label: &str, bytes: &[u8]) {
+    if bytes.len() as u64 > buf.size() {
+        let size = (bytes.len() as u64 * 3 / 2).next_multiple_of(256);
+        *buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+    }
+    if !bytes.is_empty() {
+        ctx.queue.write_buffer(buf, 0, bytes);
+    }
+}
+
+impl Injector {
+    pub fn new(device: &wgpu::Device) -> Self {
+        let layout = bind_group_layout(
+            device,
+            "inject",
+            &[
+                Slot::Uniform,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageTexture3d(wgpu::TextureFormat::R32Float),
+                Slot::StorageRead,
+                Slot::StorageRead,
+            ],
+        );
+        let pipeline = compute_pipeline(device, "inject", &[include_str!("../../shaders/inject.wgsl")], &layout);
+        let occupancy_layout = bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
+        let occupancy =
+            compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
+        let empty = |label| super::pipeline::storage_buffer(device, label, &[]);
+        Self {
+            layout,
+            pipeline,
+            occupancy_layout,
+            occupancy,
+            particles: empty("particles"),
+            offsets: empty("bin offsets"),
+            items: empty("bin items"),
+            bricks: empty("dirty bricks"),
+            no_layer: empty("no base layer"),
+        }
+    }
+
+    /// Uploads particles, bins and the dirty-brick list of one injection.
+    pub fn begin(&mut self, ctx: &GpuContext, particles: &[ParticleGpu], bins: Bins, bricks: Vec<u32>) -> InjectJob {
+        upload(ctx, &mut self.particles, "particles", bytemuck::cast_slice(particles));
+        upload(ctx, &mut self.offsets, "bin offsets", bytemuck::cast_slice(&bins.offsets));
+        upload(ctx, &mut self.items, "bin items", bytemuck::cast_slice(&bins.items));
+        upload(ctx, &mut self.bricks, "dirty bricks", bytemuck::cast_slice(&bricks));
+        InjectJob { bricks, next: 0, bins, occupancy_done: false }
+    }
+
+    /// Smallest chunk of bricks: a storage binding's offset alignment, in bricks.
+    pub fn chunk_align(ctx: &GpuContext) -> usize {
+        (ctx.limits.min_storage_buffer_offset_alignment as usize / 4).max(1)
+    }
+
+    /// Particle evaluations plus cells of the next `count` bricks: the unit of their cost.
+    pub fn units(job: &InjectJob, grid: &GridSpec, count: usize) -> u64 {
+        let end = (job.next + count).min(job.bricks.len());
+        let bricks = &job.bricks[job.next..end];
+        job.bins.evaluations(grid, bricks) + bricks.len() as u64 * (binning::BRICK as u64).pow(3)
+    }
+
+    /// Encodes the next `count` bricks (rounded up to the chunk alignment), or the occupancy
+    /// pass once every brick is in.
+    pub fn encode_next(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        job: &mut InjectJob,
+        inputs: &InjectInputs,
+        count: usize,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+        counters: &mut Counters,
+    ) {
+        let device = &ctx.device;
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: timestamps });
+        if job.next < job.bricks.len() {
+            let align = Self::chunk_align(ctx);
+            let max = (ctx.limits.max_compute_workgroups_per_dimension as usize / align).max(1) * align;
+            let count = count.max(1).next_multiple_of(align).min(max);
+            let end = (job.next + count).min(job.bricks.len());
+            let slice = wgpu::BufferBinding {
+                buffer: &self.bricks,
+                offset: (job.next * 4) as u64,
+                size: wgpu::BufferSize::new((end - job.next) as u64 * 4),
+            };
+            let bg = bind_group(
+                device,
+                "inject",
+                &self.layout,
+                &[
+                    inputs.grid_buf.as_entire_binding(),
+                    self.particles.as_entire_binding(),
+                    self.offsets.as_entire_binding(),
+                    self.items.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(inputs.ev_view),
+                    wgpu::BindingResource::Buffer(slice),
+                    inputs.layer.unwrap_or(&self.no_layer).as_entire_binding(),
+                ],
+            );
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.dispatch_workgroups((end - job.next) as u32, 2, 1);
+            counters.dispatches += 1;
+            counters.cells_injected += job.bricks[job.next..end].iter().map(|&b| brick_cells(inputs.grid, b)).sum::<u64>();
+            counters.particle_evaluations += job.bins.evaluations(inputs.grid, &job.bricks[job.next..end]);
+            job.next = end;
+        }
+        if job.next >= job.bricks.len() {
+            let occ = bind_group(
+                device,
+                "occupancy",
+                &self.occupancy_layout,
+                &[
+                    inputs.grid_buf.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(inputs.ev_view),
+                    inputs.brick_max.as_entire_binding(),
+                ],
+            );
+            let b = inputs.grid.resolution.map(|n| n.div_ceil(binning::BRICK));
+            pass.set_pipeline(&self.occupancy);
+            pass.set_bind_group(0, &occ, &[]);
+            pass.dispatch_workgroups(b.x.div_ceil(4), b.y.div_ceil(4), b.z.div_ceil(4));
+            counters.dispatches += 1;
+            job.occupancy_done = true;
+        }
+    }
+
+    pub fn bytes(&self) -> u64 {
+        [&self.particles, &self.offsets, &self.items, &self.bricks, &self.no_layer].iter().map(|b| b.size()).sum()
+    }
+}

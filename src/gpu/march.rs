@@ -1,0 +1,193 @@
+//! The ray-march stage: single scattering along camera rays (`shaders/march.wgsl`) into an
+//! [`ImageTarget`], in bands of rows so that a frame can be spread over several submits.
+//!
+//! [`Marcher`] is long-lived: it owns the pipeline, its layout, Sun et al.'s F table and the
+//! counters; the per-march inputs (grid, EV, lights, OPVs, occupancy) are passed explicitly.
+
+use super::gpu_types::{MarchParams, SurfaceGpu};
+use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
+use super::readback::read_buffer;
+use super::{Counters, GpuContext, GpuError};
+use crate::reference::sun::{FTable, GPU_TABLE_SIZE};
+
+/// Rows of one march workgroup: bands are multiples of it.
+pub const BAND_ROWS: u32 = 8;
+
+/// Linear and tone-mapped radiance of one image size.
+pub struct ImageTarget {
+    pub width: u32,
+    pub height: u32,
+    pub hdr: wgpu::Texture,
+    hdr_view: wgpu::TextureView,
+    pub ldr_view: wgpu::TextureView,
+    params_buf: wgpu::Buffer,
+}
+
+impl ImageTarget {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
+        let make = |label: &str, format: wgpu::TextureFormat, extra: wgpu::TextureUsages| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING | extra,
+                view_formats: &[],
+            })
+        };
+        let hdr = make("radiance (linear)", wgpu::TextureFormat::Rgba32Float, wgpu::TextureUsages::COPY_SRC);
+        let ldr = make("radiance (tone-mapped)", wgpu::TextureFormat::Rgba8Unorm, wgpu::TextureUsages::COPY_SRC);
+        let params_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("march params"),
+            size: std::mem::size_of::<MarchParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self { width, height, hdr_view: hdr.create_view(&Default::default()), ldr_view: ldr.create_view(&Default::default()), hdr, params_buf }
+    }
+
+    /// Bytes of GPU memory the target holds.
+    pub fn bytes(&self) -> u64 {
+        self.width as u64 * self.height as u64 * 20 + self.params_buf.size()
+    }
+}
+
+/// What one march reads besides its image target.
+pub struct MarchInputs<'a> {
+    pub grid_buf: &'a wgpu::Buffer,
+    pub ev_view: &'a wgpu::TextureView,
+    pub lights_buf: &'a wgpu::Buffer,
+    pub opv: &'a wgpu::Buffer,
+    pub brick_max: &'a wgpu::Buffer,
+    pub surfaces: &'a [SurfaceGpu],
+    pub params: MarchParams,
+}
+
+/// A march in progress: the rows below `next_row` are done.
+pub struct MarchJob {
+    bind_group: wgpu::BindGroup,
+    params: MarchParams,
+    pub next_row: u32,
+}
+
+impl MarchJob {
+    pub fn done(&self) -> bool {
+        self.next_row >= self.params.size[1]
+    }
+    pub fn fraction(&self) -> f64 {
+        self.next_row.min(self.params.size[1]) as f64 / self.params.size[1].max(1) as f64
+    }
+}
+
+pub struct Marcher {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    /// Sun et al.'s F table (remapped layout) for the closed-form base fog.
+    sun_table: wgpu::Buffer,
+    counters_buf: wgpu::Buffer,
+    surfaces_buf: wgpu::Buffer,
+}
+
+impl Marcher {
+    pub fn new(device: &wgpu::Device) -> Self {
+        let layout = bind_group_layout(
+            device,
+            "march",
+            &[
+                Slot::Uniform,
+                Slot::Uniform,
+                Slot::Texture3d,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageTexture2d(wgpu::TextureFormat::Rgba32Float),
+                Slot::StorageTexture2d(wgpu::TextureFormat::Rgba8Unorm),
+                Slot::StorageWrite,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageRead,
+            ],
+        );
+        let pipeline = compute_pipeline(
+            device,
+            "march",
+            &[include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
+            &layout,
+        );
+        let sun = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
+        let sun_table = super::pipeline::storage_buffer(device, "sun F table", bytemuck::cast_slice(&sun.data));
+        let counters_buf = super::pipeline::storage_buffer(device, "counters", &[0u8; 16]);
+        let surfaces_buf = super::pipeline::storage_buffer(device, "surfaces", &[]);
+        Self { layout, pipeline, sun_table, counters_buf, surfaces_buf }
+    }
+
+    /// Uploads the inputs of a march into `target` and returns the job; its counters start at 0.
+    pub fn begin(&mut self, ctx: &GpuContext, target: &ImageTarget, inputs: &MarchInputs) -> MarchJob {
+        let device = &ctx.device;
+        let bytes: &[u8] = bytemuck::cast_slice(inputs.surfaces);
+        if bytes.len() as u64 > self.surfaces_buf.size() {
+            self.surfaces_buf = super::pipeline::storage_buffer(device, "surfaces", bytes);
+        } else if !bytes.is_empty() {
+            ctx.queue.write_buffer(&self.surfaces_buf, 0, bytes);
+        }
+        ctx.queue.write_buffer(&self.counters_buf, 0, &[0u8; 16]);
+        let bind_group = bind_group(
+            device,
+            "march",
+            &self.layout,
+            &[
+                inputs.grid_buf.as_entire_binding(),
+                target.params_buf.as_entire_binding(),
+                wgpu::BindingResource::TextureView(inputs.ev_view),
+                inputs.lights_buf.as_entire_binding(),
+                inputs.opv.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&target.hdr_view),
+                wgpu::BindingResource::TextureView(&target.ldr_view),
+                self.counters_buf.as_entire_binding(),
+                inputs.brick_max.as_entire_binding(),
+                self.surfaces_buf.as_entire_binding(),
+                self.sun_table.as_entire_binding(),
+            ],
+        );
+        MarchJob { bind_group, params: inputs.params, next_row: 0 }
+    }
+
+    /// Encodes the next band of at most `rows` rows (rounded up to whole workgroups) of `job`.
+    /// Each band is its own submit: the row offset lives in the target's uniform.
+    pub fn encode_band(
+        &self,
+        ctx: &GpuContext,
+        target: &ImageTarget,
+        encoder: &mut wgpu::CommandEncoder,
+        job: &mut MarchJob,
+        rows: u32,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) {
+        let left = job.params.size[1] - job.next_row;
+        let band = rows.clamp(1, left).div_ceil(BAND_ROWS) * BAND_ROWS;
+        let band = band.min(left);
+        let params = MarchParams { row_offset: job.next_row, ..job.params };
+        ctx.queue.write_buffer(&target.params_buf, 0, bytemuck::bytes_of(&params));
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: timestamps });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &job.bind_group, &[]);
+            pass.dispatch_workgroups(job.params.size[0].div_ceil(8), band.div_ceil(8), 1);
+        }
+        job.next_row += band;
+    }
+
+    /// Adds the counters of the finished march to `counters`.
+    pub fn read_counters(&self, ctx: &GpuContext, counters: &mut Counters) -> Result<(), GpuError> {
+        let c: Vec<u32> = read_buffer(ctx, &self.counters_buf, 0, 4)?;
+        counters.samples_marched += c[0] as u64;
+        counters.bricks_skipped += c[1] as u64;
+        counters.rays_terminated += c[2] as u64;
+        Ok(())
+    }
+
+    pub fn bytes(&self) -> u64 {
+        self.sun_table.size() + self.counters_buf.size() + self.surfaces_buf.size()
+    }
+}

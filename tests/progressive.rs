@@ -1,0 +1,124 @@
+//! The frame-budgeted pipeline: work spread over many small `advance` calls converges to
+//! exactly the image and volumes of a from-scratch bake, every call makes progress, and an
+//! edit is on show after one call, with stale optical depths where propagation lags.
+
+mod common;
+
+use common::{pipeline, small_scene};
+use fogsmith::gpu::{FogPipeline, FrameRequest, Progress, Stage};
+use fogsmith::scene::{Particle, Project, Scheme};
+use glam::Vec3;
+use proptest::prelude::*;
+use std::time::Duration;
+
+/// Advances with `budget` until converged; returns every call's progress.
+fn converge(gpu: &mut FogPipeline, p: &Project, request: &FrameRequest, budget: Duration) -> Vec<Progress> {
+    let mut all = Vec::new();
+    for _ in 0..100_000 {
+        let progress = gpu.advance(p, request, Some(budget)).expect("advance");
+        all.push(progress);
+        if progress.converged() {
+            return all;
+        }
+    }
+    panic!("no convergence after 100000 calls: {:?}", all.last());
+}
+
+/// Asserts that `gpu` holds exactly what a fresh pipeline bakes for `p`, bit for bit.
+fn assert_same_as_fresh(gpu: &FogPipeline, p: &Project, request: &FrameRequest) {
+    let mut fresh = pipeline();
+    fresh.update(p, request).unwrap();
+    assert_eq!(gpu.read_ev().unwrap().data, fresh.read_ev().unwrap().data, "EV differs from a fresh bake");
+    for l in 0..p.lights.len() {
+        let (a, b) = (gpu.read_opv(l).unwrap().data, fresh.read_opv(l).unwrap().data);
+        assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "OPV of light {l} differs from a fresh bake");
+    }
+    let (a, b) = (gpu.read_image().unwrap(), fresh.read_image().unwrap());
+    assert_eq!((a.width, a.height), (b.width, b.height), "the converged image is full size");
+    assert!(
+        a.rgba.iter().flatten().zip(b.rgba.iter().flatten()).all(|(x, y)| x.to_bits() == y.to_bits()),
+        "the converged image differs from a fresh bake"
+    );
+}
+
+#[test]
+fn tiny_budgets_converge_to_the_fresh_bake_for_every_scheme() {
+    for scheme in [Scheme::Sweep, Scheme::Exact, Scheme::Giroud] {
+        let mut gpu = pipeline();
+        let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-2.0, 0.3, 0.1)]);
+        p.render.width = 64;
+        p.render.height = 48;
+        let request = FrameRequest { scheme, ..FrameRequest::for_project(&p) };
+        let calls = converge(&mut gpu, &p, &request, Duration::ZERO);
+        assert!(calls.len() > 3, "{scheme:?}: a zero budget still spreads the bake over calls ({} calls)", calls.len());
+        assert!(calls.iter().all(|c| c.report.counters.dispatches > 0), "{scheme:?}: every call runs at least one item");
+        assert_same_as_fresh(&gpu, &p, &request);
+    }
+}
+
+#[test]
+fn an_edit_is_on_show_after_one_call_and_shadows_catch_up() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(32, &[Vec3::new(0.9, 0.9, 0.9)]);
+    p.render.width = 160;
+    p.render.height = 120;
+    let request = FrameRequest::for_project(&p);
+    gpu.update(&p, &request).unwrap();
+    let before = gpu.read_image().unwrap();
+
+    p.lights[0].position = Vec3::new(-0.9, 0.8, 0.9);
+    let first = gpu.advance(&p, &request, Some(Duration::ZERO)).unwrap();
+    assert!(first.new_image, "the moved light is on show after one call");
+    assert!(first.shadows_stale, "its optical depths still lag: {first:?}");
+    assert!(matches!(first.stage, Stage::Propagate { .. }), "propagation is what is left: {first:?}");
+    let quick = gpu.read_image().unwrap();
+    assert!(quick.width < request.width, "a zero budget shows a reduced-resolution preview first");
+    assert!(quick.rgba.iter().flatten().all(|v| v.is_finite()));
+    // The glow moved: the brightest column of the preview follows the light from right to left.
+    let brightest_column = |img: &fogsmith::gpu::Image| {
+        (0..img.width)
+            .max_by(|&a, &b| {
+                let sum = |x: u32| (0..img.height).map(|y| img.rgba[(y * img.width + x) as usize][0]).sum::<f32>();
+                sum(a).total_cmp(&sum(b))
+            })
+            .unwrap() as f32
+            / img.width as f32
+    };
+    assert!(brightest_column(&before) > 0.5 && brightest_column(&quick) < 0.5, "the glow follows the light");
+
+    let rest = converge(&mut gpu, &p, &request, Duration::from_millis(5));
+    let last = rest.last().unwrap();
+    assert!(!last.shadows_stale && last.shown_size == [request.width, request.height], "{last:?}");
+    assert_same_as_fresh(&gpu, &p, &request);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+
+    /// Randomized edits (particles added, moved and removed, lights moved in and out of the
+    /// box), each followed by a few budgeted calls and sometimes interrupted by the next edit,
+    /// end in exactly the fresh bake of the last scene.
+    #[test]
+    fn interrupted_edits_end_in_the_fresh_bake(
+        edits in proptest::collection::vec((0u8..4, -1.5f32..1.5, -1.5f32..1.5, -1.5f32..1.5, 0usize..4), 1..6),
+    ) {
+        let mut gpu = pipeline();
+        let mut p = small_scene(20, &[Vec3::new(0.5, 0.9, 0.2), Vec3::new(1.6, -0.4, 0.3)]);
+        let request = FrameRequest::for_project(&p);
+        gpu.update(&p, &request).unwrap();
+        for (kind, x, y, z, calls) in edits {
+            let at = Vec3::new(x, y, z);
+            match kind {
+                0 => p.particles.push(Particle::new(at * 0.6, 0.15 + 0.1 * x.abs(), 5.0)),
+                1 => p.particles[0].center = at * 0.5,
+                2 => { p.particles.pop(); }
+                _ => p.lights[1].position = at * 1.4,
+            }
+            for _ in 0..calls {
+                gpu.advance(&p, &request, Some(Duration::from_millis(2))).unwrap();
+            }
+        }
+        converge(&mut gpu, &p, &request, Duration::from_millis(2));
+        assert_same_as_fresh(&gpu, &p, &request);
+    }
+}
