@@ -8,6 +8,8 @@
 //! - [`editor`]: the interactive editor window (eframe + egui_dock).
 //! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
 //! - [`stress`]: the numerical stress matrix behind `fogsmith stress`.
+//! - [`sun_table`]: Sun et al.'s F function and the table the GPU reads.
+//! - [`quad`]: adaptive quadrature (the Sun table's construction and the reference).
 
 pub mod bench;
 pub mod cli;
@@ -17,6 +19,8 @@ pub mod export;
 pub mod gpu;
 pub mod measure;
 pub mod output;
+pub mod quad;
 pub mod reference;
 pub mod scene;
 pub mod stress;
+pub mod sun_table;

@@ -270,3 +270,67 @@ fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
     assert!(h.state().session().project().particles.is_empty(), "the recovered work replaced the demo");
     assert!(h.state().session().is_dirty(), "recovered work is unsaved");
 }
+
+/// The frame-budgeted preview: a dragged light's glow is on show in the frame of each move,
+/// and once the preview converges it equals a from-scratch bake of the
+/// same scene, bit for bit.
+#[test]
+fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake() {
+    let mut h = Harness::builder()
+        .with_size(Vec2::new(1280.0, 800.0))
+        .wgpu_setup(fogsmith::editor::wgpu_setup())
+        .build_eframe(|cc| EditorApp::new(cc, demo(), EditorOptions::default()));
+    let settle = |h: &mut Harness<'_, EditorApp>| {
+        for _ in 0..5000 {
+            h.step();
+            if h.state().preview_status().is_some_and(|s| s.converged) {
+                return;
+            }
+        }
+        panic!("the preview did not converge");
+    };
+    settle(&mut h);
+    assert_eq!(h.state().gpu_error(), None);
+    let rect = h.state().viewport_rect().expect("the viewport is shown");
+    let project = h.state().session().project().clone();
+    let view = ViewProjection::new(&project.camera, rect);
+    let (light, _) = project
+        .lights
+        .iter()
+        .filter_map(|l| view.project(l.position))
+        .find(|(p, _)| rect.shrink(20.0).contains(*p))
+        .expect("a light in view");
+    h.state_mut().set_tool(Tool::Select);
+    h.event(Event::PointerMoved(light));
+    h.step();
+    press(&mut h, light, PointerButton::Primary, true);
+    // Small steps, as a pointer moves between frames: the drag starts on the light.
+    for k in 1..=6 {
+        h.event(Event::PointerMoved(light + Vec2::new(4.0 * k as f32, -2.0 * k as f32)));
+        h.step();
+        let status = h.state().preview_status().expect("a preview");
+        assert_eq!(
+            status.shown_generation,
+            Some(h.state().session().generation()),
+            "move {k}: the frame of the move shows the moved light"
+        );
+    }
+    let moved = h.state().session().project().lights.clone();
+    assert_ne!(moved, project.lights, "the drag moved a light");
+    press(&mut h, light + Vec2::new(24.0, -12.0), PointerButton::Primary, false);
+    settle(&mut h);
+
+    let status = h.state().preview_status().unwrap();
+    assert!(!status.shadows_stale);
+    let shown = h.state().pipeline().unwrap().read_image().unwrap();
+    assert_eq!([shown.width, shown.height], status.shown_size);
+    let p = h.state().session().project().clone();
+    let mut fresh = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("an adapter"));
+    let request = fogsmith::gpu::FrameRequest { width: shown.width, height: shown.height, ..fogsmith::gpu::FrameRequest::for_project(&p) };
+    fresh.update(&p, &request).unwrap();
+    let want = fresh.read_image().unwrap();
+    assert!(
+        shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).all(|(a, b)| a.to_bits() == b.to_bits()),
+        "the converged preview equals a fresh bake"
+    );
+}

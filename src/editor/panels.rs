@@ -4,6 +4,7 @@ use super::app::{EditorState, ExactKey, Gesture};
 use super::session::NEW_STEP;
 use super::slices::{self, Axis, Colormap, Field, Scale};
 use super::tools::{Hit, Stroke, Tool};
+use crate::gpu::SliceSource;
 use crate::scene::{Project, Scheme};
 use egui::{Color32, DragValue, Pos2, Rect, Sense, Ui};
 use glam::Vec3;
@@ -174,19 +175,22 @@ fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
         state.slice.key = Some(key);
         return;
     }
-    let volume = match settings.field {
-        Field::Extinction => gpu.pipeline.read_ev(),
-        _ => gpu.pipeline.read_opv(settings.light),
+    let source = match settings.field {
+        Field::Extinction => SliceSource::Extinction,
+        _ => SliceSource::OpticalDepth { light: settings.light },
     };
-    let volume = match volume {
-        Ok(v) => v,
+    let grid = state.session.project().grid;
+    let index = slices::clamp_index(&grid, settings.axis, settings.index);
+    let Some(gpu) = &mut state.gpu else { return };
+    let plane = match gpu.pipeline.read_slice(source, settings.axis.index(), index) {
+        Ok(p) => p,
         Err(e) => {
             state.slice.error = Some(e.to_string());
             state.slice.key = Some(key);
             return;
         }
     };
-    let mut slice = slices::extract(&volume, settings.axis, settings.index);
+    let mut slice = slices::from_plane(&plane, settings.axis);
     state.slice.error = None;
     match settings.field {
         Field::Transmittance => slice.values.iter_mut().for_each(|v| *v = (-*v).exp()),

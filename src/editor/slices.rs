@@ -226,6 +226,28 @@ pub fn extract(volume: &Volume, axis: Axis, index: u32) -> Slice {
     slice
 }
 
+/// The slice view of a plane read back from the GPU (see [`crate::gpu::Plane`]).
+pub fn from_plane(plane: &crate::gpu::Plane, axis: Axis) -> Slice {
+    let (ua, va) = axis.image_axes();
+    let mut dims = [0u32; 3];
+    let (a, b) = match axis.index() {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    dims[a] = plane.dims[0];
+    dims[b] = plane.dims[1];
+    let (width, height) = (dims[ua] as usize, dims[va] as usize);
+    let mut slice = Slice { axis, index: plane.index, width, height, values: Vec::with_capacity(width * height) };
+    for y in 0..height {
+        for x in 0..width {
+            let c = slice.cell(x, y);
+            slice.values.push(plane.values[(c[a] + c[b] * plane.dims[0]) as usize]);
+        }
+    }
+    slice
+}
+
 /// Maps a value to [0, 1] for colouring, linearly or on a log scale spanning six decades
 /// below the maximum.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -120,7 +120,9 @@ mod tests {
         let march = [include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")];
         let sweep = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")];
         let exact = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
-        let cases: [(&[&str], &str, usize); 7] = [
+        let slice = [include_str!("../../shaders/slice.wgsl")];
+        let cases: [(&[&str], &str, usize); 8] = [
+            (&slice, "SliceParams", std::mem::size_of::<crate::gpu::slice::SliceParams>()),
             (&inject, "GridParams", std::mem::size_of::<GridParams>()),
             (&inject, "LightGpu", std::mem::size_of::<LightGpu>()),
             (&inject, "ParticleGpu", std::mem::size_of::<ParticleGpu>()),

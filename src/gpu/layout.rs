@@ -72,7 +72,7 @@ pub const VOLUME_LOOKUP: &str = include_str!("../../shaders/volume_lookup.wgsl")
 
 /// Constants the Rust side and the shaders share, written once here for WGSL.
 pub fn shared_constants() -> String {
-    use crate::reference::sun;
+    use crate::sun_table as sun;
     format!(
         "// Generated from the Rust constants (src/gpu/layout.rs).\n\
          const BRICK: u32 = {}u;\n\

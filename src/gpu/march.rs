@@ -8,7 +8,7 @@ use super::gpu_types::{MarchParams, SurfaceGpu};
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
-use crate::reference::sun::{FTable, GPU_TABLE_SIZE};
+use crate::sun_table::{FTable, GPU_TABLE_SIZE};
 
 /// Rows of one march workgroup: bands are multiples of it.
 pub const BAND_ROWS: u32 = 8;

@@ -23,10 +23,13 @@ mod march;
 mod pipeline;
 mod propagate;
 mod readback;
+mod slice;
 mod timer;
 
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext};
 pub use error::GpuError;
+pub use layout::shared_constants;
+pub use slice::{Plane, SliceSource};
 pub use propagate::{giroud_iterations, sweep_steps, EXACT_STEPS_PER_CELL};
 pub use pipeline::{light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, Progress, Stage, StageTimings};

@@ -15,6 +15,7 @@ use super::inject::{InjectInputs, InjectJob, Injector};
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::propagate::{PropagationInputs, PropagationJob, Propagator};
 use super::readback::{read_buffer, read_texture};
+use super::slice::{Plane, SliceInputs, SliceParams, SliceSource, Slicer};
 use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
 use crate::scene::{GridSpec, Light, Particle, Project, Scheme, StepPolicy, Volume};
@@ -235,6 +236,7 @@ pub struct FogPipeline {
     injector: Injector,
     propagator: Propagator,
     marcher: Marcher,
+    slicer: Slicer,
     timer: Option<StageTimer>,
     grid: Option<GridResources>,
     quick: Option<ImageTarget>,
@@ -278,12 +280,14 @@ impl FogPipeline {
         let injector = Injector::new(device);
         let propagator = Propagator::new(device);
         let marcher = Marcher::new(device);
+        let slicer = Slicer::new(device);
         let timer = StageTimer::new(&ctx);
         Self {
             ctx,
             injector,
             propagator,
             marcher,
+            slicer,
             timer,
             grid: None,
             quick: None,
@@ -665,9 +669,10 @@ impl FogPipeline {
             self.baked.ev = Some((key, project.particles.clone()));
             return;
         }
-        // Bricks of an unfinished injection still need the new particles.
+        // Bricks an unfinished injection has not reached yet still need doing; those it did
+        // hold its particles, which the new dirty bricks were computed against.
         if let Some(job) = self.jobs.inject.take() {
-            bricks.extend(job.bricks[job.next..].iter().copied().chain(job.bricks[..job.next].iter().copied()));
+            bricks.extend_from_slice(&job.bricks[job.next..]);
             bricks.sort_unstable();
             bricks.dedup();
         }
@@ -962,6 +967,25 @@ impl FogPipeline {
         Ok(Volume::new(g.spec, data))
     }
 
+    /// Plane `index` across grid `axis` (0, 1, 2 for x, y, z) of the EV or of one light's
+    /// OPV, gathered on the GPU so that only the plane is read back.
+    pub fn read_slice(&mut self, source: SliceSource, axis: usize, index: u32) -> Result<Plane, GpuError> {
+        let g = self.grid.as_ref().ok_or_else(|| GpuError::Invalid("nothing baked yet: call update first".into()))?;
+        let dims = g.spec.resolution.to_array();
+        if axis > 2 || index >= dims[axis.min(2)] {
+            return Err(GpuError::Invalid(format!("slice {index} across axis {axis} is outside the {dims:?} grid")));
+        }
+        let (light, source) = match source {
+            SliceSource::Extinction => (0, 0),
+            SliceSource::OpticalDepth { light } if light < g.light_count => (light as u32, 1),
+            SliceSource::OpticalDepth { light } => {
+                return Err(GpuError::Invalid(format!("light {light} does not exist (the scene has {})", g.light_count)))
+            }
+        };
+        let inputs = SliceInputs { grid_buf: &g.grid_buf, ev_view: &g.ev_view, opv: &g.opv[0] };
+        self.slicer.read(&self.ctx, &inputs, dims, SliceParams { axis: axis as u32, index, light, source })
+    }
+
     fn shown_target(&self) -> Option<&ImageTarget> {
         match self.baked.shown.as_ref()?.1 {
             Level::Quick => self.quick.as_ref(),
@@ -990,6 +1014,7 @@ impl FogPipeline {
             + self.full.as_ref().map_or(0, ImageTarget::bytes)
             + self.injector.bytes()
             + self.marcher.bytes()
+            + self.slicer.bytes()
             + layer
     }
 }

@@ -10,7 +10,7 @@
 //!   (§4) with exact transmittance.
 //! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
 
-mod quad;
+pub use crate::quad;
 mod render;
 pub mod sun;
 
