@@ -38,16 +38,19 @@ fi
 echo "setup.sh: system packages ready (${#missing[@]} installed now)."
 
 # Test-only validators from PyPI, in a git-ignored virtual environment inside the project
-# (never needed to run Fogsmith): Pixar's usd-core checks the USD export, and Blender as a
-# Python module (bpy 4.5, for Debian's Python 3.11) imports and renders it. Each package is
-# installed only when the venv cannot import it yet.
+# (never needed to run Fogsmith: `./setup.sh --no-validators` skips them): Pixar's usd-core
+# checks the USD export, and Blender as a Python module (bpy 4.5, for Debian's Python 3.11)
+# imports it. Each package is installed only when the venv cannot import it yet.
+if [ "${1:-}" = "--no-validators" ]; then
+  exit 0
+fi
 VENV="$(cd "$(dirname "$0")" && pwd)/.venv"
 PY=/usr/bin/python3
 if [ ! -x "$VENV/bin/python" ]; then
   "$PY" -m venv "$VENV"
 fi
 need=()
-"$VENV/bin/python" -c "from pxr import Usd, UsdVol, UsdLux" 2>/dev/null || need+=("usd-core")
+"$VENV/bin/python" -c "from pxr import Usd, UsdVol, UsdLux, UsdValidation" 2>/dev/null || need+=("usd-core==26.11")
 "$VENV/bin/python" -c "import bpy, sys; sys.exit(0 if bpy.app.version[:2] == (4, 5) else 1)" 2>/dev/null || need+=("bpy==4.5.*")
 if [ ${#need[@]} -gt 0 ]; then
   echo "setup.sh: installing ${need[*]} into $VENV (bpy is a ~370 MB download)"
