@@ -306,8 +306,8 @@ fn fogsmith() -> Command {
     Command::new(env!("CARGO_BIN_EXE_fogsmith"))
 }
 
-/// `fogsmith export --usd` on a demo: the stage, the VDB beside it (Blender's frame, optical
-/// depths of class unknown), and clear errors for a left-handed frame and a wrong extension.
+/// `fogsmith export --usd --ktx2` on a demo: the stage, the VDB beside it (Blender's frame,
+/// optical depths of class unknown), the KTX2 texture and its snippet, and clear errors for a left-handed frame and a wrong extension.
 #[test]
 fn cli_exports_a_usd_stage_with_its_vdb() {
     let dir = tempfile::tempdir().unwrap();
@@ -315,10 +315,18 @@ fn cli_exports_a_usd_stage_with_its_vdb() {
     let project = root().join("projects/cornell.ron");
     let out = fogsmith()
         .args(["export", project.to_str().unwrap(), "--width", "32", "--height", "18", "--preset", "blender", "--json"])
-        .args(["--usd", usd.to_str().unwrap()])
+        .args(["--usd", usd.to_str().unwrap(), "--ktx2", dir.path().join("cornell.ktx2").to_str().unwrap()])
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The KTX2 texture has the project grid's size whatever the preset, and its Bevy snippet.
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["usd"]["frame"], "Z-up, m, right-handed");
+    let ktx = ktx2::Reader::new(std::fs::read(dir.path().join("cornell.ktx2")).unwrap()).unwrap();
+    let grid = fogsmith::scene::io::load_project(&root().join("projects/cornell.ron")).unwrap().grid;
+    let h = ktx.header();
+    assert_eq!((h.pixel_width, h.pixel_height, h.pixel_depth), (grid.resolution.x, grid.resolution.y, grid.resolution.z));
+    assert!(std::fs::read_to_string(dir.path().join("cornell.fogvolume.ron")).unwrap().contains("density_texture: \"cornell.ktx2\""));
     let vdb = dir.path().join("cornell.vdb");
     let v = &run_checker("pxr.Usd", "usd_check.py", std::slice::from_ref(&usd))[0];
     assert_eq!(v["upAxis"], "Z");
