@@ -9,6 +9,7 @@ PACKAGES=(
   xvfb                  # a virtual display for the editor's window tests
   xauth
   python3-openvdb       # OpenVDB itself, to check exported .vdb files
+  python3-venv          # the validators' virtual environment below
   libopenvdb-tools      # vdb_tool: writes zip / uncompressed .vdb files for the import tests
   openexr               # exrheader / exrinfo, to check exported .exr files
   fonts-dejavu-core     # the font of the benchmark plots
@@ -35,3 +36,24 @@ if ! command -v cargo >/dev/null 2>&1; then
   exit 1
 fi
 echo "setup.sh: system packages ready (${#missing[@]} installed now)."
+
+# Test-only validators from PyPI, in a git-ignored virtual environment inside the project
+# (never needed to run Fogsmith: `./setup.sh --no-validators` skips them): Pixar's usd-core
+# checks the USD export, and Blender as a Python module (bpy 4.5, for Debian's Python 3.11)
+# imports it. Each package is installed only when the venv cannot import it yet.
+if [ "${1:-}" = "--no-validators" ]; then
+  exit 0
+fi
+VENV="$(cd "$(dirname "$0")" && pwd)/.venv"
+PY=/usr/bin/python3
+if [ ! -x "$VENV/bin/python" ]; then
+  "$PY" -m venv "$VENV"
+fi
+need=()
+"$VENV/bin/python" -c "from pxr import Usd, UsdVol, UsdLux, UsdValidation" 2>/dev/null || need+=("usd-core==26.11")
+"$VENV/bin/python" -c "import bpy, sys; sys.exit(0 if bpy.app.version[:2] == (4, 5) else 1)" 2>/dev/null || need+=("bpy==4.5.*")
+if [ ${#need[@]} -gt 0 ]; then
+  echo "setup.sh: installing ${need[*]} into $VENV (bpy is a ~370 MB download)"
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "${need[@]}"
+fi
+echo "setup.sh: validators ready in $VENV (${#need[@]} installed now)."

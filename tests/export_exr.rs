@@ -204,3 +204,36 @@ fn atlas_exr_tiles_slices_and_records_the_layout() {
         assert!(o["header"]["fogsmith/atlas_tiles"].as_str().unwrap().contains('4'), "{}", o["header"]);
     }
 }
+
+/// The atlas header names the export frame, and its index-to-world matrix puts every tile
+/// pixel's cell centre where the frame puts it.
+#[test]
+fn atlas_exr_records_the_export_frame() {
+    use fogsmith::export::exr::write_atlas_exr_in_frame;
+    use fogsmith::export::frame::{Frame, Handedness, Units, UpAxis};
+    let ev = test_volume(0.25);
+    let dir = tempfile::tempdir().unwrap();
+    for up in [UpAxis::Y, UpAxis::Z] {
+        for units in [Units::M, Units::Cm] {
+            for handedness in [Handedness::Right, Handedness::Left] {
+                let frame = Frame { up, units, handedness };
+                let path = dir.path().join(format!("atlas_{frame}.exr").replace([' ', ','], "_"));
+                write_atlas_exr_in_frame(&path, &ev, &frame).unwrap();
+                let (_, _, attributes) = read_channels(&path);
+                let get = |k: &str| attributes.other.get(&Text::from(k)).unwrap_or_else(|| panic!("{frame}: no {k}")).clone();
+                assert_eq!(get("fogsmith/up_axis"), AttributeValue::Text(Text::from(frame.up_name())), "{frame}");
+                assert_eq!(get("fogsmith/handedness"), AttributeValue::Text(Text::from(frame.handedness_name())), "{frame}");
+                assert_eq!(get("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()), "{frame}");
+                let AttributeValue::Matrix4x4(m) = get("fogsmith/index_to_world") else { panic!("{frame}: index_to_world is not a m44f") };
+                let [nx, ny, nz] = ev.dims();
+                for (i, j, k) in [(0, 0, 0), (nx - 1, 0, 0), (0, ny - 1, 0), (0, 0, nz - 1), (2, 3, 4)] {
+                    let w: Vec<f64> = (0..3).map(|b| i as f64 * m[b] as f64 + j as f64 * m[4 + b] as f64 + k as f64 * m[8 + b] as f64 + m[12 + b] as f64).collect();
+                    let c = frame.point(ev.grid.cell_center(i, j, k).to_array().map(f64::from));
+                    for b in 0..3 {
+                        assert!((w[b] - c[b]).abs() < 1e-5 * frame.scale() * 5.0, "{frame}: cell ({i}, {j}, {k}) -> {w:?}, want {c:?}");
+                    }
+                }
+            }
+        }
+    }
+}

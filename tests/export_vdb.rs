@@ -1,8 +1,9 @@
 //! VDB export and import: our writer read back by our reader and by OpenVDB itself
 //! (python3-openvdb), and files written by OpenVDB imported by our reader.
 
+use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use fogsmith::export::vdb::{
-    grids_from_volumes, half_round, write_vdb, GridSelection, VdbCompression, VdbGrid, VdbOptions,
+    grids_from_volumes, half_round, write_vdb, GridClass, GridSelection, VdbCompression, VdbGrid, VdbOptions,
 };
 use fogsmith::export::vdb_read::{read_vdb_grid, list_vdb_grids, resample_into};
 use fogsmith::export::LightInfo;
@@ -88,7 +89,8 @@ fn expected(v: f32, bg: f32, opts: &VdbOptions) -> (f32, bool) {
 fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
     let ev = test_volume(min, max);
     let opv = opv_of(&ev);
-    let lights = [(&opv, light())];
+    let frame = opts.frame;
+    let lights = [(&opv, light().in_frame(&frame))];
     let grids = grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: true });
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(format!("{tag}.vdb"));
@@ -99,7 +101,22 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
     // Our own reader first: every voxel, active or not.
     for g in &grids {
         let back = read_vdb_grid(&path, Some(&g.name)).unwrap();
+        assert_eq!(back.frame, frame, "{tag} {}", g.name);
+        let class = back.metadata.iter().find(|m| m.0 == "class").map(|m| String::from_utf8_lossy(&m.2).into_owned());
+        assert_eq!(class.as_deref(), Some(g.class.as_str()), "{tag} {}", g.name);
+        // Index -> world: every corner of the grid lands on its cell centre in the frame.
         let r = g.spec.resolution;
+        for (i, j, k) in [(0, 0, 0), (r.x - 1, 0, 0), (0, r.y - 1, 0), (0, 0, r.z - 1), (r.x - 1, r.y - 1, r.z - 1), (3, 5, 7)] {
+            // The centre in f64: min + (i + ½)·(max − min)/res, carried into the frame.
+            let (lo, hi) = (g.spec.min.as_dvec3(), g.spec.max.as_dvec3());
+            let ijk = [i, j, k];
+            let centre = [0, 1, 2].map(|a| lo[a] + (ijk[a] as f64 + 0.5) * (hi[a] - lo[a]) / r[a] as f64);
+            let c = frame.point(centre);
+            let w = back.transform.index_to_world([i as f64, j as f64, k as f64]);
+            for a in 0..3 {
+                assert!((w[a] - c[a]).abs() <= 1e-9 * frame.scale() * 10.0, "{tag} {} index {:?} -> {w:?}, want {c:?}", g.name, (i, j, k));
+            }
+        }
         let mut active = 0u64;
         for k in 0..r.z {
             for j in 0..r.y {
@@ -129,16 +146,22 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
     let names: Vec<&str> = read.iter().map(|g| g["name"].as_str().unwrap()).collect();
     assert_eq!(names, ["density", "optical_depth_0", "transmittance_0"], "{tag}");
     assert_eq!(report["file_metadata"]["creator"], "fogsmith");
+    assert_eq!(report["file_metadata"]["up_axis"], frame.up_name(), "{tag}");
+    assert_eq!(report["file_metadata"]["handedness"], frame.handedness_name(), "{tag}");
+    assert_eq!(report["file_metadata"]["meters_per_unit"].as_str().unwrap().parse::<f64>().unwrap(), frame.meters_per_unit(), "{tag}");
     for (g, s) in grids.iter().zip(&stats.grids) {
         let o = read.iter().find(|o| o["name"] == g.name.as_str()).unwrap();
         assert_eq!(o["value_type"], "float", "{tag} {}", g.name);
         assert_eq!(o["half"].as_bool().unwrap(), opts.half, "{tag} {}", g.name);
-        assert_eq!(o["meta"]["class"], "fog volume");
+        assert_eq!(o["meta"]["class"], g.class.as_str(), "{tag} {}", g.name);
+        assert_eq!(o["meta"]["up_axis"], frame.up_name(), "{tag}");
+        assert_eq!(o["meta"]["handedness"], frame.handedness_name(), "{tag}");
+        assert_eq!(f(&o["meta"]["meters_per_unit"]), frame.meters_per_unit(), "{tag}");
         assert_eq!(o["meta"]["creator"], "fogsmith");
         assert_eq!(f(&o["background"]) as f32, g.background);
         if g.name != "density" {
             let p: Vec<f64> = o["meta"]["light_position"].as_array().unwrap().iter().map(f).collect();
-            assert_eq!(p, light().position.map(f64::from), "{tag} {}", g.name);
+            assert_eq!(p, frame.point_f32(light().position).map(f64::from), "{tag} {}", g.name);
             assert_eq!(f(&o["meta"]["light_intensity"]), 40.0);
         }
         // Active voxels, leaves and the active bbox.
@@ -160,18 +183,19 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
         }
         let bbox: Vec<Vec<i64>> = o["bbox"].as_array().unwrap().iter().map(|c| c.as_array().unwrap().iter().map(|x| x.as_i64().unwrap()).collect()).collect();
         assert_eq!(bbox, vec![lo.to_vec(), hi.to_vec()], "{tag} {} bbox", g.name);
-        // Transform: voxel size and index -> world of a few voxels = the cell centres.
-        let h = g.spec.cell_size();
+        // Transform: voxel size and index -> world of a few voxels = the cell centres, carried
+        // into the export frame.
+        let h = g.spec.cell_size().as_dvec3() * frame.scale();
         let vs: Vec<f64> = o["voxel_size"].as_array().unwrap().iter().map(f).collect();
         for a in 0..3 {
-            assert!((vs[a] - h[a] as f64).abs() <= 1e-6 * h[a] as f64, "{tag} voxel size {vs:?} vs {h}");
+            assert!((vs[a] - h[a]).abs() <= 1e-6 * h[a], "{tag} voxel size {vs:?} vs {h}");
         }
         for w in o["world"].as_array().unwrap() {
             let ijk: Vec<u32> = w[0].as_array().unwrap().iter().map(|x| x.as_u64().unwrap() as u32).collect();
             let xyz: Vec<f64> = w[1].as_array().unwrap().iter().map(f).collect();
-            let c = g.spec.cell_center(ijk[0], ijk[1], ijk[2]);
+            let c = frame.point(g.spec.cell_center(ijk[0], ijk[1], ijk[2]).to_array().map(f64::from));
             for a in 0..3 {
-                assert!((xyz[a] - c[a] as f64).abs() < 1e-5, "{tag} index {ijk:?} -> {xyz:?}, cell centre {c}");
+                assert!((xyz[a] - c[a]).abs() < 1e-5 * frame.scale(), "{tag} index {ijk:?} -> {xyz:?}, cell centre {c:?}");
             }
         }
         // Every voxel's value and active state.
@@ -248,6 +272,42 @@ fn openvdb_reads_half_zip_and_half_uncompressed() {
 fn openvdb_reads_threshold_no_tiles_and_non_cubic_cells() {
     check_against_openvdb("threshold", CUBE_MIN, cube_max(), VdbOptions { threshold: 0.05, tiles: false, ..Default::default() });
     check_against_openvdb("non_cubic", Vec3::new(-3.0, 0.0, 1.0), Vec3::new(1.0, 2.5, 2.0), VdbOptions::default());
+}
+
+/// Every export frame (up axis × units × handedness, the presets among them) on cubic and
+/// non-cubic cells: OpenVDB and our reader place every voxel at its cell centre in the frame,
+/// read the frame from the metadata, and our import puts the values back on the project grid.
+#[test]
+fn openvdb_and_our_reader_read_every_export_frame() {
+    let mut frames = Vec::new();
+    for up in [UpAxis::Y, UpAxis::Z] {
+        for units in [Units::M, Units::Cm] {
+            for handedness in [Handedness::Right, Handedness::Left] {
+                frames.push(Frame { up, units, handedness });
+            }
+        }
+    }
+    for p in [Preset::Blender, Preset::Houdini, Preset::Unreal, Preset::Godot, Preset::Unity] {
+        assert!(frames.contains(&Frame::preset(p)));
+    }
+    for frame in frames {
+        let tag = format!("{}{}{}", frame.up_name(), frame.meters_per_unit(), frame.handedness_name());
+        check_against_openvdb(&format!("cubic_{tag}"), CUBE_MIN, cube_max(), VdbOptions { frame, ..Default::default() });
+        check_against_openvdb(&format!("non_cubic_{tag}"), Vec3::new(-3.0, 0.0, 1.0), Vec3::new(1.0, 2.5, 2.0), VdbOptions { frame, half: true, ..Default::default() });
+    }
+}
+
+#[test]
+fn optical_depth_grids_are_not_fog_volumes() {
+    let ev = test_volume(CUBE_MIN, cube_max());
+    let opv = opv_of(&ev);
+    let lights = [(&opv, light())];
+    let grids = grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: true });
+    let classes: Vec<_> = grids.iter().map(|g| (g.name.as_str(), g.class)).collect();
+    assert_eq!(
+        classes,
+        [("density", GridClass::FogVolume), ("optical_depth_0", GridClass::Unknown), ("transmittance_0", GridClass::Unknown)]
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -439,7 +499,12 @@ fn damaged_files_give_errors_not_panics() {
 
     // Huge declared sizes are refused before anything is allocated.
     let good = our_file(VdbOptions::default());
-    let grid_count_at = 8 + 4 + 8 + 1 + 36 + 4 + 4 + "creator".len() + 4 + "string".len() + 4 + "fogsmith".len();
+    let meta_len = |name: &str, ty: &str, bytes: usize| 4 + name.len() + 4 + ty.len() + 4 + bytes;
+    let file_meta = meta_len("creator", "string", "fogsmith".len())
+        + meta_len("handedness", "string", "right".len())
+        + meta_len("meters_per_unit", "double", 8)
+        + meta_len("up_axis", "string", 1);
+    let grid_count_at = 8 + 4 + 8 + 1 + 36 + 4 + file_meta;
     assert_eq!(&good[grid_count_at..grid_count_at + 4], &1u32.to_le_bytes());
     let mut bad = good.clone();
     bad[grid_count_at..grid_count_at + 4].copy_from_slice(&u32::MAX.to_le_bytes());

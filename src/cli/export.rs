@@ -1,7 +1,10 @@
-//! `fogsmith export`: bake a project on the GPU and write VDB / EXR files.
+//! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files.
 
 use super::{bake, BakeArgs};
-use crate::export::exr::{write_atlas_exr, write_render_exr, write_slices_exr};
+use crate::export::exr::{write_atlas_exr_in_frame, write_render_exr, write_slices_exr};
+use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
+use crate::export::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format};
+use crate::export::usd::{asset_path, write_usd, UsdField, UsdOptions};
 use crate::export::vdb::{grids_from_volumes, write_vdb, GridSelection, VdbCompression, VdbOptions};
 use crate::export::light_infos;
 use std::path::PathBuf;
@@ -38,6 +41,31 @@ pub struct ExportArgs {
     /// Write EXR renders as half floats.
     #[arg(long)]
     pub exr_half: bool,
+    /// Axes and units of the tool the files are for: blender (Z-up, m), houdini (Y-up, m),
+    /// unreal (Z-up, cm, left-handed), godot (Y-up, m), unity (Y-up, m, left-handed).
+    /// Applies to the VDB transform, the USD stage and the EXR atlas metadata.
+    #[arg(long, value_enum)]
+    pub preset: Option<Preset>,
+    /// Up axis of the exported world (default: the preset's, else y).
+    #[arg(long, value_enum)]
+    pub up: Option<UpAxis>,
+    /// Length unit of the exported world (default: the preset's, else m).
+    #[arg(long, value_enum)]
+    pub units: Option<Units>,
+    /// Handedness of the exported world (default: the preset's, else right).
+    #[arg(long, value_enum)]
+    pub handedness: Option<Handedness>,
+    /// The whole scene as an OpenUSD stage (.usda): the fog as a Volume whose fields are the
+    /// VDB's grids (the --vdb file, else NAME.vdb beside the stage), lights, camera, surfaces.
+    #[arg(long)]
+    pub usd: Option<PathBuf>,
+    /// The extinction as a KTX2 3D texture for game engines, plus NAME.fogvolume.ron with a
+    /// matching Bevy FogVolume (always Y-up, metres: the presets do not apply).
+    #[arg(long)]
+    pub ktx2: Option<PathBuf>,
+    /// KTX2 texel format: r16f (the extinction in 1/m) or r8 (times the scale it records).
+    #[arg(long, value_enum, default_value_t = Ktx2Format::R16f)]
+    pub ktx2_format: Ktx2Format,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -49,9 +77,50 @@ pub enum Compression {
     Zip,
 }
 
+impl ExportArgs {
+    /// The export frame: the preset's (or Fogsmith's own), then each explicit option.
+    pub fn frame(&self) -> Frame {
+        let mut f = self.preset.map(Frame::preset).unwrap_or(Frame::NATIVE);
+        if let Some(up) = self.up {
+            f.up = up;
+        }
+        if let Some(units) = self.units {
+            f.units = units;
+        }
+        if let Some(h) = self.handedness {
+            f.handedness = h;
+        }
+        f
+    }
+}
+
 pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
-    if args.vdb.is_none() && args.exr_render.is_none() && args.exr_slices.is_none() && args.exr_atlas.is_none() {
-        return Err("nothing to export: give --vdb, --exr-render, --exr-slices and/or --exr-atlas".into());
+    if args.vdb.is_none()
+        && args.exr_render.is_none()
+        && args.exr_slices.is_none()
+        && args.exr_atlas.is_none()
+        && args.usd.is_none()
+        && args.ktx2.is_none()
+    {
+        return Err("nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices and/or --exr-atlas".into());
+    }
+    let frame = args.frame();
+    // Refuse what cannot be written before the (long) bake.
+    let vdb_path = args.vdb.clone().or_else(|| args.usd.as_ref().map(|u| u.with_extension("vdb")));
+    if let Some(usd) = &args.usd {
+        if usd.extension().and_then(|e| e.to_str()) != Some("usda") {
+            return Err(format!("--usd {}: Fogsmith writes text USD; name the file with the .usda extension", usd.display()).into());
+        }
+        if frame.handedness == Handedness::Left {
+            return Err(format!(
+                "--usd: USD stages are right-handed, and the export frame is {frame}. Use --handedness right \
+                 (for Unreal: --up z --units cm; its USD importer converts to its own axes)"
+            )
+            .into());
+        }
+        if !args.grids.density {
+            return Err("--usd needs the density grid in the VDB: add density to --grids".into());
+        }
     }
     if !args.threshold.is_finite() || args.threshold < 0.0 {
         return Err(format!("--threshold must be a finite number ≥ 0, got {}", args.threshold).into());
@@ -65,9 +134,10 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     summary.insert("project".into(), serde_json::json!(args.bake.project));
     summary.insert("timings_ms".into(), serde_json::json!(baked.report.timings_ms));
 
-    if let Some(path) = &args.vdb {
+    let mut fields = Vec::new();
+    if let Some(path) = &vdb_path {
         let t = Instant::now();
-        let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, *l)).collect();
+        let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, l.in_frame(&frame))).collect();
         let grids = grids_from_volumes(&ev, &lights, args.grids);
         let opts = VdbOptions {
             compression: match args.compression {
@@ -76,9 +146,11 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             },
             half: args.half,
             threshold: args.threshold,
+            frame,
             ..VdbOptions::default()
         };
         let stats = write_vdb(path, &grids, &opts)?;
+        fields = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
         let grids_json: Vec<_> = stats
             .grids
             .iter()
@@ -89,7 +161,34 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             serde_json::json!({"path": path, "bytes": stats.bytes, "grids": grids_json, "ms": t.elapsed().as_secs_f64() * 1e3}),
         );
         if !args.json {
-            eprintln!("wrote {} ({} bytes, {} grids)", path.display(), stats.bytes, stats.grids.len());
+            eprintln!("wrote {} ({} bytes, {} grids, {frame})", path.display(), stats.bytes, stats.grids.len());
+        }
+    }
+    if let (Some(path), Some(vdb)) = (&args.usd, &vdb_path) {
+        let opts = UsdOptions {
+            vdb_asset: asset_path(path, vdb),
+            fields: fields.clone(),
+            frame,
+            width: baked.request.width,
+            height: baked.request.height,
+        };
+        write_usd(path, project, &opts)?;
+        summary.insert("usd".into(), serde_json::json!({"path": path, "vdb": opts.vdb_asset, "fields": fields.len(), "frame": frame.to_string()}));
+        if !args.json {
+            eprintln!("wrote {} (volume from {}, {} lights, {frame})", path.display(), opts.vdb_asset, project.lights.iter().filter(|l| !l.hidden).count());
+        }
+    }
+    if let Some(path) = &args.ktx2 {
+        let info = write_ktx2(path, &ev, args.ktx2_format)?;
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let snippet_path = path.with_extension("fogvolume.ron");
+        crate::export::write_text(&snippet_path, &fog_volume_snippet(&ev, &project.medium, &info, &name))?;
+        summary.insert(
+            "ktx2".into(),
+            serde_json::json!({"path": path, "bytes": info.bytes, "scale": info.scale, "snippet": snippet_path}),
+        );
+        if !args.json {
+            eprintln!("wrote {} ({} bytes, texel × {} = extinction 1/m) and {}", path.display(), info.bytes, info.scale, snippet_path.display());
         }
     }
     if let Some(path) = &args.exr_render {
@@ -111,7 +210,7 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     if let Some(path) = &args.exr_atlas {
-        let layout = write_atlas_exr(path, &ev)?;
+        let layout = write_atlas_exr_in_frame(path, &ev, &frame)?;
         summary.insert("exr_atlas".into(), serde_json::json!({"path": path, "layout": layout.to_string()}));
         if !args.json {
             eprintln!("wrote {}: {layout}", path.display());

@@ -26,9 +26,14 @@
 //! the slice is laid out as in the slices file (+y up). Unused tiles are 0. One channel `Y`,
 //! f32. Header attributes: `fogsmith/atlas_tiles` (v2i: tiles_x, tiles_y),
 //! `fogsmith/atlas_tile_size` (v2i: res.x, res.y), `fogsmith/atlas_slices` (int: res.z),
-//! `fogsmith/grid_min`, `fogsmith/grid_max`, `fogsmith/resolution`; the same as
-//! [`AtlasLayout`], which is returned for the CLI to print.
+//! `fogsmith/grid_min`, `fogsmith/grid_max`, `fogsmith/resolution` (in Fogsmith's frame); the
+//! same as [`AtlasLayout`], which is returned for the CLI to print. The export frame
+//! ([`super::frame`]) is recorded as `fogsmith/up_axis` (text "Y" or "Z"),
+//! `fogsmith/meters_per_unit` (double), `fogsmith/handedness` (text "right" or "left") and
+//! `fogsmith/index_to_world` (m44f, row vectors as in the VDB: `[i j k 1] · A` is the centre of
+//! cell (i, j, k) in the export frame).
 
+use super::frame::Frame;
 use super::{write_atomic, ExportError};
 use crate::scene::{GridSpec, Volume};
 use exr::prelude::*;
@@ -166,8 +171,13 @@ impl std::fmt::Display for AtlasLayout {
 }
 
 /// Writes the z-slices of `volume` tiled in a 2D atlas (see the module doc) and returns the
-/// layout, which is also stored in the header.
+/// layout, which is also stored in the header. The frame attributes name Fogsmith's own frame.
 pub fn write_atlas_exr(path: &Path, volume: &Volume) -> std::result::Result<AtlasLayout, ExportError> {
+    write_atlas_exr_in_frame(path, volume, &Frame::NATIVE)
+}
+
+/// [`write_atlas_exr`] with the frame attributes of `frame`.
+pub fn write_atlas_exr_in_frame(path: &Path, volume: &Volume, frame: &Frame) -> std::result::Result<AtlasLayout, ExportError> {
     let grid = volume.grid;
     if volume.data.len() as u64 != grid.cell_count() {
         return Err(ExportError::invalid(path, "the volume's data does not match its grid", "pass a complete volume"));
@@ -192,6 +202,12 @@ pub fn write_atlas_exr(path: &Path, volume: &Volume) -> std::result::Result<Atla
     o.insert(Text::new_or_panic("fogsmith/atlas_tiles"), AttributeValue::IntVec2(Vec2(layout.tiles_x as i32, layout.tiles_y as i32)));
     o.insert(Text::new_or_panic("fogsmith/atlas_tile_size"), AttributeValue::IntVec2(Vec2(layout.tile_width as i32, layout.tile_height as i32)));
     o.insert(Text::new_or_panic("fogsmith/atlas_slices"), AttributeValue::I32(layout.slices as i32));
+    o.insert(Text::new_or_panic("fogsmith/up_axis"), AttributeValue::Text(Text::new_or_panic(frame.up_name())));
+    o.insert(Text::new_or_panic("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()));
+    o.insert(Text::new_or_panic("fogsmith/handedness"), AttributeValue::Text(Text::new_or_panic(frame.handedness_name())));
+    let a = super::vdb::index_to_world_matrix(&grid, frame);
+    let m: [f32; 16] = std::array::from_fn(|n| a[n / 4][n % 4] as f32);
+    o.insert(Text::new_or_panic("fogsmith/index_to_world"), AttributeValue::Matrix4x4(m));
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     list.push(AnyChannel::new(Text::new_or_panic("Y"), FlatSamples::F32(samples)));
     let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));

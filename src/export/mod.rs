@@ -1,5 +1,8 @@
 //! Interchange: baked grids out as OpenVDB and OpenEXR, and a VDB density in as a base layer.
 //!
+//! - [`frame`]: the up axis, units and handedness of the tool a file is for (`--preset`).
+//! - [`usd`]: the whole scene as an OpenUSD stage whose volume points at the exported VDB.
+//! - [`ktx`]: the extinction as a KTX2 3D texture plus a Bevy `FogVolume` snippet.
 //! - [`vdb`]: a small OpenVDB writer (file format 224, as OpenVDB 10 writes it) for the
 //!   extinction grid (`density`) and one optical-depth grid per light (`optical_depth_<i>`,
 //!   optionally `transmittance_<i>`), sparse, float or half, uncompressed or zip.
@@ -17,6 +20,9 @@
 //! per-light optical depths read back by the pipeline) plus [`LightInfo`].
 
 pub mod exr;
+pub mod frame;
+pub mod ktx;
+pub mod usd;
 pub mod vdb;
 pub mod vdb_read;
 
@@ -33,6 +39,13 @@ pub struct LightInfo {
     pub intensity: f32,
     /// Linear RGB colour.
     pub color: [f32; 3],
+}
+
+impl LightInfo {
+    /// The light with its position carried into `frame` (see [`frame::Frame::point`]).
+    pub fn in_frame(&self, frame: &frame::Frame) -> LightInfo {
+        LightInfo { position: frame.point_f32(self.position), ..*self }
+    }
 }
 
 /// Why an export or an import failed. Every variant names the file, the problem and, where
@@ -91,6 +104,11 @@ pub(crate) fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), Export
         f.sync_all().map_err(err)?;
         Ok(())
     })
+}
+
+/// Writes a text file atomically.
+pub fn write_text(path: &Path, text: &str) -> Result<(), ExportError> {
+    write_bytes_atomic(path, text.as_bytes())
 }
 
 /// The project's `base_volume` resampled into its grid, or None when it has none. A relative

@@ -5,7 +5,8 @@
 //! One `FloatGrid` (tree type `Tree_float_5_4_3`, or `Tree_float_5_4_3_HalfFloat` when
 //! [`VdbOptions::half`] is set) per [`VdbGrid`]: usually `density` (the extinction EV, 1/m,
 //! grid class "fog volume") and per light `optical_depth_<i>` (T), optionally
-//! `transmittance_<i>` (exp(−T)); see [`grids_from_volumes`].
+//! `transmittance_<i>` (exp(−T)), both of class "unknown" since they are not densities; see
+//! [`grids_from_volumes`].
 //!
 //! # File layout (OpenVDB file format 224, what OpenVDB 10 writes; all little-endian)
 //!
@@ -51,18 +52,25 @@
 //!
 //! # Transform
 //!
-//! Index (i, j, k) is the project's cell (i, j, k) and maps to its centre `min + (i + ½)·h`.
-//! Cubic cells give a `UniformScaleTranslateMap` (scale h); cells whose sizes differ by more
-//! than one part in 10⁶ give a `ScaleTranslateMap` with a per-axis scale, which OpenVDB and
-//! Houdini read alike (some tools want uniform voxels; keep cells cubic for those).
+//! Index (i, j, k) is the project's cell (i, j, k) and maps to its centre `min + (i + ½)·h`,
+//! carried into the export frame ([`VdbOptions::frame`], see [`super::frame`]) as
+//! `scale · M · (min + (i + ½)·h)`. When M is the identity (a Y-up right-handed frame), cubic
+//! cells give a `UniformScaleTranslateMap` and cells whose sizes differ by more than one part
+//! in 10⁶ a `ScaleTranslateMap` with a per-axis scale, which OpenVDB and Houdini read alike
+//! (some tools want uniform voxels; keep cells cubic for those). Any other frame gives an
+//! `AffineMap` (a 4×4 row-vector matrix, translation in the last row) whose upper 3×3 is the
+//! signed axis permutation M times the cell sizes: the voxels are not resampled.
 //!
 //! # Metadata per grid
 //!
-//! `name`, `class` ("fog volume"), `creator` ("fogsmith"), `file_compression`,
+//! `name`, `class` ("fog volume" or "unknown"), `creator` ("fogsmith"), `file_compression`,
 //! `file_bbox_min`/`file_bbox_max`, `file_voxel_count`, `is_saved_as_half_float` (half only),
-//! and on a light's grids `light_index` (int32), `light_position` (vec3s, metres),
-//! `light_intensity` (float, W/sr), `light_color` (vec3s, linear RGB).
+//! the export frame as `up_axis` ("Y" or "Z"), `meters_per_unit` (double: 1 or 0.01) and
+//! `handedness` ("right" or "left"), and on a light's grids `light_index` (int32),
+//! `light_position` (vec3s, in the export frame), `light_intensity` (float, W/sr),
+//! `light_color` (vec3s, linear RGB). The file's own metadata holds `creator` and the frame.
 
+use super::frame::Frame;
 use super::{write_bytes_atomic, ExportError, LightInfo};
 use crate::scene::{GridSpec, Volume};
 use std::borrow::Cow;
@@ -102,11 +110,31 @@ pub struct VdbOptions {
     pub threshold: f32,
     /// Write fully active constant 8³ blocks as tiles. Default true.
     pub tiles: bool,
+    /// Axes and units of the grids' world space. Default Fogsmith's own (Y-up, metres).
+    pub frame: Frame,
 }
 
 impl Default for VdbOptions {
     fn default() -> Self {
-        Self { compression: VdbCompression::Zip, half: false, threshold: 0.0, tiles: true }
+        Self { compression: VdbCompression::Zip, half: false, threshold: 0.0, tiles: true, frame: Frame::NATIVE }
+    }
+}
+
+/// OpenVDB's grid class, which tells tools how to show a grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GridClass {
+    /// A density (extinction): Blender and Houdini render it as fog.
+    FogVolume,
+    /// Any other scalar field (optical depth, transmittance).
+    Unknown,
+}
+
+impl GridClass {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            GridClass::FogVolume => "fog volume",
+            GridClass::Unknown => "unknown",
+        }
     }
 }
 
@@ -115,6 +143,7 @@ impl Default for VdbOptions {
 pub enum MetaValue {
     String(String),
     Float(f32),
+    Double(f64),
     Int32(i32),
     Int64(i64),
     Bool(bool),
@@ -127,6 +156,7 @@ impl MetaValue {
         match self {
             MetaValue::String(_) => "string",
             MetaValue::Float(_) => "float",
+            MetaValue::Double(_) => "double",
             MetaValue::Int32(_) => "int32",
             MetaValue::Int64(_) => "int64",
             MetaValue::Bool(_) => "bool",
@@ -138,6 +168,7 @@ impl MetaValue {
         match self {
             MetaValue::String(s) => s.as_bytes().to_vec(),
             MetaValue::Float(v) => v.to_le_bytes().to_vec(),
+            MetaValue::Double(v) => v.to_le_bytes().to_vec(),
             MetaValue::Int32(v) => v.to_le_bytes().to_vec(),
             MetaValue::Int64(v) => v.to_le_bytes().to_vec(),
             MetaValue::Bool(v) => vec![*v as u8],
@@ -157,6 +188,7 @@ pub struct VdbGrid<'a> {
     pub values: Cow<'a, [f32]>,
     /// Value of inactive voxels and of everything outside the tree.
     pub background: f32,
+    pub class: GridClass,
     /// Extra metadata (light information...). `name`, `class`, `creator` and the `file_*`
     /// entries are added by the writer.
     pub metadata: Vec<(String, MetaValue)>,
@@ -165,7 +197,14 @@ pub struct VdbGrid<'a> {
 impl<'a> VdbGrid<'a> {
     /// A grid viewing `volume` with background 0.
     pub fn from_volume(name: impl Into<String>, volume: &'a Volume) -> Self {
-        Self { name: name.into(), spec: volume.grid, values: Cow::Borrowed(&volume.data), background: 0.0, metadata: Vec::new() }
+        Self {
+            name: name.into(),
+            spec: volume.grid,
+            values: Cow::Borrowed(&volume.data),
+            background: 0.0,
+            class: GridClass::FogVolume,
+            metadata: Vec::new(),
+        }
     }
 }
 
@@ -205,9 +244,10 @@ impl std::str::FromStr for GridSelection {
     }
 }
 
-/// The standard grid list: `density` from the EV, and per light `optical_depth_<i>` and
-/// (optionally) `transmittance_<i>` = exp(−T) with background 1, each light grid carrying
-/// the light's metadata.
+/// The standard grid list: `density` from the EV (class fog volume), and per light
+/// `optical_depth_<i>` and (optionally) `transmittance_<i>` = exp(−T) with background 1 (class
+/// unknown), each light grid carrying the light's metadata. Light positions are written as
+/// given: pass them through [`LightInfo::in_frame`] for an export frame.
 pub fn grids_from_volumes<'a>(
     ev: &'a Volume,
     lights: &'a [(&'a Volume, LightInfo)],
@@ -226,6 +266,7 @@ pub fn grids_from_volumes<'a>(
         ];
         if which.optical_depth {
             let mut g = VdbGrid::from_volume(format!("optical_depth_{i}"), opv);
+            g.class = GridClass::Unknown;
             g.metadata = meta.clone();
             out.push(g);
         }
@@ -236,6 +277,7 @@ pub fn grids_from_volumes<'a>(
                 spec: opv.grid,
                 values: Cow::Owned(values),
                 background: 1.0,
+                class: GridClass::Unknown,
                 metadata: meta,
             });
         }
@@ -331,9 +373,13 @@ fn encode_vdb_with_progress(
     put_u32(&mut out, 0);
     out.push(1); // grid offsets follow each descriptor
     out.extend_from_slice(make_uuid().as_bytes());
-    // File-level metadata.
-    put_u32(&mut out, 1);
+    // File-level metadata, sorted by name.
+    let frame_meta = frame_metadata(&opts.frame);
+    put_u32(&mut out, 1 + frame_meta.len() as u32);
     put_meta(&mut out, "creator", &MetaValue::String("fogsmith".into()));
+    for (k, v) in &frame_meta {
+        put_meta(&mut out, k, v);
+    }
     put_u32(&mut out, grids.len() as u32);
 
     let mut stats = VdbStats::default();
@@ -495,7 +541,10 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
         meta.insert(k.clone(), v.clone());
     }
     meta.insert("name".into(), MetaValue::String(g.name.clone()));
-    meta.insert("class".into(), MetaValue::String("fog volume".into()));
+    meta.insert("class".into(), MetaValue::String(g.class.as_str().into()));
+    for (k, v) in frame_metadata(&opts.frame) {
+        meta.insert(k.into(), v);
+    }
     meta.insert("creator".into(), MetaValue::String("fogsmith".into()));
     let compression_name = match opts.compression {
         VdbCompression::None => "active values",
@@ -515,16 +564,7 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
         put_meta(out, k, v);
     }
 
-    // Transform.
-    let (scale, translation) = transform_of(&g.spec);
-    let uniform = is_uniform(scale);
-    put_str(out, if uniform { "UniformScaleTranslateMap" } else { "ScaleTranslateMap" });
-    let inv = scale.map(|s| 1.0 / s);
-    for v in [translation, scale, scale, inv, inv.map(|i| i * i), inv.map(|i| 0.5 * i)] {
-        for c in v {
-            out.extend_from_slice(&c.to_le_bytes());
-        }
-    }
+    put_transform(out, &g.spec, &opts.frame);
 
     // Topology.
     let bg_stored = if half { half_round(g.background) } else { g.background };
@@ -584,6 +624,59 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
         out[offsets_at + 8 * k..offsets_at + 8 * k + 8].copy_from_slice(&(p as i64).to_le_bytes());
     }
     VdbGridStats { name: g.name.clone(), active_voxels: tree.active, leaves: tree.leaves, tiles: tree.tiles, bytes: 0 }
+}
+
+/// The up axis, units and handedness as metadata entries, sorted by name.
+fn frame_metadata(frame: &Frame) -> Vec<(&'static str, MetaValue)> {
+    vec![
+        ("handedness", MetaValue::String(frame.handedness_name().into())),
+        ("meters_per_unit", MetaValue::Double(frame.meters_per_unit())),
+        ("up_axis", MetaValue::String(frame.up_name().into())),
+    ]
+}
+
+/// The index-to-world map of `spec` in `frame` as a 4×4 row-vector matrix (OpenVDB's
+/// convention: `world = [i j k 1] · A`; row a < 3 is the world step of index axis a, row 3
+/// the world position of voxel 0's centre).
+pub fn index_to_world_matrix(spec: &GridSpec, frame: &Frame) -> [[f64; 4]; 4] {
+    let (h, t) = transform_of(spec);
+    let m = frame.matrix();
+    let s = frame.scale();
+    let mut a = [[0.0; 4]; 4];
+    for (ia, row) in a.iter_mut().take(3).enumerate() {
+        for b in 0..3 {
+            row[b] = s * m[b][ia] * h[ia];
+        }
+    }
+    a[3] = {
+        let p = frame.point(t);
+        [p[0], p[1], p[2], 1.0]
+    };
+    a
+}
+
+fn put_transform(out: &mut Vec<u8>, spec: &GridSpec, frame: &Frame) {
+    let put = |out: &mut Vec<u8>, v: f64| out.extend_from_slice(&v.to_le_bytes());
+    if frame.keeps_axes() {
+        let (h, t) = transform_of(spec);
+        let s = frame.scale();
+        let (scale, translation) = (h.map(|c| c * s), t.map(|c| c * s));
+        let uniform = is_uniform(scale);
+        put_str(out, if uniform { "UniformScaleTranslateMap" } else { "ScaleTranslateMap" });
+        let inv = scale.map(|s| 1.0 / s);
+        for v in [translation, scale, scale, inv, inv.map(|i| i * i), inv.map(|i| 0.5 * i)] {
+            for c in v {
+                put(out, c);
+            }
+        }
+    } else {
+        put_str(out, "AffineMap");
+        for row in index_to_world_matrix(spec, frame) {
+            for c in row {
+                put(out, c);
+            }
+        }
+    }
 }
 
 /// World-space scale (cell size) and translation (centre of cell 0) of a project grid.

@@ -29,10 +29,14 @@
 //! File format versions 222 to 224 (OpenVDB 3.0 and later; OpenVDB 10 writes 224), grids of type `Tree_float_5_4_3`
 //! (float) and `Tree_float_5_4_3_HalfFloat`; value blocks uncompressed, zip, or blosc with the
 //! LZ4 or zlib codec and byte shuffle (what OpenVDB writes). Transforms: uniform scale, scale,
-//! translation, scale+translate and axis-aligned affine maps. Everything else — other value
-//! types (Vec3s, double...), instanced grids, rotated/sheared (non-axis-aligned) affine maps,
+//! translation, scale+translate and affine maps that permute and mirror the axes (every map
+//! [`super::vdb`] writes, whatever the export frame). Everything else — other value
+//! types (Vec3s, double...), instanced grids, rotated/sheared (not axis-permuting) affine maps,
 //! frustum maps, bitshuffle, other blosc codecs — is refused with an error that names the file,
 //! the grid and the problem. See [`super::vdb`] for the file layout.
+//!
+//! A grid whose metadata names an export frame (`up_axis`, `meters_per_unit`, `handedness`, as
+//! Fogsmith writes them) is imported back into Fogsmith's own frame; see [`VdbFloatGrid::frame`].
 //!
 //! # Safety
 //!
@@ -41,6 +45,7 @@
 //! have a fixed expected size (at most 32768 values) and a grid may hold at most
 //! [`MAX_LEAVES`] leaves and [`MAX_TILES`] tiles. Nothing here panics on any input.
 
+use super::frame::Frame;
 use super::vdb::{COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP, VDB_MAGIC};
 use super::ExportError;
 use crate::scene::{GridSpec, Volume};
@@ -67,20 +72,31 @@ pub struct VdbGridInfo {
     pub importable: bool,
 }
 
-/// An axis-aligned index→world map: `world = index · scale + translation`; voxel centres are
-/// at integer indices.
+/// An axis-permuting index→world map: index axis a moves along world axis `axis[a]` by
+/// `scale[a]` (signed) per voxel, so `world[axis[a]] = index[a] · scale[a] +
+/// translation[axis[a]]`; voxel centres are at integer indices. `axis` is a permutation of
+/// (0, 1, 2); for a plain scale-and-translate map it is the identity.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VdbTransform {
+    pub axis: [usize; 3],
     pub scale: [f64; 3],
     pub translation: [f64; 3],
 }
 
 impl VdbTransform {
+    /// A map without permutation: `world = index · scale + translation`.
+    pub fn axis_aligned(scale: [f64; 3], translation: [f64; 3]) -> Self {
+        Self { axis: [0, 1, 2], scale, translation }
+    }
     pub fn index_to_world(&self, ijk: [f64; 3]) -> [f64; 3] {
-        [0, 1, 2].map(|a| ijk[a] * self.scale[a] + self.translation[a])
+        let mut w = self.translation;
+        for a in 0..3 {
+            w[self.axis[a]] += ijk[a] * self.scale[a];
+        }
+        w
     }
     pub fn world_to_index(&self, xyz: [f64; 3]) -> [f64; 3] {
-        [0, 1, 2].map(|a| (xyz[a] - self.translation[a]) / self.scale[a])
+        [0, 1, 2].map(|a| (xyz[self.axis[a]] - self.translation[self.axis[a]]) / self.scale[a])
     }
 }
 
@@ -101,6 +117,10 @@ pub struct VdbFloatGrid {
     pub half: bool,
     /// The grid's metadata as (name, type name, raw bytes).
     pub metadata: Vec<(String, String, Vec<u8>)>,
+    /// The export frame the grid's metadata names (`up_axis`, `meters_per_unit`,
+    /// `handedness`); Fogsmith's own frame when it names none. [`resample_into`] carries
+    /// project positions into this frame before it looks them up.
+    pub frame: Frame,
     leaves: HashMap<[i32; 3], Leaf>,
     /// Tiles that differ from the background or are active: (level, origin) → (value, active).
     /// Level 1 covers 8³ voxels, 2 covers 128³, 3 covers 4096³ (a root tile).
@@ -185,7 +205,8 @@ fn leaf_offset(p: [i32; 3]) -> usize {
 
 /// Resamples `vdb` into a project grid: the value at each cell centre, times `scale`.
 ///
-/// Cell centres are mapped to the VDB's index space; where a centre falls on a voxel centre
+/// Cell centres are carried into the grid's export frame ([`VdbFloatGrid::frame`]) and mapped
+/// to the VDB's index space; where a centre falls on a voxel centre
 /// (within 10⁻⁴ voxel on every axis) that voxel's value is taken exactly, elsewhere values are
 /// interpolated trilinearly between the 8 surrounding voxel centres (OpenVDB's `BoxSampler`).
 /// Outside the tree the background is used. Returns dense values, x fastest.
@@ -198,7 +219,7 @@ pub fn resample_into(grid: &GridSpec, vdb: &VdbFloatGrid, scale: f32) -> Vec<f32
         for j in 0..r.y {
             for i in 0..r.x {
                 let w = [0, 1, 2].map(|a| min[a] + ([i, j, k][a] as f64 + 0.5) * h[a]);
-                let p = vdb.transform.world_to_index(w);
+                let p = vdb.transform.world_to_index(vdb.frame.point(w));
                 out.push(sample(vdb, p) * scale);
             }
         }
@@ -501,7 +522,7 @@ fn read_transform(cur: &mut Cursor) -> Result<VdbTransform, ExportError> {
             for _ in 0..4 {
                 cur.vec3d("the map's derived values")?;
             }
-            VdbTransform { scale, translation: [0.0; 3] }
+            VdbTransform::axis_aligned(scale, [0.0; 3])
         }
         "UniformScaleTranslateMap" | "ScaleTranslateMap" => {
             let translation = cur.vec3d("the map's translation")?;
@@ -509,9 +530,9 @@ fn read_transform(cur: &mut Cursor) -> Result<VdbTransform, ExportError> {
             for _ in 0..4 {
                 cur.vec3d("the map's derived values")?;
             }
-            VdbTransform { scale, translation }
+            VdbTransform::axis_aligned(scale, translation)
         }
-        "TranslationMap" => VdbTransform { scale: [1.0; 3], translation: cur.vec3d("the map's translation")? },
+        "TranslationMap" => VdbTransform::axis_aligned([1.0; 3], cur.vec3d("the map's translation")?),
         "AffineMap" | "UnitaryMap" => {
             // A 4×4 matrix of doubles, row vectors: world = [i j k 1] · M.
             let mut m = [[0.0f64; 4]; 4];
@@ -520,12 +541,25 @@ fn read_transform(cur: &mut Cursor) -> Result<VdbTransform, ExportError> {
                     *c = cur.f64("the affine matrix")?;
                 }
             }
-            let off_diagonal = [m[0][1], m[0][2], m[1][0], m[1][2], m[2][0], m[2][1]];
-            let size = [m[0][0].abs(), m[1][1].abs(), m[2][2].abs()].into_iter().fold(0.0, f64::max);
-            if off_diagonal.iter().any(|v| v.abs() > 1e-9 * size) || m[0][3] != 0.0 || m[1][3] != 0.0 || m[2][3] != 0.0 {
-                return Err(unsupported(format!("its {map} rotates or shears the voxels (not axis-aligned), which cannot be imported exactly")));
+            // Each index axis (row) must move along exactly one world axis, each world axis
+            // taken once: a scale times a signed permutation.
+            let size = m[..3].iter().flat_map(|r| r[..3].iter()).fold(0.0f64, |a, v| a.max(v.abs()));
+            let mut axis = [usize::MAX; 3];
+            let mut scale = [0.0; 3];
+            for a in 0..3 {
+                let big: Vec<usize> = (0..3).filter(|&b| m[a][b].abs() > 1e-9 * size).collect();
+                if big.len() != 1 || axis[..a].contains(&big[0]) {
+                    return Err(unsupported(format!(
+                        "its {map} rotates or shears the voxels (not axis-aligned, nor an axis permutation), which cannot be imported exactly"
+                    )));
+                }
+                axis[a] = big[0];
+                scale[a] = m[a][big[0]];
             }
-            VdbTransform { scale: [m[0][0], m[1][1], m[2][2]], translation: [m[3][0], m[3][1], m[3][2]] }
+            if m[0][3] != 0.0 || m[1][3] != 0.0 || m[2][3] != 0.0 {
+                return Err(unsupported(format!("its {map} is a projective map, which cannot be imported")));
+            }
+            VdbTransform { axis, scale, translation: [m[3][0], m[3][1], m[3][2]] }
         }
         "NonlinearFrustumMap" => {
             return Err(unsupported("it uses a frustum (camera-shaped) transform, which cannot be imported".into()));
@@ -594,7 +628,19 @@ fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Result<VdbFloat
         boxed.copy_from_slice(&values);
         leaves.insert(origin, Leaf { mask, values: boxed });
     }
-    Ok(VdbFloatGrid { name: desc.name.clone(), background, transform, half, metadata, leaves, tiles })
+    let frame = frame_of(&metadata);
+    Ok(VdbFloatGrid { name: desc.name.clone(), background, transform, half, metadata, frame, leaves, tiles })
+}
+
+/// The export frame named by `up_axis`, `meters_per_unit` and `handedness`, or Fogsmith's own.
+fn frame_of(metadata: &[(String, String, Vec<u8>)]) -> Frame {
+    let get = |name: &str, ty: &str| metadata.iter().find(|(n, t, _)| n == name && t == ty).map(|(_, _, v)| v.as_slice());
+    let text = |name| get(name, "string").map(|v| String::from_utf8_lossy(v).into_owned());
+    let mpu = get("meters_per_unit", "double").and_then(|v| <[u8; 8]>::try_from(v).ok()).map(f64::from_le_bytes);
+    match (text("up_axis"), mpu, text("handedness")) {
+        (Some(up), Some(mpu), Some(hand)) => Frame::from_names(&up, mpu, &hand).unwrap_or(Frame::NATIVE),
+        _ => Frame::NATIVE,
+    }
 }
 
 struct Ctx {
@@ -942,9 +988,10 @@ mod tests {
         let mut g = VdbFloatGrid {
             name: "t".into(),
             background: 0.0,
-            transform: VdbTransform { scale: [0.5; 3], translation: [0.0; 3] },
+            transform: VdbTransform::axis_aligned([0.5; 3], [0.0; 3]),
             half: false,
             metadata: Vec::new(),
+            frame: Frame::NATIVE,
             leaves: HashMap::new(),
             tiles: HashMap::new(),
         };

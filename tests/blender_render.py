@@ -1,0 +1,100 @@
+"""Renders a Fogsmith USD stage with Blender 4.5's Cycles on the CPU, single scattering only.
+
+Usage: .venv/bin/python tests/blender_render.py STAGE.usda OUT.f32 WIDTH HEIGHT SAMPLES SEED
+The stage is imported as it is; the volume gets a Principled Volume reading the `density` grid
+(density 1: extinction in 1/m at object scale 1, colour = the stage's fogsmith:albedo,
+anisotropy = fogsmith:anisotropy); lights lose their soft falloff (an exact inverse square);
+the world is black; volume bounces 0 (single scattering); the imported camera renders.
+Cycles (4.5) samples a VDB grid's voxel i at index position i + ½ rather than at i, OpenVDB's
+voxel centre, which Fogsmith's files follow: the volume object is moved back by half a voxel
+along each index axis so that both renderers see the same fog (without it, the fog shows
+about half a voxel off, which the comparison in tests/blender_render.rs would catch).
+Writes the linear RGB radiance as float32, rows top to bottom, and prints a JSON line.
+"""
+import json
+import sys
+import time
+
+import bpy
+import numpy as np
+
+stage, out, width, height, samples, seed = sys.argv[1], sys.argv[2], *map(int, sys.argv[3:7])
+
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.wm.usd_import(filepath=stage)
+scene = bpy.context.scene
+
+vols = [o for o in scene.objects if o.type == "VOLUME"]
+assert len(vols) == 1, f"expected one volume, found {[o.name for o in vols]}"
+vol = vols[0]
+# Custom attributes of the Volume prim, which the importer does not map to a material.
+from pxr import Usd  # noqa: E402  (bpy ships its own USD; usd-core is in the same venv)
+
+usd_stage = Usd.Stage.Open(stage)
+prim = usd_stage.GetPrimAtPath("/World/Fog")
+albedo = prim.GetAttribute("fogsmith:albedo").Get()
+anisotropy = prim.GetAttribute("fogsmith:anisotropy").Get()
+
+mat = bpy.data.materials.new("FogsmithFog")
+mat.use_nodes = True
+nodes = mat.node_tree.nodes
+nodes.clear()
+pv = nodes.new("ShaderNodeVolumePrincipled")
+pv.inputs["Density"].default_value = 1.0
+pv.inputs["Density Attribute"].default_value = "density"
+pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+pv.inputs["Anisotropy"].default_value = anisotropy
+outn = nodes.new("ShaderNodeOutputMaterial")
+mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
+vol.data.materials.clear()
+vol.data.materials.append(mat)
+
+vol.data.grids.load()
+m = vol.data.grids["density"].matrix_object
+half_voxel = [0.5 * (m[r][0] + m[r][1] + m[r][2]) for r in range(3)]
+vol.location = [vol.location[r] - half_voxel[r] for r in range(3)]
+
+for o in scene.objects:
+    if o.type == "LIGHT":
+        o.data.use_soft_falloff = False
+cams = [o for o in scene.objects if o.type == "CAMERA"]
+scene.camera = cams[0]
+
+world = bpy.data.worlds.new("Black")
+world.use_nodes = True
+world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+scene.world = world
+
+scene.render.engine = "CYCLES"
+c = scene.cycles
+c.device = "CPU"
+c.samples = samples
+c.seed = seed
+c.use_denoising = False
+c.use_adaptive_sampling = False
+c.max_bounces = 1
+c.volume_bounces = 0
+c.diffuse_bounces = 0
+c.glossy_bounces = 0
+c.transmission_bounces = 0
+c.transparent_max_bounces = 8
+c.sample_clamp_direct = 0.0
+c.sample_clamp_indirect = 0.0
+c.pixel_filter_type = "BOX"
+c.filter_width = 1.0
+scene.render.resolution_x = width
+scene.render.resolution_y = height
+scene.render.resolution_percentage = 100
+scene.render.film_transparent = False
+scene.view_settings.view_transform = "Standard"
+scene.render.image_settings.file_format = "OPEN_EXR"
+scene.render.image_settings.color_depth = "32"
+scene.render.filepath = out + ".exr"
+
+t = time.time()
+bpy.ops.render.render(write_still=True)
+seconds = time.time() - t
+img = bpy.data.images.load(out + ".exr")
+px = np.array(img.pixels[:], dtype=np.float32).reshape(height, width, 4)[::-1, :, :3]
+np.ascontiguousarray(px).tofile(out)
+print(json.dumps({"seconds": seconds, "mean": float(px.mean()), "albedo": albedo, "anisotropy": anisotropy}))
