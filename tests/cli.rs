@@ -96,3 +96,52 @@ fn errors_are_clear_and_exit_nonzero() {
         assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
     }
 }
+
+/// Ctrl+C during an export stops it at the next work item: exit status 130 and a one-line
+/// message, the existing output untouched, no temporary file left; without a terminal no
+/// progress bar is drawn, so `--json` output is exactly the summary.
+#[test]
+fn ctrl_c_cancels_an_export_and_leaves_existing_files_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut p = fogsmith::scene::load_project(&demo("cloud.ron")).unwrap();
+    // Large and slow enough (the iterated scheme) to be mid-bake when the signal arrives.
+    p.grid.resolution = glam::UVec3::splat(160);
+    p.propagation.scheme = fogsmith::scene::Scheme::Giroud;
+    let project = dir.path().join("big.ron");
+    fogsmith::scene::save_project(&project, &p).unwrap();
+    let vdb = dir.path().join("out.vdb");
+    std::fs::write(&vdb, b"the previous export").unwrap();
+    let child = fogsmith()
+        .args(["export", project.to_str().unwrap(), "--vdb", vdb.to_str().unwrap(), "--json"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "stderr: {stderr}");
+    assert_eq!(stderr.trim().lines().last(), Some("fogsmith: cancelled by Ctrl+C; no output file was changed"), "{stderr}");
+    assert!(out.stdout.is_empty(), "no JSON for a cancelled export");
+    assert_eq!(std::fs::read(&vdb).unwrap(), b"the previous export");
+    let left: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(left.len(), 2, "only the project and the old output remain: {left:?}");
+}
+
+#[test]
+fn export_json_is_the_summary_alone_and_no_temporary_remains() {
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = dir.path().join("room.vdb");
+    let out = fogsmith()
+        .args(["export", demo("cornell.ron").to_str().unwrap(), "--vdb", vdb.to_str().unwrap(), "--width", "32", "--height", "18", "--json"])
+        .output()
+        .unwrap();
+    let v = json_of(&out);
+    assert!(v.get("vdb").is_some(), "{v}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains('%') && !stderr.contains("wrote"), "no bar or note with --json and no terminal: {stderr}");
+    let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(names, vec!["room.vdb".to_string()]);
+}

@@ -5,7 +5,8 @@ use crate::export::exr::{write_atlas_exr_in_frame, write_render_exr, write_slice
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use crate::export::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format};
 use crate::export::usd::{asset_path, write_usd, UsdField, UsdOptions};
-use crate::export::vdb::{grids_from_volumes, write_vdb, GridSelection, VdbCompression, VdbOptions};
+use super::progress::{check, Bar, Staged};
+use crate::export::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions};
 use crate::export::light_infos;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -127,6 +128,10 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
     let baked = bake(&args.bake)?;
     let project = &baked.project;
+    // Every file goes beside its target first and replaces it only once all are written.
+    let mut staged = Staged::default();
+    let mut bar = Bar::new(args.bake.quiet);
+    let mut notes = Vec::new();
     let ev = baked.pipeline.read_ev()?;
     let opvs = (0..project.lights.len()).map(|l| baked.pipeline.read_opv(l)).collect::<Result<Vec<_>, _>>()?;
     let infos = light_infos(project);
@@ -149,7 +154,8 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             frame,
             ..VdbOptions::default()
         };
-        let stats = write_vdb(path, &grids, &opts)?;
+        check()?;
+        let stats = staged.write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| bar.stage("write VDB", f as f64)))?;
         fields = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
         let grids_json: Vec<_> = stats
             .grids
@@ -161,7 +167,7 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             serde_json::json!({"path": path, "bytes": stats.bytes, "grids": grids_json, "ms": t.elapsed().as_secs_f64() * 1e3}),
         );
         if !args.json {
-            eprintln!("wrote {} ({} bytes, {} grids, {frame})", path.display(), stats.bytes, stats.grids.len());
+            notes.push(format!("wrote {} ({} bytes, {} grids, {frame})", path.display(), stats.bytes, stats.grids.len()));
         }
     }
     if let (Some(path), Some(vdb)) = (&args.usd, &vdb_path) {
@@ -172,49 +178,60 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             width: baked.request.width,
             height: baked.request.height,
         };
-        write_usd(path, project, &opts)?;
+        check()?;
+        staged.write(path, |p| write_usd(p, project, &opts))?;
         summary.insert("usd".into(), serde_json::json!({"path": path, "vdb": opts.vdb_asset, "fields": fields.len(), "frame": frame.to_string()}));
         if !args.json {
-            eprintln!("wrote {} (volume from {}, {} lights, {frame})", path.display(), opts.vdb_asset, project.lights.iter().filter(|l| !l.hidden).count());
+            notes.push(format!("wrote {} (volume from {}, {} lights, {frame})", path.display(), opts.vdb_asset, project.lights.iter().filter(|l| !l.hidden).count()));
         }
     }
     if let Some(path) = &args.ktx2 {
-        let info = write_ktx2(path, &ev, args.ktx2_format)?;
+        check()?;
+        let info = staged.write(path, |p| write_ktx2(p, &ev, args.ktx2_format))?;
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let snippet_path = path.with_extension("fogvolume.ron");
-        crate::export::write_text(&snippet_path, &fog_volume_snippet(&ev, &project.medium, &info, &name))?;
+        staged.write(&snippet_path, |p| crate::export::write_text(p, &fog_volume_snippet(&ev, &project.medium, &info, &name)))?;
         summary.insert(
             "ktx2".into(),
             serde_json::json!({"path": path, "bytes": info.bytes, "scale": info.scale, "snippet": snippet_path}),
         );
         if !args.json {
-            eprintln!("wrote {} ({} bytes, texel × {} = extinction 1/m) and {}", path.display(), info.bytes, info.scale, snippet_path.display());
+            notes.push(format!("wrote {} ({} bytes, texel × {} = extinction 1/m) and {}", path.display(), info.bytes, info.scale, snippet_path.display()));
         }
     }
     if let Some(path) = &args.exr_render {
         let image = baked.pipeline.read_image()?;
-        write_render_exr(path, image.width as usize, image.height as usize, &image.rgba, args.exr_half)?;
+        check()?;
+        staged.write(path, |p| write_render_exr(p, image.width as usize, image.height as usize, &image.rgba, args.exr_half))?;
         summary.insert("exr_render".into(), serde_json::json!({"path": path, "width": image.width, "height": image.height}));
         if !args.json {
-            eprintln!("wrote {} ({}×{} linear RGBA)", path.display(), image.width, image.height);
+            notes.push(format!("wrote {} ({}×{} linear RGBA)", path.display(), image.width, image.height));
         }
     }
     if let Some(path) = &args.exr_slices {
         let names: Vec<String> = (0..opvs.len()).map(|l| format!("optical_depth_{l}")).collect();
         let mut layers: Vec<(&str, &crate::scene::Volume)> = vec![("density", &ev)];
         layers.extend(names.iter().map(String::as_str).zip(opvs.iter()));
-        write_slices_exr(path, &layers)?;
+        check()?;
+        staged.write(path, |p| write_slices_exr(p, &layers))?;
         summary.insert("exr_slices".into(), serde_json::json!({"path": path, "quantities": layers.len()}));
         if !args.json {
-            eprintln!("wrote {} ({} quantities × {} z-slices)", path.display(), layers.len(), project.grid.resolution.z);
+            notes.push(format!("wrote {} ({} quantities × {} z-slices)", path.display(), layers.len(), project.grid.resolution.z));
         }
     }
     if let Some(path) = &args.exr_atlas {
-        let layout = write_atlas_exr_in_frame(path, &ev, &frame)?;
+        check()?;
+        let layout = staged.write(path, |p| write_atlas_exr_in_frame(p, &ev, &frame))?;
         summary.insert("exr_atlas".into(), serde_json::json!({"path": path, "layout": layout.to_string()}));
         if !args.json {
-            eprintln!("wrote {}: {layout}", path.display());
+            notes.push(format!("wrote {}: {layout}", path.display()));
         }
+    }
+    check()?;
+    bar.finish();
+    staged.commit()?;
+    for note in notes {
+        eprintln!("{note}");
     }
     if args.json {
         println!("{}", serde_json::Value::Object(summary));

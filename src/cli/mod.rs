@@ -10,6 +10,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 mod export;
+pub mod progress;
 mod stress;
 mod verify;
 
@@ -68,6 +69,9 @@ enum Command {
         /// Print one JSON object on stdout.
         #[arg(long)]
         json: bool,
+        /// No progress bar on stderr (bars appear only when stderr is a terminal).
+        #[arg(long)]
+        quiet: bool,
     },
     /// Run the numerical stress matrix (extreme densities, radii, particle counts, light and
     /// camera placements, grid sizes) and check every result for NaN, range and accuracy.
@@ -78,6 +82,9 @@ enum Command {
         /// Print the results as a JSON list on stdout.
         #[arg(long)]
         json: bool,
+        /// No progress bar on stderr (bars appear only when stderr is a terminal).
+        #[arg(long)]
+        quiet: bool,
     },
     /// Measure run time against error for every scheme, step policy and table layout, and
     /// how update time scales; writes bench.csv, bench.json and PNG plots.
@@ -94,6 +101,9 @@ enum Command {
         /// Print the records as JSON on stdout (progress lines go to stderr).
         #[arg(long)]
         json: bool,
+        /// No progress bar on stderr (bars appear only when stderr is a terminal).
+        #[arg(long)]
+        quiet: bool,
     },
     /// Print the GPU adapter Fogsmith would use and its limits.
     Info {
@@ -116,6 +126,9 @@ pub struct BakeArgs {
     /// Propagation scheme (default: the project's propagation.scheme).
     #[arg(long)]
     pub scheme: Option<Scheme>,
+    /// No progress bar on stderr (bars appear only when stderr is a terminal).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// A project baked and rendered on the GPU.
@@ -146,7 +159,12 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     pipeline.check_limits(&project, request.width, request.height)?;
     let layer = load_base_layer(&project, Some(&args.project))?;
     pipeline.set_base_layer(layer);
-    let report = pipeline.update(&project, &request)?;
+    let mut bar = progress::Bar::new(args.quiet);
+    let report = match pipeline.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
+        Err(crate::gpu::GpuError::Cancelled) => return Err(progress::Cancelled.into()),
+        other => other?,
+    };
+    bar.finish();
     Ok(Baked { project, pipeline, report, request, adapter })
 }
 
@@ -175,6 +193,10 @@ fn user_tag() -> String {
 /// Runs the CLI with `args` (including the program name).
 pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
     let cli = Cli::parse_from(args);
+    // The commands that bake stop cleanly at the next work item; the others end at once.
+    if matches!(cli.command, Some(Command::Render { .. } | Command::Export(_) | Command::Verify { .. })) {
+        progress::catch_interrupt();
+    }
     match cli.command {
         None => {
             let scripted = cli.screenshot.is_some() || cli.measure_fps.is_some();
@@ -188,21 +210,28 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
         Some(Command::Info { json }) => info(json),
-        Some(Command::Verify { project, scheme, width, cells, json }) => verify::run(&project, scheme, width, cells, json),
+        Some(Command::Verify { project, scheme, width, cells, json, quiet }) => verify::run(&project, scheme, width, cells, json, quiet),
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
-        Some(Command::Stress { quick, json }) => stress::run(quick, json),
-        Some(Command::Bench { quick, out, suite, json }) => {
+        Some(Command::Stress { quick, json, quiet }) => stress::run(quick, json, quiet),
+        Some(Command::Bench { quick, out, suite, json, quiet }) => {
             use crate::bench::Suite;
             let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };
             let started = std::time::Instant::now();
+            let mut bar = progress::Bar::new(quiet);
+            let mut lines = 0usize;
             let records = crate::bench::run(&crate::bench::BenchOptions { quick, out: out.clone(), suites }, &mut |line| {
-                if json {
+                // The suites do not know their length ahead: the bar counts measurements.
+                lines += 1;
+                let name = line.split_whitespace().next().unwrap_or("bench").to_string();
+                bar.stage(&format!("bench {name}"), 1.0 - 1.0 / (1.0 + lines as f64 / 20.0));
+                bar.suspend(|| if json {
                     eprintln!("{line}")
                 } else {
                     println!("{line}")
-                }
+                });
             })?;
+            bar.finish();
             if json {
                 println!("{}", serde_json::to_string_pretty(&records)?);
                 return Ok(());

@@ -3,7 +3,7 @@
 use crate::gpu::{FogPipeline, GpuContext};
 use crate::stress::{matrix, random_case, run_matrix, StressResult};
 
-pub fn run(quick: bool, json: bool) -> Result<(), Box<dyn std::error::Error>> {
+pub fn run(quick: bool, json: bool, quiet: bool) -> Result<(), Box<dyn std::error::Error>> {
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let max_3d = ctx.limits.max_texture_dimension_3d;
@@ -15,11 +15,16 @@ pub fn run(quick: bool, json: bool) -> Result<(), Box<dyn std::error::Error>> {
         println!("stress matrix ({} cases{}) on {adapter}", cases.len(), if quick { ", quick" } else { "" });
         println!("{:<48} {:<7} {:>10} {:>8} {:>6} {:>10}  result", "case", "scheme", "max error", "bound", "NaN", "time ms");
     }
+    let mut bar = super::progress::Bar::new(quiet);
+    let mut done = 0;
     let results = run_matrix(&mut gpu, &cases, |r| {
+        done += 1;
+        bar.stage("stress cases", done as f64 / cases.len().max(1) as f64);
         if !json {
-            println!("{}", row(r));
+            bar.suspend(|| println!("{}", row(r)));
         }
     });
+    bar.finish();
     let failed: Vec<&StressResult> = results.iter().filter(|r| !r.passed).collect();
     if json {
         println!("{}", serde_json::to_string_pretty(&results)?);

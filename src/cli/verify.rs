@@ -7,7 +7,7 @@ use crate::scene::{load_project, Scheme};
 use std::path::Path;
 use std::time::Instant;
 
-pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, json: bool) -> Result<(), Box<dyn std::error::Error>> {
+pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, json: bool, quiet: bool) -> Result<(), Box<dyn std::error::Error>> {
     let project = load_project(path)?;
     if width == 0 || width > 4096 {
         return Err(format!("--width must be within 1..=4096, got {width}").into());
@@ -20,7 +20,12 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let mut gpu = FogPipeline::new(ctx);
-    let report = gpu.update(&project, &request)?;
+    let mut bar = super::progress::Bar::new(quiet);
+    let report = match gpu.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
+        Err(crate::gpu::GpuError::Cancelled) => return Err(super::progress::Cancelled.into()),
+        other => other?,
+    };
+    bar.stage("exact reference", 0.0);
 
     let started = Instant::now();
     let cells = sample_cells(&project.grid, max_cells.max(8));
@@ -35,6 +40,8 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let img_err = image_error(&image, &reference);
     let reference_ms = started.elapsed().as_secs_f64() * 1e3;
     let sampled = (cells.len() as u64) < project.grid.cell_count();
+    bar.finish();
+    super::progress::check()?;
 
     if json {
         let v = serde_json::json!({

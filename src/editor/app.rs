@@ -1364,6 +1364,13 @@ impl EditorState {
                 ui.label(job.as_str());
                 ui.separator();
             }
+            if let Some(gpu) = self.gpu.as_ref().filter(|g| g.refining()) {
+                let p = gpu.progress;
+                let stage = crate::cli::progress::stage_name(p.stage);
+                ui.add(egui::ProgressBar::new(p.stage_fraction as f32).desired_width(120.0).text(format!("preview: {stage}")))
+                    .on_hover_text("The preview refines over the next frames: optical depths, then full resolution");
+                ui.separator();
+            }
             let p = self.session.project();
             ui.label(format!(
                 "{} particles · {} lights · {} selected · tool: {}",

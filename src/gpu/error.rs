@@ -18,4 +18,6 @@ pub enum GpuError {
     Validation { stage: &'static str, message: String },
     #[error("invalid request: {0}")]
     Invalid(String),
+    #[error("cancelled")]
+    Cancelled,
 }

@@ -431,16 +431,66 @@ impl FogPipeline {
         Ok(progress.report)
     }
 
+    /// Like [`update`](Self::update), in slices of at most `slice` between which
+    /// `on_progress` sees how far the work is and may stop it (return false): the update then
+    /// ends with [`GpuError::Cancelled`] at the next work item.
+    pub fn update_with(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        slice: Duration,
+        on_progress: &mut dyn FnMut(&Progress) -> bool,
+    ) -> Result<FrameReport, GpuError> {
+        let mut total: Option<FrameReport> = None;
+        loop {
+            let progress = self.run(project, request, Some(slice), false)?;
+            let r = progress.report;
+            match &mut total {
+                None => total = Some(r),
+                Some(t) => {
+                    // Lights skipped and culled are judged by the first slice; the rest adds up.
+                    t.timings_ms.inject += r.timings_ms.inject;
+                    t.timings_ms.propagate += r.timings_ms.propagate;
+                    t.timings_ms.march += r.timings_ms.march;
+                    let (c, d) = (&mut t.counters, r.counters);
+                    c.dispatches += d.dispatches;
+                    c.cells_injected += d.cells_injected;
+                    c.particle_evaluations += d.particle_evaluations;
+                    c.cells_propagated += d.cells_propagated;
+                    c.lights_propagated += d.lights_propagated;
+                    c.propagation_iterations = c.propagation_iterations.max(d.propagation_iterations);
+                    c.samples_marched += d.samples_marched;
+                    c.bricks_skipped += d.bricks_skipped;
+                    c.rays_terminated += d.rays_terminated;
+                }
+            }
+            if progress.converged() {
+                // A quick preview may have been shown on the way; the result is the full frame.
+                let report = total.unwrap_or_default();
+                self.last_report = report;
+                return Ok(report);
+            }
+            if !on_progress(&progress) {
+                return Err(GpuError::Cancelled);
+            }
+        }
+    }
+
     /// Runs work items for `project` until `budget` is spent (None: until converged) and
     /// says what is on show and what is left. Call it again, with the same or a newer
     /// project, to continue: work whose inputs changed is dropped and replanned. At least
     /// one item runs per call, and one item is never planned larger than the budget left
     /// (down to a single brick chunk, dispatch or band of rows).
     pub fn advance(&mut self, project: &Project, request: &FrameRequest, budget: Option<Duration>) -> Result<Progress, GpuError> {
+        self.run(project, request, budget, true)
+    }
+
+    /// [`advance`](Self::advance), with or without quick previews.
+    fn run(&mut self, project: &Project, request: &FrameRequest, budget: Option<Duration>, previews: bool) -> Result<Progress, GpuError> {
         let started = Instant::now();
         self.check_request(project, request)?;
         let scope = ErrorScope::push(&self.ctx.device);
-        let result = self.run_items(project, request, budget.map(|b| started + b));
+        let result = self.run_items(project, request, budget.map(|b| started + b), previews);
         scope.pop("update")?;
         let mut progress = result?;
         progress.report.gpu_timestamps = self.timer.is_some();
@@ -483,7 +533,7 @@ impl FogPipeline {
         Ok(())
     }
 
-    fn run_items(&mut self, project: &Project, request: &FrameRequest, deadline: Option<Instant>) -> Result<Progress, GpuError> {
+    fn run_items(&mut self, project: &Project, request: &FrameRequest, deadline: Option<Instant>, previews: bool) -> Result<Progress, GpuError> {
         let left = |now: Instant| deadline.map(|d| d.saturating_duration_since(now).as_secs_f64() * 1e3);
         let mut progress = Progress::default();
         if request.force {
@@ -520,7 +570,7 @@ impl FogPipeline {
         //    image cannot be ready within this call.
         let key = self.image_key(project, request.width, request.height);
         let shown_current = self.baked.shown.as_ref().is_some_and(|(k, _)| *k == key);
-        if !shown_current && deadline.is_some() {
+        if !shown_current && deadline.is_some() && previews {
             let full_ms = self.rates[timer::MARCH as usize].ms_for(request.width as u64 * request.height as u64);
             let fits = left(Instant::now()).is_some_and(|ms| full_ms <= ms);
             if !targets.is_empty() || !fits {

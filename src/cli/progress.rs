@@ -1,0 +1,162 @@
+//! Long commands on a terminal: an indicatif bar on stderr per stage (only when stderr is a
+//! terminal and `--quiet` is not given, so `--json` on stdout never changes), and Ctrl+C,
+//! which stops the work at the next work item instead of killing the process.
+
+use crate::gpu::{Progress, Stage};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Exit status of a command stopped by Ctrl+C (128 + SIGINT, as shells report it).
+pub const CANCELLED_EXIT: u8 = 130;
+
+/// Turns Ctrl+C into a request to stop (see [`interrupted`]); a second Ctrl+C while the
+/// first is being honoured ends the process at once.
+pub fn catch_interrupt() {
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPTED.swap(true, Ordering::SeqCst) {
+            std::process::exit(CANCELLED_EXIT as i32);
+        }
+    });
+}
+
+/// Whether Ctrl+C was pressed.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::SeqCst)
+}
+
+/// A command was stopped by Ctrl+C; nothing it would have written was changed.
+#[derive(Debug, thiserror::Error)]
+#[error("cancelled by Ctrl+C; no output file was changed")]
+pub struct Cancelled;
+
+/// Fails with [`Cancelled`] once Ctrl+C was pressed.
+pub fn check() -> Result<(), Cancelled> {
+    if interrupted() {
+        Err(Cancelled)
+    } else {
+        Ok(())
+    }
+}
+
+/// One bar whose message is the current stage and whose position is the stage's fraction.
+pub struct Bar {
+    bar: Option<ProgressBar>,
+    stage: String,
+}
+
+const SCALE: u64 = 1000;
+
+impl Bar {
+    /// A bar on stderr, or a silent one when stderr is not a terminal or `quiet`.
+    pub fn new(quiet: bool) -> Self {
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+            let bar = ProgressBar::with_draw_target(Some(SCALE), ProgressDrawTarget::stderr());
+            bar.set_style(
+                ProgressStyle::with_template("{msg:>24} [{bar:32}] {percent:>3}%  {elapsed} elapsed, ~{eta} left")
+                    .expect("a valid template")
+                    .progress_chars("=> "),
+            );
+            bar
+        });
+        Self { bar, stage: String::new() }
+    }
+
+    /// Shows `fraction` (in [0, 1]) of stage `name`; a new stage restarts the bar.
+    pub fn stage(&mut self, name: &str, fraction: f64) {
+        let Some(bar) = &self.bar else { return };
+        if name != self.stage {
+            self.stage = name.to_string();
+            bar.set_message(self.stage.clone());
+            bar.reset();
+        }
+        bar.set_position((fraction.clamp(0.0, 1.0) * SCALE as f64) as u64);
+    }
+
+    /// Shows the pipeline's progress; returns false once Ctrl+C asks to stop.
+    pub fn pipeline(&mut self, p: &Progress) -> bool {
+        let name = stage_name(p.stage);
+        self.stage(&name, p.stage_fraction);
+        !interrupted()
+    }
+
+    /// Runs `f` (which prints) with the bar hidden.
+    pub fn suspend(&self, f: impl FnOnce()) {
+        match &self.bar {
+            Some(bar) => bar.suspend(f),
+            None => f(),
+        }
+    }
+
+    pub fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+impl Drop for Bar {
+    fn drop(&mut self) {
+        self.finish();
+    }
+}
+
+/// What the pipeline is doing, in words.
+pub fn stage_name(stage: Stage) -> String {
+    match stage {
+        Stage::Inject => "inject".into(),
+        Stage::Propagate { lights } => format!("propagate {lights} light{}", if lights == 1 { "" } else { "s" }),
+        Stage::March => "march".into(),
+        Stage::Done => "done".into(),
+    }
+}
+
+/// Output files written beside their targets and moved into place together at the end, so
+/// that an error or Ctrl+C leaves every existing output untouched and no temporary behind.
+#[derive(Default)]
+pub struct Staged {
+    files: Vec<(std::path::PathBuf, std::path::PathBuf)>,
+}
+
+impl Staged {
+    /// Where to write `target` for now.
+    pub fn path(&mut self, target: &std::path::Path) -> std::path::PathBuf {
+        // The extension stays last: some writers check it.
+        let stem = target.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let temp = match target.extension() {
+            Some(ext) => target.with_file_name(format!(".{stem}.fogsmith-partial.{}", ext.to_string_lossy())),
+            None => target.with_file_name(format!(".{stem}.fogsmith-partial")),
+        };
+        self.files.push((temp.clone(), target.to_path_buf()));
+        temp
+    }
+
+    /// Runs `write` on the staged path of `target`; an error names `target`, not the staged file.
+    pub fn write<T, E: std::fmt::Display>(
+        &mut self,
+        target: &std::path::Path,
+        write: impl FnOnce(&std::path::Path) -> Result<T, E>,
+    ) -> Result<T, String> {
+        let temp = self.path(target);
+        write(&temp).map_err(|e| e.to_string().replace(&*temp.to_string_lossy(), &target.to_string_lossy()))
+    }
+
+    /// Moves every staged file onto its target.
+    pub fn commit(mut self) -> std::io::Result<()> {
+        while let Some((temp, target)) = self.files.first().cloned() {
+            std::fs::rename(&temp, &target)?;
+            self.files.remove(0);
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        for (temp, _) in &self.files {
+            let _ = std::fs::remove_file(temp);
+        }
+    }
+}
