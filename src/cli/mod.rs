@@ -91,6 +91,10 @@ enum Command {
         /// Suites to run (default: all).
         #[arg(long, value_enum, value_delimiter = ',')]
         suite: Vec<crate::bench::Suite>,
+        /// Grid resolutions (longest axis) of the propagation suite, e.g. 64,128 (default: the
+        /// suite's own list).
+        #[arg(long, value_delimiter = ',')]
+        resolution: Vec<u32>,
     },
     /// Print the GPU adapter Fogsmith would use and its limits.
     Info {
@@ -189,11 +193,14 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
         Some(Command::Stress { quick, json }) => stress::run(quick, json),
-        Some(Command::Bench { quick, out, suite }) => {
+        Some(Command::Bench { quick, out, suite, resolution }) => {
+            if let Some(bad) = resolution.iter().find(|&&r| r == 0 || r > 1024) {
+                return Err(format!("--resolution must be within 1..=1024, got {bad}").into());
+            }
             use crate::bench::Suite;
             let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };
             let started = std::time::Instant::now();
-            let records = crate::bench::run(&crate::bench::BenchOptions { quick, out: out.clone(), suites }, &mut |line| {
+            let records = crate::bench::run(&crate::bench::BenchOptions { quick, out: out.clone(), suites, resolutions: resolution }, &mut |line| {
                 println!("{line}")
             })?;
             println!(
