@@ -367,7 +367,7 @@ impl ShellFrame {
             let a = self.anchor[i] as f64;
             let (from, to) = if i != axis {
                 (a - hi_level, a + hi_level)
-            } else if face % 2 == 0 {
+            } else if face.is_multiple_of(2) {
                 (a + lo_level, a + hi_level)
             } else {
                 (a - hi_level, a - lo_level)
