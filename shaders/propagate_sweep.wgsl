@@ -1,54 +1,152 @@
 // Opacity propagation, upwind "short characteristics" sweep (physics.md §5, upwind variant).
 //
-// A cell X steps from its centre towards the light S until the ray crosses the plane `stride`
-// layers back along its dominant axis a (the axis of largest |X − S| in cell units). At that
-// point P the mean extinction T/distance is interpolated bilinearly from the four cells of
-// that layer around P (constant in a homogeneous medium, so exact there), T(P) is that times
-// |P − S|, and ∫σ_t over [P, X] is added by Simpson's rule on the trilinear EV. A stride above
-// 1 means fewer interpolations along a ray, hence less numerical diffusion; with stride ≥ 3
-// every cell P's interpolation touches is at least one Manhattan index step closer to the
-// light's cell. Cells are processed as diamond-shaped wavefronts of equal Manhattan distance
-// ("level") from the light's cell, one dispatch per level, so each cell is computed exactly
-// once per light: O(N³) work and O(N) dispatches. Cells within `stride` cells of the light
-// integrate straight to it. Upstream cells outside the grid are ghosts holding the base fog.
+// The optical depth from cell X to the light S splits at the point E where the segment leaves
+// the grid box: T(X) = T_in(X) + β_base·|E − S|, with T_in the integral of the grid's medium
+// over [X, E] (E = S for a light inside the box). Along with T, each cell stores its mean
+// in-box extinction m = T_in / |X − E| in a second buffer.
+//
+// X steps from its centre towards S to a plane P at least `stride` layers closer along its
+// dominant axis a (the axis of largest |X − S| in cell units). The plane is a layer of the axis
+// whose face the ray leaves the box through, else of a: the cells around P then see nearly the
+// same length of box ahead. If the ray leaves the box before P (or S is that close), X
+// integrates its whole in-box path directly: so the cells on the faces that see an outside
+// light start the sweep. Otherwise m at P is interpolated from the cells of that layer around
+// P, T_in(P) = m·|P − E|, and ∫σ_t over [P, X] is added exactly for the trilinear EV. m is
+// constant in a homogeneous medium, so that case is exact. A larger stride means fewer
+// interpolations along a ray, hence less numerical diffusion.
+//
+// Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
+// units, around the light, or around a far light's anchor on the same line) closer to the
+// light than X. Shells are processed in batches of stride − 3 (1 for stride 3, which
+// interpolates bilinearly), one dispatch per batch covering all lights: each dispatch lists
+// boxes (a slab per face of the batch's shell cube, one cell wider on every side than needed),
+// and a thread solves its cell only if the cell's own batch and face are the box's, so each
+// cell is solved exactly once per light.
 
 struct SweepStep {
-    light_cell: vec3i,
-    level: i32,
-    lo: vec2i,
-    size: vec2u,
-    light: u32,
+    first_box: u32,
+    box_count: u32,
+    // Threads per row of workgroups (the dispatch is 2D when one row is not enough).
+    row: u32,
     stride: u32,
-    _pad1: u32,
-    _pad2: u32,
+}
+
+struct SweepBox {
+    lo: vec3i,
+    light: u32,
+    size: vec3u,
+    // Index, within the dispatch, of this box's first thread.
+    first: u32,
+    // Where Chebyshev shells are measured from, in cell-centre coordinates.
+    anchor: vec3f,
+    level0: f32,
+    width: f32,
+    // 2·axis + (1 if on the negative side of the anchor).
+    face: u32,
+    batch: u32,
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
-@group(0) @binding(3) var<uniform> sweep: SweepStep;
+@group(0) @binding(3) var<uniform> step: SweepStep;
 @group(0) @binding(4) var<storage, read_write> opv: array<f32>;
+@group(0) @binding(5) var<storage, read_write> mean_in: array<f32>;
+@group(0) @binding(6) var<storage, read> boxes: array<SweepBox>;
 
-// Mean extinction T/|c − S| along the ray from cell c to the light: smoother than T near the
-// light, and constant in a homogeneous medium, so interpolating it is exact there.
-fn mean_extinction_at(c: vec3i, s: vec3f, base: u32) -> f32 {
-    if !in_grid(c) {
-        return grid.base_extinction;
-    }
-    let d = length(grid.min + (vec3f(c) + 0.5) * grid.cell - s);
-    if d < 1e-6 * grid.cell.x {
-        return sigma_cell(c);
-    }
-    return opv[base + linear_index(vec3u(c))] / d;
+struct Exit {
+    // Distance from the start to where the ray leaves the box, at most the light's distance.
+    t: f32,
+    // The axis of the face it leaves through; 3 if it reaches the light first.
+    axis: u32,
 }
 
-fn solve(c: vec3i) {
-    let s = lights[sweep.light].position;
-    let base = sweep.light * cell_count();
+fn exit_box(x: vec3f, dir: vec3f, len: f32) -> Exit {
+    var e = Exit(len, 3u);
+    for (var i = 0u; i < 3u; i++) {
+        var t = len;
+        if dir[i] > 0.0 {
+            t = (grid.max[i] - x[i]) / dir[i];
+        } else if dir[i] < 0.0 {
+            t = (grid.min[i] - x[i]) / dir[i];
+        }
+        if t < e.t {
+            e = Exit(t, i);
+        }
+    }
+    e.t = max(e.t, 0.0);
+    return e;
+}
+
+fn catmull_rom(t: f32) -> vec4f {
+    let t2 = t * t;
+    let t3 = t2 * t;
+    return 0.5 * vec4f(-t3 + 2.0 * t2 - t, 3.0 * t3 - 5.0 * t2 + 2.0, -3.0 * t3 + 4.0 * t2 + t, t3 - t2);
+}
+
+// Mean in-box extinction at P (cell-centre coordinates u) in layer `layer` of axis a:
+// Catmull-Rom over the 4×4 cells around P (less numerical diffusion than bilinear), limited to
+// the range of the 2×2 nearest so that it cannot overshoot. Within the outer half-cell P takes
+// the edge cells' values.
+fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
+    let b = (a + 1u) % 3u;
+    let d = (a + 2u) % 3u;
+    let nb = i32(grid.dims[b]);
+    let nd = i32(grid.dims[d]);
+    let ub = clamp(u[b], 0.0, f32(nb - 1));
+    let ud = clamp(u[d], 0.0, f32(nd - 1));
+    let fb = i32(floor(ub));
+    let fd = i32(floor(ud));
+    // Stride 3 leaves no room for the wider stencil in the ordering: bilinear there.
+    let cubic = step.stride >= 4u;
+    let first = select(1, 0, cubic);
+    let last = select(3, 4, cubic);
+    var wb = vec4f(0.0, 1.0 - (ub - f32(fb)), ub - f32(fb), 0.0);
+    var wd = vec4f(0.0, 1.0 - (ud - f32(fd)), ud - f32(fd), 0.0);
+    if cubic {
+        wb = catmull_rom(ub - f32(fb));
+        wd = catmull_rom(ud - f32(fd));
+    }
+    var sum = 0.0;
+    var lo = 3.4e38;
+    var hi = 0.0;
+    var cell = vec3i(0);
+    cell[a] = layer;
+    for (var j = first; j < last; j++) {
+        cell[d] = clamp(fd + j - 1, 0, nd - 1);
+        var row = 0.0;
+        for (var i = first; i < last; i++) {
+            cell[b] = clamp(fb + i - 1, 0, nb - 1);
+            let m = mean_in[base + linear_index(vec3u(cell))];
+            row += wb[i] * m;
+            if (i == 1 || i == 2) && (j == 1 || j == 2) {
+                lo = min(lo, m);
+                hi = max(hi, m);
+            }
+        }
+        sum += wd[j] * row;
+    }
+    return clamp(sum, lo, hi);
+}
+
+fn solve(c: vec3i, light: u32) {
+    let s = lights[light].position;
+    let base = light * cell_count();
+    let idx = base + linear_index(vec3u(c));
     let x = grid.min + (vec3f(c) + 0.5) * grid.cell;
-    let off = x - s;
-    let mag = abs(off / grid.cell);
-    let rel = c - sweep.light_cell;
+    let v = s - x;
+    let len = length(v);
+    let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
+    if len < 1e-6 * h {
+        opv[idx] = 0.0;
+        mean_in[idx] = sigma_cell(c);
+        return;
+    }
+    let dir = v / len;
+    let exit = exit_box(x, dir, len);
+    let inside = exit.t;
+    let mag = abs(v / grid.cell);
     var a = 0u;
     if mag.y > mag[a] {
         a = 1u;
@@ -56,74 +154,66 @@ fn solve(c: vec3i) {
     if mag.z > mag[a] {
         a = 2u;
     }
-    let stride = f32(sweep.stride);
-    var t: f32;
-    if mag[a] < stride + 0.5 || abs(rel[a]) < i32(sweep.stride) {
-        t = integrate_segment(x, s, 1.0);
-    } else {
-        // P: where the ray to the light crosses the layer `stride` cells back along a; the
-        // mean extinction there is interpolated bilinearly within that layer.
-        let p = x - off * (stride / mag[a]);
-        let b = (a + 1u) % 3u;
-        let d = (a + 2u) % 3u;
-        let u = (p - grid.min) / grid.cell - 0.5;
-        var c00 = c;
-        c00[a] = c[a] - i32(sweep.stride) * sign(rel[a]);
-        c00[b] = i32(floor(u[b]));
-        c00[d] = i32(floor(u[d]));
-        let wb = u[b] - floor(u[b]);
-        let wd = u[d] - floor(u[d]);
-        var eb = vec3i(0);
-        var ed = vec3i(0);
-        eb[b] = 1;
-        ed[d] = 1;
-        // Within the grid's outer half-cell, clamp to the edge rather than reading ghosts.
-        let dims = vec3i(grid.dims);
-        if c00[a] >= 0 && c00[a] < dims[a] {
-            if c00[b] < 0 {
-                c00[b] = 0;
-                eb[b] = 0;
-            } else if c00[b] >= dims[b] - 1 {
-                c00[b] = dims[b] - 1;
-                eb[b] = 0;
-            }
-            if c00[d] < 0 {
-                c00[d] = 0;
-                ed[d] = 0;
-            } else if c00[d] >= dims[d] - 1 {
-                c00[d] = dims[d] - 1;
-                ed[d] = 0;
-            }
-        }
-        let mean = mix(
-            mix(mean_extinction_at(c00, s, base), mean_extinction_at(c00 + eb, s, base), wb),
-            mix(mean_extinction_at(c00 + ed, s, base), mean_extinction_at(c00 + eb + ed, s, base), wb),
-            wd,
-        );
-        t = mean * length(p - s) + integrate_segment(p, x, 1.0);
+    let stride = f32(step.stride);
+    // The interpolation plane is a layer of axis e: the axis of the face the ray leaves the box
+    // through (so that the cells around P see nearly the same length of box ahead), else the
+    // dominant axis a. It is the first such layer at least `stride` layers closer along a.
+    var e = a;
+    var layers = stride;
+    if exit.axis < 3u && exit.axis != a {
+        e = exit.axis;
+        layers = max(ceil(stride * mag[e] / mag[a]), 1.0);
     }
-    opv[base + linear_index(vec3u(c))] = t;
+    let to_plane = len * layers / mag[e];
+    var t_in: f32;
+    if mag[a] < stride + 0.5 || inside <= to_plane {
+        t_in = integrate_pieces(x, x + dir * inside);
+    } else {
+        let p = x + dir * to_plane;
+        let u = (p - grid.min) / grid.cell - 0.5;
+        let layer = clamp(c[e] + i32(layers) * i32(sign(v[e])), 0, i32(grid.dims[e]) - 1);
+        let m = layer_mean(base, e, layer, u);
+        t_in = m * (inside - to_plane) + integrate_pieces(p, x);
+    }
+    opv[idx] = t_in + grid.base_extinction * (len - inside);
+    mean_in[idx] = select(sigma_cell(c), t_in / inside, inside > 1e-6 * h);
 }
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(64, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
-    if any(gid.xy >= sweep.size) {
-        return;
-    }
-    let di = sweep.lo.x + i32(gid.x);
-    let dj = sweep.lo.y + i32(gid.y);
-    let rest = sweep.level - abs(di) - abs(dj);
-    if rest < 0 {
-        return;
-    }
-    let c0 = sweep.light_cell + vec3i(di, dj, rest);
-    if in_grid(c0) {
-        solve(c0);
-    }
-    if rest > 0 {
-        let c1 = sweep.light_cell + vec3i(di, dj, -rest);
-        if in_grid(c1) {
-            solve(c1);
+    let t = gid.x + gid.y * step.row;
+    // The last box starting at or before thread t.
+    var lo = step.first_box;
+    var hi = step.first_box + step.box_count;
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if boxes[mid].first <= t {
+            lo = mid;
+        } else {
+            hi = mid;
         }
+    }
+    let bx = boxes[lo];
+    let local = t - bx.first;
+    if t < bx.first || local >= bx.size.x * bx.size.y * bx.size.z {
+        return;
+    }
+    let c = bx.lo + vec3i(vec3u(local % bx.size.x, (local / bx.size.x) % bx.size.y, local / (bx.size.x * bx.size.y)));
+    if !in_grid(c) {
+        return;
+    }
+    let r = vec3f(c) - bx.anchor;
+    let ar = abs(r);
+    var a = 0u;
+    if ar.y > ar[a] {
+        a = 1u;
+    }
+    if ar.z > ar[a] {
+        a = 2u;
+    }
+    let face = 2u * a + select(0u, 1u, r[a] < 0.0);
+    let batch = max(i32(floor((ar[a] - bx.level0) / bx.width)), 0);
+    if face == bx.face && batch == i32(bx.batch) {
+        solve(c, bx.light);
     }
 }

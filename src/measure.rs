@@ -4,7 +4,9 @@
 //! figure Fogsmith reports is computed the same way.
 
 use crate::gpu::Image;
-use crate::reference::{optical_depth_cells, Medium64};
+use crate::reference::{
+    clipped_optical_depth_cells, grid_optical_depth_cells, optical_depth_cells, GridMedium64, Medium64,
+};
 use crate::scene::{GridSpec, Project, Volume};
 use serde::Serialize;
 
@@ -47,9 +49,14 @@ pub fn opv_error(project: &Project, light: usize, opv: &Volume, cells: &[[u32; 3
 
 /// [`opv_error`] with the exact optical depths at `cells` already computed.
 pub fn opv_error_against(light: usize, opv: &Volume, cells: &[[u32; 3]], exact: &[f64]) -> OpvError {
+    let got: Vec<f64> = cells.iter().map(|c| opv.get(c[0], c[1], c[2]) as f64).collect();
+    depth_error(light, &got, exact)
+}
+
+/// Transmittance error of optical depths `got` against `exact`, value by value.
+pub fn depth_error(light: usize, got: &[f64], exact: &[f64]) -> OpvError {
     let (mut max, mut sum, mut rel, mut bad) = (0.0f64, 0.0f64, 0.0f64, false);
-    for (c, t_exact) in cells.iter().zip(exact) {
-        let t = opv.get(c[0], c[1], c[2]) as f64;
+    for (&t, t_exact) in got.iter().zip(exact) {
         let e = if t.is_finite() {
             ((-t).exp() - (-t_exact).exp()).abs()
         } else {
@@ -65,10 +72,40 @@ pub fn opv_error_against(light: usize, opv: &Volume, cells: &[[u32; 3]], exact: 
     OpvError {
         light,
         transmittance_max_abs_error: max,
-        transmittance_mean_abs_error: sum / cells.len().max(1) as f64,
+        transmittance_mean_abs_error: sum / got.len().max(1) as f64,
         depth_max_rel_error: rel,
-        cells: cells.len(),
+        cells: got.len(),
         nan_or_inf: bad,
+    }
+}
+
+/// One light's OPV error, split by cause.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct OpvErrors {
+    pub light: usize,
+    /// The OPV against the line integral through the grid's own trilinear medium: what the
+    /// propagation scheme gets wrong.
+    pub scheme: OpvError,
+    /// The grid's medium against the analytic gaussians clipped to the box: what the grid's
+    /// resolution (and injection) gets wrong, whatever the scheme.
+    pub resolution: OpvError,
+    /// The OPV against the analytic gaussians clipped to the box: both together.
+    pub total: OpvError,
+}
+
+/// [`OpvErrors`] of `light` at `cells`; `ev` is the extinction volume the OPV was propagated
+/// through.
+pub fn opv_errors(project: &Project, light: usize, ev: &Volume, opv: &Volume, cells: &[[u32; 3]]) -> OpvErrors {
+    let medium = GridMedium64::from_volume(&project.grid, ev, project.medium.base_extinction.max(0.0) as f64);
+    let source = project.lights[light].position.as_dvec3();
+    let grid_depth = grid_optical_depth_cells(&project.grid, &medium, source, cells);
+    let clipped = clipped_optical_depth_cells(project, light, cells);
+    let got: Vec<f64> = cells.iter().map(|c| opv.get(c[0], c[1], c[2]) as f64).collect();
+    OpvErrors {
+        light,
+        scheme: depth_error(light, &got, &grid_depth),
+        resolution: depth_error(light, &grid_depth, &clipped),
+        total: depth_error(light, &got, &clipped),
     }
 }
 

@@ -26,6 +26,8 @@ pub struct BenchOptions {
     pub quick: bool,
     pub out: PathBuf,
     pub suites: Vec<Suite>,
+    /// Resolutions of the propagation suite; empty for its default list.
+    pub resolutions: Vec<u32>,
 }
 
 /// Why a benchmark could not run.
@@ -46,7 +48,7 @@ pub enum BenchError {
 pub fn run(opts: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
     std::fs::create_dir_all(&opts.out).map_err(|e| write_err(&opts.out, e))?;
     let mut records = Vec::new();
-    let mut ctx = suites::Context::new(opts.quick)?;
+    let mut ctx = suites::Context::new(opts.quick, opts.resolutions.clone())?;
     for suite in &opts.suites {
         let start = records.len();
         suites::run(*suite, &mut ctx, &mut records, log)?;

@@ -104,7 +104,7 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
         Suite::Interaction => frame_times(&dir.join("interaction_frames.png"), records),
         Suite::Opv => loglog(
             &dir.join("opv_pareto.png"),
-            "Opacity propagation: GPU time vs max transmittance error",
+            "Opacity propagation: GPU time vs max scheme error (transmittance, vs the grid medium)",
             "propagation time (ms, all lights)",
             "max |exp(-T) - exp(-T_exact)|",
             &group(records, |r| Some(format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy"))), |r| {

@@ -4,9 +4,11 @@
 use super::BenchError;
 use crate::demos::demo;
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
-use crate::measure::{image_error, opv_error_against, sample_cells};
+use crate::measure::{depth_error, image_error, opv_error_against, sample_cells};
 use crate::reference::sun::{f_exact, table_error, table_error_paper_metric, FTable, Interp, TableLayout};
-use crate::reference::{optical_depth_cells, render_reference, RefRenderOptions};
+use crate::reference::{
+    clipped_optical_depth_cells, grid_optical_depth_cells, render_reference, GridMedium64, RefRenderOptions,
+};
 use crate::scene::{Light, Particle, Project, Scheme, StepPolicy};
 use glam::{UVec3, Vec3};
 use serde_json::{json, Value};
@@ -26,11 +28,12 @@ pub enum Suite {
 pub struct Context {
     gpu: FogPipeline,
     quick: bool,
+    resolutions: Vec<u32>,
 }
 
 impl Context {
-    pub fn new(quick: bool) -> Result<Self, BenchError> {
-        Ok(Self { gpu: FogPipeline::new(GpuContext::new_headless()?), quick })
+    pub fn new(quick: bool, resolutions: Vec<u32>) -> Result<Self, BenchError> {
+        Ok(Self { gpu: FogPipeline::new(GpuContext::new_headless()?), quick, resolutions })
     }
 
     /// Bakes and renders `project` from scratch.
@@ -83,7 +86,13 @@ fn image_size(project: &Project, width: u32) -> (u32, u32) {
 
 fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let scenes: &[&str] = if ctx.quick { &["cornell"] } else { &["cornell", "cloud", "street"] };
-    let resolutions: &[u32] = if ctx.quick { &[32, 48] } else { &[32, 48, 64, 96, 128] };
+    let resolutions: Vec<u32> = if !ctx.resolutions.is_empty() {
+        ctx.resolutions.clone()
+    } else if ctx.quick {
+        vec![32, 48]
+    } else {
+        vec![32, 48, 64, 96, 128]
+    };
     let schemes: &[(Scheme, u32)] = if ctx.quick {
         &[(Scheme::Giroud, 8), (Scheme::Sweep, 8), (Scheme::Exact, 8)]
     } else {
@@ -92,11 +101,24 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
     let max_cells = if ctx.quick { 20_000 } else { 100_000 };
     for name in scenes {
         let base = demo(name)?;
-        for &res in resolutions {
+        for &res in &resolutions {
             let project = with_resolution(&base, res);
             let cells = sample_cells(&project.grid, max_cells);
-            let exact: Vec<Vec<f64>> =
-                (0..project.lights.len()).map(|l| optical_depth_cells(&project, l, &cells)).collect();
+            // Scheme error: against the line integral through the grid's own medium (the
+            // EV, the same for every scheme); resolution error: that medium against the
+            // analytic gaussians clipped to the box.
+            ctx.full(&project, 8, 8)?;
+            let medium = GridMedium64::from_volume(&project.grid, &ctx.gpu.read_ev()?, project.medium.base_extinction.max(0.0) as f64);
+            let exact: Vec<Vec<f64>> = project
+                .lights
+                .iter()
+                .map(|l| grid_optical_depth_cells(&project.grid, &medium, l.position.as_dvec3(), &cells))
+                .collect();
+            let resolution = exact
+                .iter()
+                .enumerate()
+                .map(|(l, g)| depth_error(l, g, &clipped_optical_depth_cells(&project, l, &cells)).transmittance_max_abs_error)
+                .fold(0.0f64, f64::max);
             for &(scheme, stride) in schemes {
                 let mut p = project.clone();
                 p.propagation.scheme = scheme;
@@ -111,13 +133,14 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
                 let label = if scheme == Scheme::Sweep { format!("sweep{stride}") } else { scheme.to_string() };
                 let r = project.grid.resolution;
                 log(&format!(
-                    "opv    {name:8} {:>3}×{:>3}×{:>3} {label:8} {:9.1} ms  transmittance error mean {mean:.2e} max {max:.2e}  ({} wavefronts/iterations)",
+                    "opv    {name:8} {:>3}×{:>3}×{:>3} {label:8} {:9.1} ms  scheme error mean {mean:.2e} max {max:.2e}  resolution error max {resolution:.2e}  ({} passes)",
                     r.x, r.y, r.z, report.timings_ms.propagate, report.counters.propagation_iterations
                 ));
                 out.push(json!({
                     "suite": "opv", "scene": name, "scheme_or_policy": label, "resolution": res,
                     "grid": r.to_array(), "lights": p.lights.len(),
                     "time_ms": report.timings_ms.propagate, "error_mean": mean, "error_max": max,
+                    "resolution_error_max": resolution,
                     "samples": report.counters.cells_propagated,
                     "iterations": report.counters.propagation_iterations,
                     "cells_compared": cells.len(),

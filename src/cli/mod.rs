@@ -98,6 +98,10 @@ enum Command {
         /// Suites to run (default: all but `interaction`).
         #[arg(long, value_enum, value_delimiter = ',')]
         suite: Vec<crate::bench::Suite>,
+        /// Grid resolutions (longest axis) of the propagation suite, e.g. 64,128 (default: the
+        /// suite's own list).
+        #[arg(long, value_delimiter = ',')]
+        resolution: Vec<u32>,
         /// Print the records as JSON on stdout (progress lines go to stderr).
         #[arg(long)]
         json: bool,
@@ -214,13 +218,17 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
         Some(Command::Stress { quick, json, quiet }) => stress::run(quick, json, quiet),
-        Some(Command::Bench { quick, out, suite, json, quiet }) => {
+        Some(Command::Bench { quick, out, suite, resolution, json, quiet }) => {
+            if let Some(bad) = resolution.iter().find(|&&r| r == 0 || r > 1024) {
+                return Err(format!("--resolution must be within 1..=1024, got {bad}").into());
+            }
             use crate::bench::Suite;
             let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };
             let started = std::time::Instant::now();
             let mut bar = progress::Bar::new(quiet);
             let mut lines = 0usize;
-            let records = crate::bench::run(&crate::bench::BenchOptions { quick, out: out.clone(), suites }, &mut |line| {
+            let options = crate::bench::BenchOptions { quick, out: out.clone(), suites, resolutions: resolution };
+            let records = crate::bench::run(&options, &mut |line| {
                 // The suites do not know their length ahead: the bar counts measurements.
                 lines += 1;
                 let name = line.split_whitespace().next().unwrap_or("bench").to_string();

@@ -1,7 +1,7 @@
 //! `fogsmith verify`: how far this project's bake and render are from the exact reference.
 
 use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
-use crate::measure::{ev_error, image_error, opv_error, sample_cells, EV_REL_THRESHOLD};
+use crate::measure::{ev_error, image_error, opv_errors, sample_cells, EV_REL_THRESHOLD};
 use crate::reference::{render_reference, RefRenderOptions};
 use crate::scene::{load_project, Scheme};
 use std::path::Path;
@@ -33,7 +33,7 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let (ev_err, ev_abs) = ev_error(&project, &ev, &cells);
     let mut opv = Vec::new();
     for light in 0..project.lights.len() {
-        opv.push(opv_error(&project, light, &gpu.read_opv(light)?, &cells));
+        opv.push(opv_errors(&project, light, &ev, &gpu.read_opv(light)?, &cells));
     }
     let image = gpu.read_image()?;
     let reference = render_reference(&project, width, height, &RefRenderOptions::default());
@@ -71,10 +71,17 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
         );
         for e in &opv {
             println!(
-                "light {}: transmittance max abs error {:.3e}, mean {:.3e}",
-                e.light, e.transmittance_max_abs_error, e.transmittance_mean_abs_error
+                "light {}: transmittance max abs error: scheme {:.3e} (mean {:.3e}), resolution {:.3e} (mean {:.3e}), total {:.3e}",
+                e.light,
+                e.scheme.transmittance_max_abs_error,
+                e.scheme.transmittance_mean_abs_error,
+                e.resolution.transmittance_max_abs_error,
+                e.resolution.transmittance_mean_abs_error,
+                e.total.transmittance_max_abs_error,
             );
         }
+        println!("  scheme: the OPV against the line integral through the grid's trilinear medium (base fog outside the box)");
+        println!("  resolution: that grid medium against the analytic gaussians clipped to the box");
         println!("image {width}×{height}: relative RMSE {:.3e}, max abs error {:.3e}", img_err.rel_rmse, img_err.max_abs_error);
     }
     Ok(())

@@ -292,12 +292,15 @@ pub fn colorize(slice: &Slice, colormap: Colormap, scale: &Scale) -> egui::Color
     egui::ColorImage::new([slice.width, slice.height], pixels)
 }
 
-/// Exact optical depth T(cell, light) on `cells`, from the CPU reference.
+/// Exact optical depth T(cell, light) on `cells`, from the CPU reference: the particles
+/// clipped to the grid box and base fog beyond it, which is the most any grid can hold, so the
+/// error view shows the scheme's and the resolution's error but not the particles' tails
+/// outside the box.
 pub fn exact_optical_depth(project: &Project, light: usize, cells: &[[u32; 3]]) -> Result<Vec<f64>, String> {
     if light >= project.lights.len() {
         return Err(format!("light {light} does not exist"));
     }
-    Ok(crate::reference::optical_depth_cells(project, light, cells))
+    Ok(crate::reference::clipped_optical_depth_cells(project, light, cells))
 }
 
 /// |T − T_exact| per value of an optical-depth slice.

@@ -76,13 +76,31 @@ pub struct SurfaceGpu {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct SweepStep {
-    pub light_cell: [i32; 3],
-    pub level: i32,
-    pub lo: [i32; 2],
-    pub size: [u32; 2],
-    pub light: u32,
+    /// The dispatch's boxes: `boxes[first_box .. first_box + box_count]`.
+    pub first_box: u32,
+    pub box_count: u32,
+    /// Threads per row of workgroups.
+    pub row: u32,
     pub stride: u32,
-    pub _pad: [u32; 2],
+}
+
+/// One slab of cells a sweep dispatch may solve for one light (see `propagate_sweep.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct SweepBox {
+    pub lo: [i32; 3],
+    pub light: u32,
+    pub size: [u32; 3],
+    /// Index, within its dispatch, of the box's first thread.
+    pub first: u32,
+    /// Where the light's Chebyshev shells are measured from, in cell-centre coordinates.
+    pub anchor: [f32; 3],
+    pub level0: f32,
+    pub width: f32,
+    /// 2·axis + 1 on the negative side of the anchor.
+    pub face: u32,
+    pub batch: u32,
+    pub _pad: u32,
 }
 
 #[repr(C)]
@@ -121,7 +139,8 @@ mod tests {
         let sweep = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")];
         let exact = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
         let slice = [include_str!("../../shaders/slice.wgsl")];
-        let cases: [(&[&str], &str, usize); 8] = [
+        let cases: [(&[&str], &str, usize); 9] = [
+            (&sweep, "SweepBox", std::mem::size_of::<SweepBox>()),
             (&slice, "SliceParams", std::mem::size_of::<crate::gpu::slice::SliceParams>()),
             (&inject, "GridParams", std::mem::size_of::<GridParams>()),
             (&inject, "LightGpu", std::mem::size_of::<LightGpu>()),

@@ -31,5 +31,6 @@ pub use context::{adapter_rank, GpuContext};
 pub use error::GpuError;
 pub use layout::shared_constants;
 pub use slice::{Plane, SliceSource};
-pub use propagate::{giroud_iterations, sweep_steps, EXACT_STEPS_PER_CELL};
+pub use gpu_types::{SweepBox, SweepStep};
+pub use propagate::{giroud_iterations, sweep_steps, ShellFrame, SweepPlan, EXACT_STEPS_PER_CELL};
 pub use pipeline::{light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, Progress, Stage, StageTimings};

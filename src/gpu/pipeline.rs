@@ -67,7 +67,7 @@ pub struct Counters {
     /// Lights skipped because their contribution is provably negligible
     /// (see [`light_is_negligible`]).
     pub lights_culled: u32,
-    /// Jacobi iterations (`giroud`) or wavefronts (`sweep`) per light.
+    /// Jacobi iterations (`giroud`) or dispatches (`sweep`, batches of shells of all lights).
     pub propagation_iterations: u32,
     pub samples_marched: u64,
     /// Empty 8³ bricks camera rays jumped over.

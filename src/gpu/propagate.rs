@@ -1,10 +1,11 @@
 //! Opacity propagation: EV → one optical-depth volume (OPV) per light, by one of three
 //! schemes (see [`Scheme`]). All OPVs live in one storage buffer, light-major.
 
-use super::gpu_types::{ExactParams, SweepStep};
+use super::gpu_types::{ExactParams, SweepBox, SweepStep};
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot, VOLUME_LOOKUP};
 use super::Counters;
 use crate::scene::{GridSpec, Scheme};
+use bytemuck::Zeroable;
 use glam::{IVec3, Vec3};
 
 /// The inputs every scheme reads and the buffers it writes.
@@ -26,6 +27,7 @@ pub struct Propagator {
     giroud: wgpu::ComputePipeline,
     sweep_layout: wgpu::BindGroupLayout,
     sweep: wgpu::ComputePipeline,
+    exact_layout: wgpu::BindGroupLayout,
     exact: wgpu::ComputePipeline,
     uniform_align: u64,
 }
@@ -46,12 +48,18 @@ impl Propagator {
             &[include_str!("../../shaders/propagate_giroud.wgsl")],
             &giroud_layout,
         );
-        // The sweep and exact schemes share one layout: grid, EV, lights, per-dispatch
-        // parameters, OPV.
         let sweep_layout = bind_group_layout(
             device,
             "propagate_sweep",
-            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::UniformDynamic, Slot::StorageWrite],
+            &[
+                Slot::Uniform,
+                Slot::Texture3d,
+                Slot::StorageRead,
+                Slot::UniformDynamic,
+                Slot::StorageWrite,
+                Slot::StorageWrite,
+                Slot::StorageRead,
+            ],
         );
         let sweep = compute_pipeline(
             device,
@@ -59,14 +67,20 @@ impl Propagator {
             &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")],
             &sweep_layout,
         );
+        // The exact scheme's layout: grid, EV, lights, per-dispatch parameters, OPV.
+        let exact_layout = bind_group_layout(
+            device,
+            "propagate_exact",
+            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::UniformDynamic, Slot::StorageWrite],
+        );
         let exact = compute_pipeline(
             device,
             "propagate_exact",
             &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")],
-            &sweep_layout,
+            &exact_layout,
         );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
-        Self { giroud_layout, giroud, sweep_layout, sweep, exact, uniform_align }
+        Self { giroud_layout, giroud, sweep_layout, sweep, exact_layout, exact, uniform_align }
     }
 
     /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
@@ -105,14 +119,27 @@ impl Propagator {
                 (work, vec![g; iterations as usize], vec![cells * active.len() as u64; iterations as usize], iterations)
             }
             Scheme::Sweep => {
-                let steps: Vec<SweepStep> = active
+                let lights: Vec<(u32, Vec3)> = active.iter().map(|&l| (l, inputs.positions[l as usize])).collect();
+                let plan = sweep_steps(inputs.grid, &lights, inputs.sweep_stride);
+                let units = plan
+                    .steps
                     .iter()
-                    .flat_map(|&l| sweep_steps(inputs.grid, inputs.positions[l as usize], l, inputs.sweep_stride))
+                    .map(|s| {
+                        let boxes = &plan.boxes[s.first_box as usize..(s.first_box + s.box_count) as usize];
+                        boxes.iter().map(|b| b.size.iter().map(|&n| n as u64).product::<u64>()).sum()
+                    })
                     .collect();
-                let groups = steps.iter().map(|s| [s.size[0].div_ceil(8), s.size[1].div_ceil(8), 1]).collect();
-                let units = steps.iter().map(|s| s.size[0] as u64 * s.size[1] as u64).collect();
-                let iterations = steps.len() as u32 / active.len() as u32;
-                (self.per_dispatch(device, inputs, &steps, Which::Sweep), groups, units, iterations)
+                let placeholder = [SweepBox::zeroed()];
+                let boxes = super::pipeline::storage_buffer(
+                    device,
+                    "sweep boxes",
+                    bytemuck::cast_slice(if plan.boxes.is_empty() { &placeholder[..] } else { &plan.boxes }),
+                );
+                // The second OPV buffer holds each cell's mean in-box extinction.
+                let extra = [inputs.opv[1].as_entire_binding(), boxes.as_entire_binding()];
+                let work = self.per_dispatch(device, inputs, &plan.steps, Which::Sweep, &extra, Some(boxes.clone()));
+                let iterations = plan.steps.len() as u32;
+                (work, plan.groups, units, iterations)
             }
             Scheme::Exact => {
                 let r = inputs.grid.resolution;
@@ -130,7 +157,7 @@ impl Propagator {
                     .collect();
                 let groups = vec![[r.x.div_ceil(4), r.y.div_ceil(4), 1]; params.len()];
                 let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
-                (self.per_dispatch(device, inputs, &params, Which::Exact), groups, units, 1)
+                (self.per_dispatch(device, inputs, &params, Which::Exact, &[], None), groups, units, 1)
             }
         };
         PropagationJob { lights: active.to_vec(), work, groups, units, next: 0, iterations, cells }
@@ -184,8 +211,17 @@ impl Propagator {
         }
     }
 
-    /// Uploads one uniform entry per dispatch and returns the work over it.
-    fn per_dispatch<T: bytemuck::Pod>(&self, device: &wgpu::Device, inputs: &PropagationInputs, entries: &[T], which: Which) -> Work {
+    /// Uploads one uniform entry per dispatch and returns the work over it: grid, EV, lights,
+    /// the entries (dynamic offset), the OPV, then `extra` (kept alive in `keep`).
+    fn per_dispatch<T: bytemuck::Pod>(
+        &self,
+        device: &wgpu::Device,
+        inputs: &PropagationInputs,
+        entries: &[T],
+        which: Which,
+        extra: &[wgpu::BindingResource],
+        keep: Option<wgpu::Buffer>,
+    ) -> Work {
         use wgpu::util::DeviceExt;
         let stride = (std::mem::size_of::<T>() as u64).div_ceil(self.uniform_align) * self.uniform_align;
         let mut bytes = vec![0u8; stride as usize * entries.len().max(1)];
@@ -198,23 +234,24 @@ impl Propagator {
             contents: &bytes,
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let bind_group = bind_group(
-            device,
-            "propagate",
-            &self.sweep_layout,
-            &[
-                inputs.grid_buf.as_entire_binding(),
-                wgpu::BindingResource::TextureView(inputs.ev_view),
-                inputs.lights_buf.as_entire_binding(),
-                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &buf,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(std::mem::size_of::<T>() as u64),
-                }),
-                inputs.opv[0].as_entire_binding(),
-            ],
-        );
-        Work::PerDispatch { which, bind_group, stride, _buf: buf }
+        let mut resources = vec![
+            inputs.grid_buf.as_entire_binding(),
+            wgpu::BindingResource::TextureView(inputs.ev_view),
+            inputs.lights_buf.as_entire_binding(),
+            wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &buf,
+                offset: 0,
+                size: wgpu::BufferSize::new(std::mem::size_of::<T>() as u64),
+            }),
+            inputs.opv[0].as_entire_binding(),
+        ];
+        resources.extend(extra.iter().cloned());
+        let layout = match which {
+            Which::Sweep => &self.sweep_layout,
+            Which::Exact => &self.exact_layout,
+        };
+        let bind_group = bind_group(device, "propagate", layout, &resources);
+        Work::PerDispatch { which, bind_group, stride, _buf: buf, _keep: keep }
     }
 }
 
@@ -228,7 +265,7 @@ enum Work {
     /// Jacobi iterations ping-ponging between the two OPV buffers.
     Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: wgpu::Buffer, b: wgpu::Buffer, _active: wgpu::Buffer },
     /// One dispatch per uniform entry, each seeing its entry through a dynamic offset.
-    PerDispatch { which: Which, bind_group: wgpu::BindGroup, stride: u64, _buf: wgpu::Buffer },
+    PerDispatch { which: Which, bind_group: wgpu::BindGroup, stride: u64, _buf: wgpu::Buffer, _keep: Option<wgpu::Buffer> },
 }
 
 /// The dispatches that bring the OPVs of some lights up to date, each valid to run once the
@@ -277,51 +314,165 @@ impl PropagationJob {
 }
 
 /// The light's cell index (may lie outside the grid). A light far outside is moved, per
-/// axis, to 2²⁰ cells beyond the grid: the sweep only compares Manhattan distances between
-/// grid cells, which that keeps, and the level arithmetic then stays far inside i32.
+/// axis, to 2²⁰ cells beyond the grid, which keeps the integer arithmetic far inside i32.
 fn light_cell(grid: &GridSpec, light: Vec3) -> IVec3 {
     const FAR: f32 = (1 << 20) as f32;
     let c = ((light - grid.min) / grid.cell_size()).floor();
     c.clamp(Vec3::splat(-FAR), grid.resolution.as_vec3() + FAR).as_ivec3()
 }
 
-/// The wavefronts of the sweep for one light: for every Manhattan distance ("level") from
-/// the light's cell that reaches the grid, the rectangle of (di, dj) offsets to dispatch.
-pub fn sweep_steps(grid: &GridSpec, light: Vec3, light_index: u32, stride: u32) -> Vec<SweepStep> {
-    let lc = light_cell(grid, light);
-    let n = grid.resolution.as_ivec3();
-    let (mut lo_level, mut hi_level) = (0, 0);
-    for a in 0..3 {
-        let (near, far) = if lc[a] < 0 {
-            (-lc[a], n[a] - 1 - lc[a])
-        } else if lc[a] >= n[a] {
-            (lc[a] - (n[a] - 1), lc[a])
-        } else {
-            (0, lc[a].max(n[a] - 1 - lc[a]))
-        };
-        lo_level += near;
-        hi_level += far;
-    }
-    let mut steps = Vec::with_capacity((hi_level - lo_level + 1) as usize);
-    for level in lo_level..=hi_level {
-        let lo_i = (-level).max(-lc.x);
-        let hi_i = level.min(n.x - 1 - lc.x);
-        let lo_j = (-level).max(-lc.y);
-        let hi_j = level.min(n.y - 1 - lc.y);
-        if lo_i > hi_i || lo_j > hi_j {
-            continue;
+/// A light farther than this many cells from the grid's centre has its Chebyshev shells
+/// measured from the point at this distance on the line to it, so that shell levels stay
+/// exact to a small fraction of a cell in f32; the shells then stay within a fraction of a
+/// cell of being perpendicular to the light's rays, which keeps the sweep's ordering.
+const ANCHOR_CELLS: f64 = (1u64 << 19) as f64;
+
+/// Threads per sweep dispatch before a batch is split over several dispatches.
+const MAX_THREADS_PER_DISPATCH: u64 = 1 << 30;
+
+/// How one light's cells are ordered into batches of Chebyshev shells.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShellFrame {
+    /// Shell centre in cell-centre coordinates (cell (i, j, k) at (i, j, k)).
+    pub anchor: [f32; 3],
+    /// Level (Chebyshev distance in cells) where batch 0 starts.
+    pub level0: f32,
+    /// Levels per batch.
+    pub width: f32,
+    pub batches: u32,
+}
+
+impl ShellFrame {
+    pub fn new(grid: &GridSpec, light: Vec3, stride: u32) -> Self {
+        let n = grid.resolution.as_dvec3();
+        let cell = grid.cell_size().as_dvec3();
+        let s = (light.as_dvec3() - grid.min.as_dvec3()) / cell - 0.5;
+        let centre = (n - 1.0) * 0.5;
+        let off = s - centre;
+        let far = off.length();
+        let anchor = if far > ANCHOR_CELLS { centre + off * (ANCHOR_CELLS / far) } else { s };
+        let anchor = anchor.as_vec3();
+        let a = anchor.as_dvec3();
+        let (mut near, mut farthest) = (0.0f64, 0.0f64);
+        for i in 0..3 {
+            let hi = n[i] - 1.0;
+            near = near.max((-a[i]).max(a[i] - hi).max(0.0));
+            farthest = farthest.max(a[i].abs().max((a[i] - hi).abs()));
         }
-        steps.push(SweepStep {
-            light_cell: lc.to_array(),
-            level,
-            lo: [lo_i, lo_j],
-            size: [(hi_i - lo_i + 1) as u32, (hi_j - lo_j + 1) as u32],
-            light: light_index,
-            stride,
-            _pad: [0; 2],
-        });
+        let level0 = near.floor() as f32;
+        // Bilinear reads (stride 3) reach 1 cell beyond the crossing laterally, Catmull-Rom
+        // reads 2: a cell depends only on cells at least stride − 1 or stride − 2 levels
+        // closer, and one level of margin is kept for rounding.
+        let width = if stride <= 3 { 1 } else { stride - 3 };
+        // One level of slack beyond the farthest cell absorbs f32 rounding of the levels.
+        let batches = ((farthest + 1.0 - level0 as f64) / width as f64).floor() as u32 + 1;
+        Self { anchor: anchor.to_array(), level0, width: width as f32, batches }
     }
-    steps
+
+    /// The batch and face that solve cell `c`, computed exactly as the shader does.
+    pub fn claim(&self, c: [i32; 3]) -> (u32, u32) {
+        let r = [c[0] as f32 - self.anchor[0], c[1] as f32 - self.anchor[1], c[2] as f32 - self.anchor[2]];
+        let mut a = 0;
+        if r[1].abs() > r[a].abs() {
+            a = 1;
+        }
+        if r[2].abs() > r[a].abs() {
+            a = 2;
+        }
+        let face = 2 * a as u32 + u32::from(r[a] < 0.0);
+        let batch = ((r[a].abs() - self.level0) / self.width).floor().max(0.0) as u32;
+        (batch, face)
+    }
+
+    /// The box of cells (lo, size) that holds every cell of `batch` on `face`, one cell
+    /// wider than needed on every side; None when it misses the grid.
+    fn face_box(&self, grid: &GridSpec, batch: u32, face: u32) -> Option<([i32; 3], [u32; 3])> {
+        let n = grid.resolution.as_ivec3();
+        let lo_level = self.level0 as f64 + batch as f64 * self.width as f64;
+        let hi_level = lo_level + self.width as f64;
+        let axis = (face / 2) as usize;
+        let (mut lo, mut hi) = ([0i64; 3], [0i64; 3]);
+        for i in 0..3 {
+            let a = self.anchor[i] as f64;
+            let (from, to) = if i != axis {
+                (a - hi_level, a + hi_level)
+            } else if face.is_multiple_of(2) {
+                (a + lo_level, a + hi_level)
+            } else {
+                (a - hi_level, a - lo_level)
+            };
+            lo[i] = (from.floor() as i64 - 1).max(0);
+            hi[i] = (to.ceil() as i64 + 1).min(n[i] as i64 - 1);
+            if lo[i] > hi[i] {
+                return None;
+            }
+        }
+        Some((
+            [lo[0] as i32, lo[1] as i32, lo[2] as i32],
+            [(hi[0] - lo[0] + 1) as u32, (hi[1] - lo[1] + 1) as u32, (hi[2] - lo[2] + 1) as u32],
+        ))
+    }
+}
+
+/// The sweep's dispatches: each step solves its boxes, one batch of shells for each light
+/// it covers, and only reads cells that earlier steps solved.
+#[derive(Clone, Debug, Default)]
+pub struct SweepPlan {
+    pub steps: Vec<SweepStep>,
+    /// Workgroups of each step.
+    pub groups: Vec<[u32; 3]>,
+    pub boxes: Vec<SweepBox>,
+}
+
+/// Plans the sweep of `lights` (OPV index, position) with interpolation stride `stride`:
+/// dispatch j solves batch j of every light that has one.
+pub fn sweep_steps(grid: &GridSpec, lights: &[(u32, Vec3)], stride: u32) -> SweepPlan {
+    let frames: Vec<(u32, ShellFrame)> = lights.iter().map(|&(l, p)| (l, ShellFrame::new(grid, p, stride))).collect();
+    let batches = frames.iter().map(|(_, f)| f.batches).max().unwrap_or(0);
+    let mut plan = SweepPlan::default();
+    let flush = |plan: &mut SweepPlan, first_box: usize, threads: u64| {
+        if plan.boxes.len() == first_box {
+            return;
+        }
+        let groups = threads.div_ceil(64).max(1);
+        let x = groups.min(65_535);
+        plan.groups.push([x as u32, groups.div_ceil(x) as u32, 1]);
+        plan.steps.push(SweepStep {
+            first_box: first_box as u32,
+            box_count: (plan.boxes.len() - first_box) as u32,
+            row: x as u32 * 64,
+            stride,
+        });
+    };
+    for batch in 0..batches {
+        let (mut first_box, mut threads) = (plan.boxes.len(), 0u64);
+        for &(light, frame) in frames.iter().filter(|(_, f)| batch < f.batches) {
+            for face in 0..6 {
+                let Some((lo, size)) = frame.face_box(grid, batch, face) else { continue };
+                let cells = size.iter().map(|&s| s as u64).product::<u64>();
+                if threads + cells > MAX_THREADS_PER_DISPATCH && threads > 0 {
+                    flush(&mut plan, first_box, threads);
+                    first_box = plan.boxes.len();
+                    threads = 0;
+                }
+                plan.boxes.push(SweepBox {
+                    lo,
+                    light,
+                    size,
+                    first: threads as u32,
+                    anchor: frame.anchor,
+                    level0: frame.level0,
+                    width: frame.width,
+                    face,
+                    batch,
+                    _pad: 0,
+                });
+                threads += cells;
+            }
+        }
+        flush(&mut plan, first_box, threads);
+    }
+    plan
 }
 
 /// Jacobi sweeps after which the `giroud` gather has converged exactly: one more than the
@@ -334,4 +485,136 @@ pub fn giroud_iterations(grid: &GridSpec, light: Vec3) -> u32 {
         total += if lc[a] < 0 || lc[a] >= n[a] { n[a] } else { lc[a].max(n[a] - 1 - lc[a]) };
     }
     total as u32 + 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::UVec3;
+
+    /// The cells a sweep cell reads (none when it integrates directly), as the shader finds them.
+    fn reads(grid: &GridSpec, light: Vec3, stride: u32, c: [i32; 3]) -> Vec<[i32; 3]> {
+        let cell = grid.cell_size();
+        let x = grid.min + (IVec3::from(c).as_vec3() + 0.5) * cell;
+        let v = light - x;
+        let len = v.length();
+        let dir = v / len;
+        let (mut inside, mut exit_axis) = (len, 3);
+        for i in 0..3 {
+            let t = if dir[i] > 0.0 {
+                (grid.max[i] - x[i]) / dir[i]
+            } else if dir[i] < 0.0 {
+                (grid.min[i] - x[i]) / dir[i]
+            } else {
+                len
+            };
+            if t < inside {
+                (inside, exit_axis) = (t, i);
+            }
+        }
+        let mag = (v / cell).abs();
+        let mut a = 0;
+        if mag.y > mag[a] {
+            a = 1;
+        }
+        if mag.z > mag[a] {
+            a = 2;
+        }
+        let s = stride as f32;
+        let (mut e, mut layers) = (a, s);
+        if exit_axis < 3 && exit_axis != a {
+            e = exit_axis;
+            layers = (s * mag[e] / mag[a]).ceil().max(1.0);
+        }
+        let to_plane = len * layers / mag[e];
+        if mag[a] < s + 0.5 || inside <= to_plane {
+            return Vec::new();
+        }
+        let p = x + dir * to_plane;
+        let u = (p - grid.min) / cell - 0.5;
+        let n = grid.resolution.as_ivec3();
+        let reach = if stride >= 4 { 1 } else { 0 };
+        let mut out = Vec::new();
+        let (b, d) = ((e + 1) % 3, (e + 2) % 3);
+        let fb = u[b].clamp(0.0, (n[b] - 1) as f32).floor() as i32;
+        let fd = u[d].clamp(0.0, (n[d] - 1) as f32).floor() as i32;
+        for j in -reach..=1 + reach {
+            for i in -reach..=1 + reach {
+                let mut r = IVec3::from(c);
+                r[e] = (c[e] + layers as i32 * v[e].signum() as i32).clamp(0, n[e] - 1);
+                r[b] = (fb + i).clamp(0, n[b] - 1);
+                r[d] = (fd + j).clamp(0, n[d] - 1);
+                out.push(r.to_array());
+            }
+        }
+        out
+    }
+
+    fn placements(grid: &GridSpec) -> Vec<Vec3> {
+        let (lo, hi, c) = (grid.min, grid.max, (grid.min + grid.max) * 0.5);
+        let size = grid.size();
+        let mut out = vec![c, lo + size * Vec3::new(0.13, 0.71, 0.37), lo, hi, Vec3::new(lo.x, c.y, hi.z), Vec3::new(c.x, hi.y, c.z)];
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let d = Vec3::new(dx as f32, dy as f32, dz as f32);
+                    if d != Vec3::ZERO {
+                        out.push(c + d * size * 0.8);
+                        out.push(c + d * size * 0.5 + Vec3::new(0.01, -0.02, 0.03) * size);
+                        out.push(c + d * 1e9 / d.length() + Vec3::new(3.0, -7.0, 1.0));
+                    }
+                }
+            }
+        }
+        out.push(Vec3::new(1e9, -1e9, 1e8));
+        out.push(Vec3::new(0.3, 1e3, -2e2));
+        out
+    }
+
+    /// Every cell is solved by exactly one box of the plan, after every cell it reads.
+    #[test]
+    fn sweep_plan_solves_each_cell_once_after_its_inputs() {
+        for (res, stride) in [(UVec3::new(12, 12, 12), 3), (UVec3::new(20, 9, 5), 8), (UVec3::new(40, 6, 6), 16), (UVec3::new(17, 17, 17), 5)] {
+            let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -0.5), max: Vec3::new(1.5, 1.0, 0.5), resolution: res };
+            for light in placements(&grid) {
+                let frame = ShellFrame::new(&grid, light, stride);
+                let plan = sweep_steps(&grid, &[(0, light)], stride);
+                assert!(plan.steps.len() as u32 <= frame.batches, "{light}");
+                let n = res.as_ivec3();
+                for k in 0..n.z {
+                    for j in 0..n.y {
+                        for i in 0..n.x {
+                            let c = [i, j, k];
+                            let (batch, face) = frame.claim(c);
+                            let holders = plan
+                                .boxes
+                                .iter()
+                                .filter(|b| b.batch == batch && b.face == face)
+                                .filter(|b| (0..3).all(|a| c[a] >= b.lo[a] && c[a] < b.lo[a] + b.size[a] as i32))
+                                .count();
+                            assert_eq!(holders, 1, "{res} {light} cell {c:?} batch {batch} face {face}");
+                            for r in reads(&grid, light, stride, c) {
+                                let (rb, _) = frame.claim(r);
+                                assert!(rb < batch, "{res} s{stride} {light}: cell {c:?} (batch {batch}) reads {r:?} (batch {rb})");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// All lights share each dispatch: the count is the batches of the deepest light.
+    #[test]
+    fn sweep_dispatches_are_batches_of_shells_shared_by_lights() {
+        let grid = GridSpec { min: Vec3::ZERO, max: Vec3::ONE, resolution: UVec3::splat(64) };
+        let lights = [(0, Vec3::splat(0.5)), (1, Vec3::new(3.0, 0.5, 0.5)), (2, Vec3::new(-1e9, 1e9, 1e9))];
+        let plan = sweep_steps(&grid, &lights, 8);
+        let deepest = lights.iter().map(|&(_, p)| ShellFrame::new(&grid, p, 8).batches).max().unwrap();
+        assert_eq!(plan.steps.len() as u32, deepest);
+        // Batches of stride − 3 = 5 levels: 64 levels from outside, 32 from the centre.
+        assert!(deepest <= 65 / 5 + 1, "{deepest}");
+        let centre = ShellFrame::new(&grid, Vec3::splat(0.5), 8).batches;
+        assert!(centre <= 33 / 5 + 1, "{centre}");
+    }
 }

@@ -5,15 +5,19 @@
 //! `verify` and the editor's error views have ground truth to compare against.
 //!
 //! - [`Medium64`]: the analytic medium of `physics.md` §2 and its exact optical depth (§3).
+//! - [`GridMedium64`]: the medium a grid represents (trilinear between cell centres, base fog
+//!   outside the box), for separating a propagation scheme's error from the grid's.
 //! - [`optical_depth_volume`], [`optical_depth_cells`]: exact optical-depth volumes (OPVs).
 //! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
 //!   (§4) with exact transmittance.
 //! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
 
+mod grid;
 pub use crate::quad;
 mod render;
 pub mod sun;
 
+pub use grid::{clip_to_box, clipped_optical_depth, GridMedium64};
 pub use render::{
     camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, RefRenderOptions,
 };
@@ -186,6 +190,34 @@ pub fn optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) 
     par_fill(&mut out, 64, |n| {
         let [i, j, k] = cells[n];
         medium.optical_depth(cell_center64(&project.grid, i, j, k), source)
+    });
+    out
+}
+
+/// Exact optical depth towards `source` through the grid's own medium, at the centres of
+/// `cells`, in their order.
+pub fn grid_optical_depth_cells(grid: &GridSpec, medium: &GridMedium64, source: DVec3, cells: &[[u32; 3]]) -> Vec<f64> {
+    let mut out = vec![0.0; cells.len()];
+    par_fill(&mut out, 64, |n| {
+        let [i, j, k] = cells[n];
+        medium.optical_depth(cell_center64(grid, i, j, k), source)
+    });
+    out
+}
+
+/// Exact optical depth towards `light` through the analytic medium clipped to the grid box
+/// (base fog outside it), at the centres of `cells`, in their order.
+///
+/// # Panics
+/// If `light` is not an index into `project.lights`.
+pub fn clipped_optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    let medium = Medium64::from_project(project);
+    let source = project.lights[light].position.as_dvec3();
+    let mut out = vec![0.0; cells.len()];
+    par_fill(&mut out, 64, |n| {
+        let [i, j, k] = cells[n];
+        let x = cell_center64(&project.grid, i, j, k);
+        clipped_optical_depth(&project.grid, &medium.along_line(x, (source - x).normalize_or_zero()), x, source)
     });
     out
 }
