@@ -160,9 +160,14 @@ fn colour_bar(painter: &egui::Painter, rect: Rect, cmap: Colormap, scale: &Scale
 fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
     let settings = state.slices;
     let key = (state.epoch, state.session.content_generation(), settings);
-    if state.slice.key == Some(key) {
+    // While the pointer is down for an edit the preview may put off rebaking (see
+    // `render_preview`), so a slice read then may predate the edit: read it again once the
+    // edit ends.
+    let editing = state.modal.is_some() || ctx.input(|i| i.pointer.any_down());
+    if state.slice.key == Some(key) && !(state.slice.provisional && !editing) {
         return;
     }
+    state.slice.provisional = editing;
     state.render_preview();
     let Some(gpu) = &state.gpu else {
         state.slice.error = state.gpu_missing.clone();
