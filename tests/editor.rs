@@ -469,3 +469,22 @@ fn without_a_portal_save_as_and_export_use_the_built_in_dialog() {
     let grids = fogsmith::export::vdb_read::list_vdb_grids(&vdb).expect("exported through the dialog");
     assert_eq!(grids.len(), 3, "density and one optical depth per light");
 }
+
+fn circles(h: &Harness<'_, EditorApp>) -> usize {
+    h.output().shapes.iter().filter(|c| matches!(c.shape, egui::Shape::Circle(_))).count()
+}
+
+/// View → Particle outlines off leaves only the selection outlined.
+#[test]
+fn particle_outlines_can_be_limited_to_the_selection() {
+    let mut h = harness(demo());
+    let n = h.state().session().project().particles.len();
+    h.state_mut().session_mut().selection.particles = [3].into();
+    h.run_steps(2);
+    let all = circles(&h);
+    assert!(all >= n, "every particle is outlined: {all} circles for {n} particles");
+    h.state_mut().set_outline_all(false);
+    h.run_steps(2);
+    let some = circles(&h);
+    assert_eq!(all - some, n - 1, "the unselected particles' outlines went ({all} → {some} circles)");
+}

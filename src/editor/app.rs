@@ -89,6 +89,7 @@ struct Persisted {
     brush: Brush,
     slices: SliceSettings,
     quality: Quality,
+    outline_all: Option<bool>,
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
@@ -366,6 +367,8 @@ pub struct EditorState {
     /// The built-in file dialog while it is open, and what it was opened for.
     built_in_dialog: Option<(Pick, egui_file_dialog::FileDialog)>,
     built_in_explained: bool,
+    /// Outline every particle in the viewport; otherwise only the selection.
+    pub(crate) outline_all: bool,
 }
 
 /// The slice currently shown and what it was made from.
@@ -444,6 +447,7 @@ impl EditorApp {
             file_dialogs,
             built_in_dialog: None,
             built_in_explained: false,
+            outline_all: persisted.outline_all.unwrap_or(true),
         };
         if state.options.recovery {
             let dir = crate::scene::recovery::state_dir();
@@ -537,6 +541,10 @@ impl EditorApp {
     pub fn export_dialog(&mut self, kind: Export) {
         self.state.export_dialog(kind);
     }
+    /// View → Particle outlines: every particle, or only the selection.
+    pub fn set_outline_all(&mut self, all: bool) {
+        self.state.outline_all = all;
+    }
     /// Whether Fogsmith's own file dialog is open.
     pub fn built_in_dialog_open(&self) -> bool {
         self.state.built_in_dialog.is_some()
@@ -569,6 +577,9 @@ impl EditorApp {
         if ui.button("Reset layout").on_hover_text("Back to the default arrangement of panels").clicked() {
             self.dock = default_layout();
         }
+        ui.separator();
+        ui.checkbox(&mut self.state.outline_all, "Particle outlines")
+            .on_hover_text("Outline every particle in the viewport; when off, only the selection is outlined");
         ui.separator();
         ui.label("Camera");
         self.state.camera_menu(ui);
@@ -626,6 +637,7 @@ impl eframe::App for EditorApp {
             brush: self.state.brush,
             slices: self.state.slices,
             quality: self.state.quality,
+            outline_all: Some(self.state.outline_all),
         };
         eframe::set_value(storage, STORAGE_KEY, &persisted);
     }
@@ -1504,7 +1516,7 @@ impl EditorState {
             ctx.request_repaint_after(std::time::Duration::from_millis(250));
         }
         let mut dismiss = None;
-        egui::Area::new(Id::new("toasts")).anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0]).show(ctx, |ui| {
+        egui::Area::new(Id::new("toasts")).order(egui::Order::Foreground).anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0]).show(ctx, |ui| {
             for (i, t) in self.toasts.iter().enumerate() {
                 egui::Frame::popup(ui.style()).show(ui, |ui| {
                     ui.set_max_width(420.0);

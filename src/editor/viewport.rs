@@ -454,7 +454,7 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
         }
     }
     let outline = Line::new(1.0, Color32::from_rgba_unmultiplied(200, 220, 255, 45));
-    let draw_all = project.particles.len() <= MAX_OUTLINES;
+    let draw_all = state.outline_all && project.particles.len() <= MAX_OUTLINES;
     for (i, p) in project.particles.iter().enumerate() {
         let selected = state.session.selection.particles.contains(&i);
         if p.hidden || !(draw_all || selected) {
