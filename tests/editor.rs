@@ -333,4 +333,220 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
         shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).all(|(a, b)| a.to_bits() == b.to_bits()),
         "the converged preview equals a fresh bake"
     );
+fn screen_of(h: &Harness<'_, EditorApp>, p: glam::Vec3) -> Pos2 {
+    let rect = h.state().viewport_rect().expect("viewport");
+    ViewProjection::new(&h.state().session().project().camera, rect).project(p).expect("in view").0
+}
+
+/// The mouse keeps moving in the frame where the button is released: the stroke ends at the
+/// release, as one undo step.
+#[test]
+fn a_stroke_stops_where_the_button_is_released() {
+    let mut h = harness(demo());
+    let rect = h.state().viewport_rect().expect("viewport");
+    h.state_mut().set_tool(Tool::Paint);
+    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.1, density: 2.0, spacing: 0.3, jitter: 0.0 };
+    let before = h.state().session().project().particles.len();
+    let undo_before = h.state().session().undo_len();
+    let (a, b) = (rect.center() - Vec2::new(60.0, 0.0), rect.center() + Vec2::new(20.0, 0.0));
+    let far = rect.right_bottom() - Vec2::new(4.0, 4.0);
+    h.event(Event::PointerMoved(a));
+    h.step();
+    press(&mut h, a, PointerButton::Primary, true);
+    for k in 1..=6 {
+        h.event(Event::PointerMoved(a + (b - a) * (k as f32 / 6.0)));
+        h.step();
+    }
+    // One frame holds the release and the moves after it, as when frames are slow.
+    h.input_mut().events.push(Event::PointerButton { pos: b, button: PointerButton::Primary, pressed: false, modifiers: Modifiers::NONE });
+    h.input_mut().events.push(Event::PointerMoved(far - Vec2::new(100.0, 0.0)));
+    h.input_mut().events.push(Event::PointerMoved(far));
+    h.step();
+    for k in 1..=4 {
+        h.event(Event::PointerMoved(far - Vec2::new(10.0 * k as f32, 0.0)));
+        h.step();
+    }
+    let particles = h.state().session().project().particles.clone();
+    assert!(particles.len() > before + 5, "the stroke painted: {before} → {}", particles.len());
+    for p in &particles[before..] {
+        let s = screen_of(&h, p.center);
+        assert!(s.x >= a.x - 1.0 && s.x <= b.x + 1.0 && (s.y - a.y).abs() < 1.0, "a dab at {s:?} lies off the stroke {a:?} → {b:?}");
+    }
+    assert_eq!(h.state().session().undo_len(), undo_before + 1, "the stroke is one undo step");
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert_eq!(h.state().session().project().particles.len(), before, "one undo removes the whole stroke");
+}
+
+fn wheel(modifiers: Modifiers) -> Event {
+    Event::MouseWheel { unit: egui::MouseWheelUnit::Point, delta: Vec2::new(0.0, 50.0), phase: egui::TouchPhase::Move, modifiers }
+}
+
+/// Alt is read per wheel event: an Alt+wheel that starts and ends within one frame changes
+/// the density only, and a plain wheel event in the same frame changes the radius only.
+#[test]
+fn alt_wheel_changes_density_only() {
+    let mut h = harness(demo());
+    let project = h.state().session().project().clone();
+    let pos = screen_of(&h, project.particles[24].center);
+    h.state_mut().session_mut().selection.particles = [24].into();
+    h.state_mut().set_tool(Tool::Scale);
+    h.event(Event::PointerMoved(pos));
+    h.step();
+    // A quick Alt+wheel: the key goes down and up within the frame, around the wheel events.
+    h.input_mut().events.push(wheel(Modifiers::ALT));
+    h.input_mut().events.push(wheel(Modifiers::ALT));
+    h.step();
+    let f = (100.0f32 * 0.002).exp();
+    let p = &h.state().session().project().particles[24];
+    assert_eq!(p.radius, project.particles[24].radius, "Alt+wheel leaves the radius alone");
+    assert!((p.density / project.particles[24].density - f).abs() < 1e-4, "density × {f}: {} → {}", project.particles[24].density, p.density);
+    let d = p.density;
+    h.input_mut().events.push(wheel(Modifiers::ALT));
+    h.input_mut().events.push(wheel(Modifiers::NONE));
+    h.step();
+    let p = &h.state().session().project().particles[24];
+    let g = (50.0f32 * 0.002).exp();
+    assert!((p.radius / project.particles[24].radius - g).abs() < 1e-4, "the plain wheel event scaled the radius");
+    assert!((p.density / d - g).abs() < 1e-4, "the Alt+wheel event scaled the density");
+}
+
+/// Dragging a light with the Light tool moves it, however fast the drag starts; dragging
+/// on empty space adds a light and places it, as one undo step.
+#[test]
+fn the_light_tool_drags_lights() {
+    let mut h = harness(demo());
+    h.state_mut().set_tool(Tool::Light);
+    let n = h.state().session().project().lights.len();
+    let from = screen_of(&h, h.state().session().project().lights[0].position);
+    let to = from + Vec2::new(45.0, 30.0);
+    h.event(Event::PointerMoved(from));
+    h.step();
+    press(&mut h, from, PointerButton::Primary, true);
+    h.event(Event::PointerMoved(to));
+    h.step();
+    h.step();
+    press(&mut h, to, PointerButton::Primary, false);
+    h.step();
+    let lights = &h.state().session().project().lights;
+    assert_eq!(lights.len(), n, "dragging a light adds none");
+    let s = screen_of(&h, lights[0].position);
+    assert!(s.distance(to) < 1.0, "the light follows the pointer: at {s:?}, pointer at {to:?}");
+    assert_eq!(h.state().session().selection.lights.iter().copied().collect::<Vec<_>>(), vec![0]);
+
+    let rect = h.state().viewport_rect().expect("viewport");
+    let (a, b) = (rect.center() + Vec2::new(-80.0, 60.0), rect.center() + Vec2::new(-20.0, 80.0));
+    let undo = h.state().session().undo_len();
+    drag(&mut h, a, b, 4);
+    let lights = &h.state().session().project().lights;
+    assert_eq!(lights.len(), n + 1, "a drag on empty space adds one light");
+    assert!(screen_of(&h, lights[n].position).distance(b) < 1.0, "placed where the drag ended");
+    assert_eq!(h.state().session().undo_len(), undo + 1, "adding and placing is one undo step");
+}
+
+/// The EV slice shows the volume after an erase, without touching the slice controls.
+#[test]
+fn the_ev_slice_follows_an_erase() {
+    let mut h = harness(demo());
+    h.run_steps(2);
+    let project = h.state().session().project().clone();
+    let k = ((project.particles[24].center.z - project.grid.min.z) / project.grid.cell_size().z) as u32;
+    h.state_mut().slice_settings_mut().index = k;
+    h.run_steps(2);
+    let before = h.state().current_slice().expect("slice").clone();
+    h.state_mut().set_tool(Tool::Erase);
+    h.state_mut().brush_mut().radius = 0.2;
+    let c = screen_of(&h, project.particles[24].center);
+    drag(&mut h, c - Vec2::new(10.0, 0.0), c + Vec2::new(10.0, 0.0), 4);
+    h.run_steps(3);
+    assert!(h.state().session().project().particles.len() < project.particles.len(), "the erase removed particles");
+    let ev = read_ev(&h);
+    let s = h.state().current_slice().expect("slice after the erase");
+    assert_eq!(s.index, k);
+    let expected = fogsmith::editor::slices::extract(&ev, Axis::Z, k);
+    assert_ne!(before.values, expected.values, "the erase changed this slice");
+    assert_eq!(s.values, expected.values, "the slice shows the EV after the erase");
+}
+
+#[test]
+fn reset_layout_escape_and_the_viewport_tab() {
+    use egui_dock::TabViewer;
+    let mut h = harness(demo());
+    h.state_mut().set_tab_open(fogsmith::editor::Tab::Slices, false);
+    h.run_steps(2);
+    assert!(h.state().dock.find_tab(&fogsmith::editor::Tab::Slices).is_none());
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Reset layout").click();
+    h.run_steps(2);
+    assert!(h.state().dock.find_tab(&fogsmith::editor::Tab::Slices).is_some(), "one click on Reset layout restores the panels");
+
+    h.get_by_label("preview").click();
+    h.run_steps(2);
+    assert!(h.query_by_label("full res").is_some(), "the quality drop-down opened");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    assert!(h.query_by_label("full res").is_none(), "Escape closes the drop-down");
+
+    assert!(!h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Viewport), "the Viewport tab has no close button");
+    assert!(h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Slices));
+}
+
+/// With no desktop portal and no zenity, Save As and Export open Fogsmith's own file
+/// dialog, say so, and save and export through it.
+#[test]
+fn without_a_portal_save_as_and_export_use_the_built_in_dialog() {
+    use fogsmith::editor::files::FileDialogs;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("room.ron");
+    fogsmith::scene::save_project(&path, &fogsmith::editor::demo_project().expect("demo")).expect("save");
+    let dialogs = FileDialogs::detect_with(|_| None);
+    assert!(matches!(dialogs, FileDialogs::BuiltIn { .. }), "no portal, no zenity: {dialogs:?}");
+    let options = EditorOptions { file_dialogs: Some(dialogs), ..EditorOptions::default() };
+    let mut h = harness_with(StartProject::resolve(Some(path.clone())).expect("start"), options);
+
+    h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, egui::Key::S);
+    h.run_steps(3);
+    assert!(h.state().built_in_dialog_open(), "Ctrl+Shift+S opened the built-in dialog");
+    let messages = h.state().messages();
+    assert!(messages.iter().any(|(_, t)| t.contains("Fogsmith's file dialog")), "the window says why: {messages:?}");
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::A);
+    h.event(Event::Text("copy.ron".into()));
+    h.step();
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    wait_idle(&mut h);
+    let copy = dir.path().join("copy.ron");
+    assert!(!h.state().built_in_dialog_open());
+    assert_eq!(load_project(&copy).expect("saved through the dialog"), *h.state().session().project());
+    assert!(h.state().title().starts_with("copy.ron"), "{}", h.state().title());
+
+    h.state_mut().export_dialog(Export::Vdb);
+    h.run_steps(3);
+    assert!(h.state().built_in_dialog_open(), "export opens the built-in dialog");
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    wait_idle(&mut h);
+    let vdb = dir.path().join("copy.vdb");
+    let grids = fogsmith::export::vdb_read::list_vdb_grids(&vdb).expect("exported through the dialog");
+    assert_eq!(grids.len(), 3, "density and one optical depth per light");
+}
+
+fn circles(h: &Harness<'_, EditorApp>) -> usize {
+    h.output().shapes.iter().filter(|c| matches!(c.shape, egui::Shape::Circle(_))).count()
+}
+
+/// View → Particle outlines off leaves only the selection outlined.
+#[test]
+fn particle_outlines_can_be_limited_to_the_selection() {
+    let mut h = harness(demo());
+    let n = h.state().session().project().particles.len();
+    h.state_mut().session_mut().selection.particles = [3].into();
+    h.run_steps(2);
+    let all = circles(&h);
+    assert!(all >= n, "every particle is outlined: {all} circles for {n} particles");
+    h.state_mut().set_outline_all(false);
+    h.run_steps(2);
+    let some = circles(&h);
+    assert_eq!(all - some, n - 1, "the unselected particles' outlines went ({all} → {some} circles)");
 }

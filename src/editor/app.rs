@@ -2,6 +2,7 @@
 //! threads, recent files, drag-and-drop, unsaved-changes confirmation), messages, and the
 //! bridge to the pipeline (one shared device, the preview handed to egui-wgpu as a texture).
 
+use super::files::{DialogSpec, FileDialogs};
 use super::session::Session;
 use super::slices::{Slice, SliceSettings};
 use super::tools::{Brush, Stroke, Tool};
@@ -88,6 +89,7 @@ struct Persisted {
     brush: Brush,
     slices: SliceSettings,
     quality: Quality,
+    outline_all: Option<bool>,
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
@@ -133,7 +135,7 @@ pub enum Action {
 }
 
 enum JobResult {
-    Picked { purpose: Pick, path: Option<PathBuf> },
+    Picked { purpose: Pick, spec: Box<DialogSpec>, path: Option<PathBuf>, seconds: f64 },
     Exported { path: PathBuf, result: Result<String, String> },
     Loaded { path: PathBuf, result: Result<Box<Project>, String> },
     Saved { path: PathBuf, generation: u64, result: Result<(), String> },
@@ -312,12 +314,13 @@ pub(crate) enum Gesture {
     Orbit,
     Pan,
     Box { start: egui::Pos2 },
-    Move { tag: u64, depth: f32 },
-    MoveLight { tag: u64, light: usize, depth: f32 },
+    /// `start`: where the drag began; `applied`: the displacement already applied.
+    Move { tag: u64, depth: f32, start: egui::Pos2, applied: glam::Vec3 },
+    MoveLight { tag: u64, light: usize, depth: f32, start: egui::Pos2, applied: glam::Vec3 },
     Paint(Stroke),
     SlicePaint(Stroke),
     Erase { tag: u64 },
-    ScaleDrag { tag: u64, targets: std::collections::BTreeSet<usize> },
+    ScaleDrag { tag: u64, targets: std::collections::BTreeSet<usize>, last_x: f32 },
 }
 
 /// G / S: the selection follows the pointer until a click confirms or Esc cancels.
@@ -376,6 +379,13 @@ pub struct EditorState {
     recovery_written: Option<(u64, u64, f64)>,
     /// Work left by an earlier run that did not exit cleanly, offered at start.
     pub(crate) recoveries: Vec<(PathBuf, crate::scene::recovery::Recovery)>,
+    /// The system's file dialogs, or the built-in one and why.
+    file_dialogs: FileDialogs,
+    /// The built-in file dialog while it is open, and what it was opened for.
+    built_in_dialog: Option<(Pick, egui_file_dialog::FileDialog)>,
+    built_in_explained: bool,
+    /// Outline every particle in the viewport; otherwise only the selection.
+    pub(crate) outline_all: bool,
 }
 
 /// The slice currently shown and what it was made from.
@@ -404,6 +414,7 @@ impl EditorApp {
             None => (None, Some("no wgpu renderer: the preview needs eframe's wgpu backend".to_string())),
         };
         let (jobs_tx, jobs_rx) = mpsc::channel();
+        let file_dialogs = options.file_dialogs.clone().unwrap_or_else(FileDialogs::detect);
         let dock = persisted
             .dock
             .filter(|d| d.iter_all_tabs().next().is_some())
@@ -449,6 +460,10 @@ impl EditorApp {
             recovery_dir: None,
             recovery_written: None,
             recoveries: Vec::new(),
+            file_dialogs,
+            built_in_dialog: None,
+            built_in_explained: false,
+            outline_all: persisted.outline_all.unwrap_or(true),
         };
         if state.options.recovery {
             let dir = crate::scene::recovery::state_dir();
@@ -550,6 +565,18 @@ impl EditorApp {
     pub fn export(&mut self, kind: Export, path: PathBuf) {
         self.state.export_to(kind, path);
     }
+    /// Asks where to export, as File → Export does.
+    pub fn export_dialog(&mut self, kind: Export) {
+        self.state.export_dialog(kind);
+    }
+    /// View → Particle outlines: every particle, or only the selection.
+    pub fn set_outline_all(&mut self, all: bool) {
+        self.state.outline_all = all;
+    }
+    /// Whether Fogsmith's own file dialog is open.
+    pub fn built_in_dialog_open(&self) -> bool {
+        self.state.built_in_dialog.is_some()
+    }
     pub fn title(&self) -> &str {
         &self.state.title
     }
@@ -578,6 +605,9 @@ impl EditorApp {
         if ui.button("Reset layout").on_hover_text("Back to the default arrangement of panels").clicked() {
             self.dock = default_layout();
         }
+        ui.separator();
+        ui.checkbox(&mut self.state.outline_all, "Particle outlines")
+            .on_hover_text("Outline every particle in the viewport; when off, only the selection is outlined");
         ui.separator();
         ui.label("Camera");
         self.state.camera_menu(ui);
@@ -635,6 +665,7 @@ impl eframe::App for EditorApp {
             brush: self.state.brush,
             slices: self.state.slices,
             quality: self.state.quality,
+            outline_all: Some(self.state.outline_all),
         };
         eframe::set_value(storage, STORAGE_KEY, &persisted);
     }
@@ -659,6 +690,12 @@ impl egui_dock::TabViewer for EditorState {
             Tab::Inspector => super::panels::inspector(self, ui),
             Tab::Stats => super::panels::stats(self, ui),
         }
+    }
+
+    /// The Viewport has no close button on its tab, where a click meant to focus it would
+    /// land; View → Panels still hides it.
+    fn is_closeable(&self, tab: &Tab) -> bool {
+        *tab != Tab::Viewport
     }
 
     fn scroll_bars(&self, tab: &Tab) -> [bool; 2] {
@@ -742,10 +779,16 @@ impl EditorState {
     fn perform(&mut self, action: Action) {
         match action {
             Action::New => self.replace_project(Project::default(), None, "untitled.ron"),
-            Action::OpenDialog => self.spawn("Choosing a file", || JobResult::Picked {
-                purpose: Pick::Open,
-                path: rfd::FileDialog::new().add_filter("Fogsmith project", &["ron"]).pick_file(),
-            }),
+            Action::OpenDialog => {
+                let spec = DialogSpec {
+                    title: "Open project",
+                    filter: "Fogsmith project",
+                    extension: "ron",
+                    file_name: None,
+                    directory: self.dialog_directory(),
+                };
+                self.choose_file(Pick::Open, spec);
+            }
             Action::Open(path) => {
                 let p = path.clone();
                 self.spawn(&format!("Opening {}", path.display()), move || JobResult::Loaded {
@@ -772,11 +815,74 @@ impl EditorState {
     }
 
     fn save_as_dialog(&mut self) {
-        let name = self.session.name().to_owned();
-        self.spawn("Choosing where to save", move || JobResult::Picked {
-            purpose: Pick::SaveAs,
-            path: rfd::FileDialog::new().add_filter("Fogsmith project", &["ron"]).set_file_name(name).save_file(),
-        });
+        let name = self.session.name().split(' ').next().unwrap_or("untitled.ron").to_owned();
+        let spec = DialogSpec {
+            title: "Save project as",
+            filter: "Fogsmith project",
+            extension: "ron",
+            file_name: Some(name),
+            directory: self.dialog_directory(),
+        };
+        self.choose_file(Pick::SaveAs, spec);
+    }
+
+    /// The project's folder, where dialogs start.
+    fn dialog_directory(&self) -> Option<PathBuf> {
+        self.session.path().and_then(Path::parent).filter(|d| !d.as_os_str().is_empty()).map(Path::to_owned)
+    }
+
+    /// Asks for a file with the system's dialog, or the built-in one where that cannot open.
+    fn choose_file(&mut self, purpose: Pick, spec: DialogSpec) {
+        if self.built_in_dialog.is_some() {
+            self.info("A file dialog is already open");
+            return;
+        }
+        match &self.file_dialogs {
+            FileDialogs::System => {
+                let label = if spec.is_save() { "Choosing where to save" } else { "Choosing a file" };
+                self.spawn(label, move || {
+                    let started = Instant::now();
+                    let path = spec.run_system();
+                    JobResult::Picked { purpose, path, seconds: started.elapsed().as_secs_f64(), spec: Box::new(spec) }
+                });
+            }
+            FileDialogs::BuiltIn { reason } => {
+                if !self.built_in_explained {
+                    self.built_in_explained = true;
+                    let text = format!("Using Fogsmith's file dialog: {reason}");
+                    self.info(text);
+                }
+                self.open_built_in(purpose, &spec);
+            }
+        }
+    }
+
+    fn open_built_in(&mut self, purpose: Pick, spec: &DialogSpec) {
+        self.built_in_dialog = Some((purpose, spec.built_in()));
+    }
+
+    /// Shows the built-in dialog and acts on its choice.
+    fn built_in_dialog(&mut self, ctx: &Context) {
+        let Some((purpose, dialog)) = &mut self.built_in_dialog else { return };
+        let purpose = *purpose;
+        dialog.update(ctx);
+        let picked = dialog.take_picked();
+        let open = matches!(dialog.state(), egui_file_dialog::DialogState::Open);
+        if let Some(path) = picked {
+            self.built_in_dialog = None;
+            self.picked(purpose, path);
+        } else if !open {
+            self.built_in_dialog = None;
+            self.after_save = None;
+        }
+    }
+
+    fn picked(&mut self, purpose: Pick, path: PathBuf) {
+        match purpose {
+            Pick::Open => self.perform(Action::Open(path)),
+            Pick::SaveAs => self.save_to(path),
+            Pick::Export(kind) => self.export_to(kind, path),
+        }
     }
 
     pub(crate) fn save_to(&mut self, path: PathBuf) {
@@ -791,17 +897,15 @@ impl EditorState {
         });
     }
 
-    fn export_dialog(&mut self, kind: Export) {
+    pub(crate) fn export_dialog(&mut self, kind: Export) {
         let (filter, ext) = match kind {
             Export::Vdb => ("OpenVDB", "vdb"),
             Export::ExrSlices => ("OpenEXR", "exr"),
         };
         let stem = Path::new(self.session.name()).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let name = format!("{}.{ext}", stem.split(' ').next().unwrap_or("fog"));
-        self.spawn("Choosing where to export", move || JobResult::Picked {
-            purpose: Pick::Export(kind),
-            path: rfd::FileDialog::new().add_filter(filter, &[ext]).set_file_name(name).save_file(),
-        });
+        let spec = DialogSpec { title: "Export", filter, extension: ext, file_name: Some(name), directory: self.dialog_directory() };
+        self.choose_file(Pick::Export(kind), spec);
     }
 
     /// Reads the baked volumes back (brief) and writes them in a background thread.
@@ -859,10 +963,15 @@ impl EditorState {
     fn finish_job(&mut self, result: JobResult) {
         self.busy.pop();
         match result {
+            JobResult::Picked { purpose, spec, path: None, seconds } if seconds < super::files::NO_DIALOG_SECONDS => {
+                let reason = "the system file dialog did not open (no desktop portal or zenity answered)".to_string();
+                self.info(format!("{}; using Fogsmith's file dialog", capitalized(&reason)));
+                self.file_dialogs = FileDialogs::BuiltIn { reason };
+                self.built_in_explained = true;
+                self.open_built_in(purpose, &spec);
+            }
             JobResult::Picked { path: None, .. } => self.after_save = None,
-            JobResult::Picked { purpose: Pick::Open, path: Some(path) } => self.perform(Action::Open(path)),
-            JobResult::Picked { purpose: Pick::SaveAs, path: Some(path) } => self.save_to(path),
-            JobResult::Picked { purpose: Pick::Export(kind), path: Some(path) } => self.export_to(kind, path),
+            JobResult::Picked { purpose, path: Some(path), .. } => self.picked(purpose, path),
             JobResult::Exported { path, result: Ok(summary) } => self.info(format!("Exported {}: {summary}", path.display())),
             JobResult::Exported { path, result: Err(e) } => self.error(format!("Export to {} failed: {e}", path.display())),
             JobResult::Loaded { path, result: Ok(project) } => {
@@ -994,16 +1103,19 @@ impl EditorState {
             ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
             self.confirm = Some(Action::Quit);
         }
-        if ctx.input(|i| i.pointer.any_released()) {
-            self.session.end_edit();
-        }
         self.shortcuts(ctx);
     }
 
     fn end_frame(&mut self, ctx: &Context) {
+        // After every panel has seen the release, so a gesture's last step joins its undo step.
+        if ctx.input(|i| i.pointer.any_released()) {
+            self.session.end_edit();
+            ctx.request_repaint();
+        }
         self.write_recovery(ctx.input(|i| i.time));
         self.recovery_dialog(ctx);
         self.confirm_dialog(ctx);
+        self.built_in_dialog(ctx);
         self.shortcuts_window(ctx);
         self.show_toasts(ctx);
         let title = format!("{}{} — Fogsmith", self.session.name(), if self.session.is_dirty() { " ●" } else { "" });
@@ -1159,7 +1271,8 @@ impl EditorState {
         if key(Key::F) {
             self.frame_selection();
         }
-        if key(Key::Escape) {
+        // Escape closes an open drop-down or menu first (egui reads the key itself).
+        if !egui::Popup::is_any_open(ctx) && key(Key::Escape) {
             if self.modal.is_some() {
                 self.cancel_modal();
             } else {
@@ -1449,7 +1562,7 @@ impl EditorState {
             ctx.request_repaint_after(std::time::Duration::from_millis(250));
         }
         let mut dismiss = None;
-        egui::Area::new(Id::new("toasts")).anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0]).show(ctx, |ui| {
+        egui::Area::new(Id::new("toasts")).order(egui::Order::Foreground).anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0]).show(ctx, |ui| {
             for (i, t) in self.toasts.iter().enumerate() {
                 egui::Frame::popup(ui.style()).show(ui, |ui| {
                     ui.set_max_width(420.0);
@@ -1489,3 +1602,8 @@ const SHORTCUTS: &[(&str, &str)] = &[
     ("Ctrl+S / Ctrl+Shift+S", "Save / save as"),
     ("F1", "This sheet"),
 ];
+
+fn capitalized(s: &str) -> String {
+    let mut c = s.chars();
+    c.next().map(|f| f.to_uppercase().chain(c).collect()).unwrap_or_default()
+}

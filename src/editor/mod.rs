@@ -11,6 +11,7 @@
 //! [`FogPipeline`](crate::gpu::FogPipeline) and hands the pipeline's display view to egui-wgpu.
 
 pub mod app;
+pub mod files;
 mod panels;
 pub mod session;
 pub mod slices;
@@ -56,6 +57,9 @@ pub struct EditorOptions {
     pub recovery: bool,
     /// Paint this many particles as one stroke once the editor has opened.
     pub scripted_stroke: Option<usize>,
+    /// Which file dialogs to use; `None` decides from the environment
+    /// ([`files::FileDialogs::detect`]).
+    pub file_dialogs: Option<files::FileDialogs>,
 }
 
 /// The project a bare `fogsmith` opens.

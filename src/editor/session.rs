@@ -340,7 +340,13 @@ impl Session {
 
     /// Adds a light and selects it alone.
     pub fn add_light(&mut self, light: Light) -> usize {
-        let project = self.edit(NEW_STEP);
+        self.add_light_tagged(NEW_STEP, light)
+    }
+
+    /// Like [`Self::add_light`], as part of the edit `tag` (adding and placing a light by
+    /// dragging is one undo step).
+    pub fn add_light_tagged(&mut self, tag: EditTag, light: Light) -> usize {
+        let project = self.edit(tag);
         project.lights.push(light);
         let i = project.lights.len() - 1;
         self.selection.clear();

@@ -64,7 +64,7 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
     });
     ui.horizontal_wrapped(|ui| {
         use super::app::Quality;
-        egui::ComboBox::from_id_salt("quality")
+        egui::ComboBox::new("quality", "preview")
             .selected_text(match state.quality {
                 Quality::Balanced => "balanced",
                 Quality::Full => "full res",
@@ -77,7 +77,6 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             })
             .response
             .on_hover_text("Preview resolution. While the camera moves the preview is always coarser, then refines.");
-        ui.label("preview");
         ui.separator();
         let mut exposure = state.session.project().render.exposure;
         let r = ui
@@ -92,7 +91,7 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
 fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rect: Rect) {
     let camera = state.session.project().camera;
     let vp = ViewProjection::new(&camera, rect);
-    let (modifiers, scroll, pointer) = ui.input(|i| (i.modifiers, wheel_delta(&i.raw.events), i.pointer.clone()));
+    let (modifiers, events, pointer) = ui.input(|i| (i.modifiers, i.raw.events.clone(), i.pointer.clone()));
     let hover = response.hover_pos();
 
     if state.modal.is_some() {
@@ -101,18 +100,25 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
         return;
     }
 
-    if hover.is_some() && scroll != 0.0 {
-        if state.tool == Tool::Scale && !modifiers.command {
-            if let Some(pos) = hover {
-                wheel_scale(state, &vp, pos, scroll, modifiers.alt, ui.input(|i| i.time));
+    let wheel = Wheel::from_events(&events);
+    if let Some(pos) = hover {
+        if state.tool == Tool::Scale {
+            let now = ui.input(|i| i.time);
+            if wheel.plain != 0.0 {
+                wheel_scale(state, &vp, pos, wheel.plain, false, now);
             }
-        } else {
-            let c = view::zoom(&camera, (-scroll * 0.0015).exp());
-            state.session.set_camera(c);
+            if wheel.alt != 0.0 {
+                wheel_scale(state, &vp, pos, wheel.alt, true, now);
+            }
+            if wheel.command != 0.0 {
+                state.session.set_camera(view::zoom(&camera, (-wheel.command * 0.0015).exp()));
+            }
+        } else if wheel.total() != 0.0 {
+            state.session.set_camera(view::zoom(&camera, (-wheel.total() * 0.0015).exp()));
         }
     }
     let zoom = ui.input(|i| i.zoom_delta());
-    if hover.is_some() && zoom != 1.0 && scroll == 0.0 {
+    if hover.is_some() && zoom != 1.0 && !wheel.any {
         state.session.set_camera(view::zoom(&camera, 1.0 / zoom));
     }
 
@@ -130,39 +136,101 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
 
     let primary_pressed = response.drag_started_by(egui::PointerButton::Primary)
         || (response.clicked_by(egui::PointerButton::Primary) && state.gesture.is_none());
-    let primary_down = pointer.primary_down();
     let pos = pointer.interact_pos().or(hover);
 
+    let mut down_at_start = true;
     if primary_pressed {
-        if let Some(pos) = pos {
-            start_gesture(state, &vp, pos, modifiers, response.clicked());
+        // The gesture starts where the button went down: egui reports a drag only once the
+        // pointer has moved a few points away from there.
+        if let Some(origin) = pointer.press_origin().or(pos) {
+            start_gesture(state, &vp, origin, modifiers);
         }
+        down_at_start = !events.iter().any(|e| is_primary(e, true));
     }
-    if let Some(pos) = pos {
-        if primary_down || response.drag_stopped() || response.clicked() {
-            continue_gesture(state, &vp, pos, response.drag_delta(), modifiers.alt);
-        }
+    let track = PrimaryTrack::from_events(&events, down_at_start);
+    if pointer.primary_down() || track.released.is_some() {
+        let points = if track.points.is_empty() { pos.filter(|_| primary_pressed).into_iter().collect() } else { track.points.clone() };
+        continue_gesture(state, &vp, &points, modifiers.alt);
     }
-    if response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.gesture.is_some()) {
-        finish_gesture(state, &vp, pos, modifiers);
+    if track.released.is_some() || response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.gesture.is_some()) {
+        finish_gesture(state, &vp, track.released.or(pos), modifiers);
     }
     state.interacting = state.force_interacting
         || matches!(state.gesture, Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. }));
 }
 
-/// Vertical wheel movement this frame in points (lines count as 40 points).
-fn wheel_delta(events: &[egui::Event]) -> f32 {
-    events
-        .iter()
-        .map(|e| match e {
-            egui::Event::MouseWheel { unit, delta, .. } => match unit {
-                egui::MouseWheelUnit::Point => delta.y,
-                egui::MouseWheelUnit::Line => delta.y * 40.0,
-                egui::MouseWheelUnit::Page => delta.y * 400.0,
-            },
-            _ => 0.0,
-        })
-        .sum()
+fn is_primary(e: &egui::Event, pressed: bool) -> bool {
+    matches!(e, egui::Event::PointerButton { button: egui::PointerButton::Primary, pressed: p, .. } if *p == pressed)
+}
+
+/// Where the pointer went this frame while the primary button was held, in event order,
+/// up to and including the release. Strokes follow these rather than the pointer's final
+/// position, which may lie well past the release when the mouse keeps moving.
+#[derive(Clone, Debug, Default)]
+struct PrimaryTrack {
+    points: Vec<Pos2>,
+    released: Option<Pos2>,
+}
+
+impl PrimaryTrack {
+    fn from_events(events: &[egui::Event], down_at_start: bool) -> Self {
+        let mut track = Self::default();
+        let mut down = down_at_start;
+        for e in events {
+            match e {
+                egui::Event::PointerButton { pos, button: egui::PointerButton::Primary, pressed, .. } => {
+                    if *pressed {
+                        down = true;
+                        track.points.push(*pos);
+                    } else if down {
+                        track.points.push(*pos);
+                        track.released = Some(*pos);
+                        break;
+                    }
+                }
+                egui::Event::PointerMoved(p) if down => track.points.push(*p),
+                _ => {}
+            }
+        }
+        track
+    }
+}
+
+/// This frame's wheel movement in points (lines count as 40), split by the modifiers held
+/// at each event: a quick Alt+wheel may start and end within one frame.
+#[derive(Clone, Copy, Debug, Default)]
+struct Wheel {
+    plain: f32,
+    alt: f32,
+    command: f32,
+    any: bool,
+}
+
+impl Wheel {
+    fn from_events(events: &[egui::Event]) -> Self {
+        let mut w = Self::default();
+        for e in events {
+            if let egui::Event::MouseWheel { unit, delta, modifiers, .. } = e {
+                let d = match unit {
+                    egui::MouseWheelUnit::Point => delta.y,
+                    egui::MouseWheelUnit::Line => delta.y * 40.0,
+                    egui::MouseWheelUnit::Page => delta.y * 400.0,
+                };
+                w.any = true;
+                if modifiers.command {
+                    w.command += d;
+                } else if modifiers.alt {
+                    w.alt += d;
+                } else {
+                    w.plain += d;
+                }
+            }
+        }
+        w
+    }
+    fn total(&self) -> f32 {
+        self.plain + self.alt + self.command
+    }
 }
 
 fn wheel_scale(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, scroll: f32, density: bool, now: f64) {
@@ -185,7 +253,7 @@ fn wheel_scale(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, scroll: 
     state.session.scale_particles(tag, &targets, (scroll * 0.002).exp(), density);
 }
 
-fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifiers: egui::Modifiers, _click: bool) {
+fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifiers: egui::Modifiers) {
     let project = state.session.project();
     state.gesture = match state.tool {
         Tool::Select => match tools::pick(project, vp, pos) {
@@ -203,37 +271,54 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
                         toggle(state, hit, false);
                     }
                     let depth = state.session.selection_center().and_then(|c| vp.project(c)).map_or(1.0, |(_, z)| z);
-                    Some(Gesture::Move { tag: state.session.new_tag(), depth })
+                    Some(Gesture::Move { tag: state.session.new_tag(), depth, start: pos, applied: Vec3::ZERO })
                 }
             }
             None => Some(Gesture::Box { start: pos }),
         },
-        Tool::Paint => Some(Gesture::Paint(Stroke::new(state.session.new_tag()))),
-        Tool::Erase => Some(Gesture::Erase { tag: state.session.new_tag() }),
+        Tool::Paint => {
+            let mut stroke = Stroke::new(state.session.new_tag());
+            if let Some(point) = tools::working_plane_point(state.session.project(), vp, pos) {
+                let dabs = stroke.dabs_to(point, vp.right, vp.up, &state.brush);
+                state.session.add_particles(stroke.tag, dabs);
+            }
+            Some(Gesture::Paint(stroke))
+        }
+        Tool::Erase => {
+            let tag = state.session.new_tag();
+            state.session.erase_along_ray(tag, vp.position, vp.ray(pos), state.brush.radius);
+            Some(Gesture::Erase { tag })
+        }
         Tool::Scale => {
             let targets = if state.session.selection.particles.is_empty() {
                 tools::under_brush(project, vp, pos, state.brush.radius)
             } else {
                 state.session.selection.particles.clone()
             };
-            Some(Gesture::ScaleDrag { tag: state.session.new_tag(), targets })
+            Some(Gesture::ScaleDrag { tag: state.session.new_tag(), targets, last_x: pos.x })
         }
-        Tool::Light => match tools::pick(project, vp, pos) {
-            Some(Hit::Light(i)) => {
-                let depth = project.lights.get(i).and_then(|l| vp.project(l.position)).map_or(1.0, |(_, z)| z);
+        Tool::Light => {
+            // Press on a light: drag it. Press on empty space: add a light there (a drag
+            // then places it).
+            let hit = tools::pick(project, vp, pos);
+            let point = tools::working_plane_point(project, vp, pos);
+            let count = project.lights.len();
+            let tag = state.session.new_tag();
+            let light = match hit {
+                Some(Hit::Light(i)) => Some(i),
+                _ => point.map(|point| {
+                    let mut light = crate::scene::Light::new(point, 2.0, Vec3::ONE);
+                    light.name = Some(format!("Light {}", count + 1));
+                    state.session.add_light_tagged(tag, light)
+                }),
+            };
+            light.map(|i| {
+                let depth = state.session.project().lights.get(i).and_then(|l| vp.project(l.position)).map_or(1.0, |(_, z)| z);
                 state.session.selection.clear();
                 state.session.selection.lights.insert(i);
-                Some(Gesture::MoveLight { tag: state.session.new_tag(), light: i, depth })
-            }
-            _ => {
-                if let Some(point) = tools::working_plane_point(project, vp, pos) {
-                    let mut light = crate::scene::Light::new(point, 2.0, Vec3::ONE);
-                    light.name = Some(format!("Light {}", project.lights.len() + 1));
-                    state.session.add_light(light);
-                }
-                None
-            }
-        },
+                Gesture::MoveLight { tag, light: i, depth, start: pos, applied: Vec3::ZERO }
+            })
+        }
     };
 }
 
@@ -249,36 +334,57 @@ fn toggle(state: &mut EditorState, hit: Hit, toggle: bool) {
     }
 }
 
-fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, delta: egui::Vec2, alt: bool) {
+/// Continues the gesture through `points`, where the pointer went this frame while the
+/// button was held.
+fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2], alt: bool) {
     let brush = state.brush;
+    let Some(&last) = points.last() else { return };
     match &mut state.gesture {
         Some(Gesture::Paint(stroke)) => {
-            if let Some(point) = tools::working_plane_point(state.session.project(), vp, pos) {
-                let dabs = stroke.dabs_to(point, vp.right, vp.up, &brush);
-                if !dabs.is_empty() {
-                    let tag = stroke.tag;
-                    state.session.add_particles(tag, dabs);
+            let mut dabs = Vec::new();
+            for &p in points {
+                if let Some(point) = tools::working_plane_point(state.session.project(), vp, p) {
+                    dabs.extend(stroke.dabs_to(point, vp.right, vp.up, &brush));
                 }
+            }
+            if !dabs.is_empty() {
+                let tag = stroke.tag;
+                state.session.add_particles(tag, dabs);
             }
         }
         Some(Gesture::Erase { tag }) => {
             let tag = *tag;
-            state.session.erase_along_ray(tag, vp.position, vp.ray(pos), brush.radius);
-        }
-        Some(Gesture::Move { tag, depth }) if delta != egui::Vec2::ZERO => {
-            let (tag, depth) = (*tag, *depth);
-            state.session.translate_selection(tag, vp.drag_to_world(delta, depth));
-        }
-        Some(Gesture::MoveLight { tag, light, depth }) if delta != egui::Vec2::ZERO => {
-            let (tag, light, depth) = (*tag, *light, *depth);
-            let d = vp.drag_to_world(delta, depth);
-            if let Some(l) = state.session.edit(tag).lights.get_mut(light) {
-                l.position += d;
+            for &p in points {
+                state.session.erase_along_ray(tag, vp.position, vp.ray(p), brush.radius);
             }
         }
-        Some(Gesture::ScaleDrag { tag, targets }) if delta.x != 0.0 => {
-            let (tag, targets) = (*tag, targets.clone());
-            state.session.scale_particles(tag, &targets, (delta.x * 0.01).exp(), alt);
+        Some(Gesture::Move { tag, depth, start, applied }) => {
+            let total = vp.drag_to_world(last - *start, *depth);
+            let step = total - *applied;
+            *applied = total;
+            let tag = *tag;
+            if step != Vec3::ZERO {
+                state.session.translate_selection(tag, step);
+            }
+        }
+        Some(Gesture::MoveLight { tag, light, depth, start, applied }) => {
+            let total = vp.drag_to_world(last - *start, *depth);
+            let step = total - *applied;
+            *applied = total;
+            let (tag, light) = (*tag, *light);
+            if step != Vec3::ZERO {
+                if let Some(l) = state.session.edit(tag).lights.get_mut(light) {
+                    l.position += step;
+                }
+            }
+        }
+        Some(Gesture::ScaleDrag { tag, targets, last_x }) => {
+            let dx = last.x - *last_x;
+            *last_x = last.x;
+            if dx != 0.0 {
+                let (tag, targets) = (*tag, targets.clone());
+                state.session.scale_particles(tag, &targets, (dx * 0.01).exp(), alt);
+            }
         }
         _ => {}
     }
@@ -347,7 +453,7 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
         }
     }
     let outline = Line::new(1.0, Color32::from_rgba_unmultiplied(200, 220, 255, 45));
-    let draw_all = project.particles.len() <= MAX_OUTLINES;
+    let draw_all = state.outline_all && project.particles.len() <= MAX_OUTLINES;
     for (i, p) in project.particles.iter().enumerate() {
         let selected = state.session.selection.particles.contains(&i);
         if p.hidden || !(draw_all || selected) {
