@@ -333,6 +333,8 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
         shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).all(|(a, b)| a.to_bits() == b.to_bits()),
         "the converged preview equals a fresh bake"
     );
+}
+
 fn screen_of(h: &Harness<'_, EditorApp>, p: glam::Vec3) -> Pos2 {
     let rect = h.state().viewport_rect().expect("viewport");
     ViewProjection::new(&h.state().session().project().camera, rect).project(p).expect("in view").0

@@ -122,3 +122,31 @@ proptest! {
         assert_same_as_fresh(&gpu, &p, &request);
     }
 }
+
+/// A local edit far from a light re-propagates only the shells it can reach, and the result
+/// is still bit for bit the fresh bake; so after a light is added (its buffers reallocated).
+#[test]
+fn a_local_edit_repropagates_only_the_shells_it_reaches() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(40, &[Vec3::new(-0.8, -0.8, -0.8), Vec3::new(-3.0, 0.2, 0.1)]);
+    let request = FrameRequest::for_project(&p);
+    let full = gpu.update(&p, &FrameRequest { force: true, ..request }).unwrap();
+    p.particles.push(Particle::new(Vec3::new(0.75, 0.75, 0.75), 0.08, 6.0));
+    let local = gpu.update(&p, &request).unwrap();
+    assert_eq!(local.counters.lights_propagated, 2);
+    // The shells nearer each light than the edit are kept: for these placements about a fifth
+    // of the work.
+    assert!(
+        local.counters.cells_propagated * 10 < full.counters.cells_propagated * 9,
+        "a corner edit recomputes fewer cells: {} of {}",
+        local.counters.cells_propagated,
+        full.counters.cells_propagated
+    );
+    assert_same_as_fresh(&gpu, &p, &request);
+
+    p.lights.push(fogsmith::scene::Light::new(Vec3::new(0.9, -0.9, 0.9), 3.0, Vec3::ONE));
+    gpu.update(&p, &request).unwrap();
+    p.particles[0].center = Vec3::new(0.05, 0.0, -0.05);
+    gpu.update(&p, &request).unwrap();
+    assert_same_as_fresh(&gpu, &p, &request);
+}

@@ -190,12 +190,48 @@ struct Baked {
     opvs: Vec<Option<OpvKey>>,
     /// The image on show.
     shown: Option<(ImageKey, Level)>,
+    /// The cells each recent injection changed, by the EV generation it produced.
+    ev_changes: Vec<(u64, Region)>,
 }
+
+/// Cells an injection changed: a box (inclusive cell bounds) or the whole grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Region {
+    Cells(glam::UVec3, glam::UVec3),
+    All,
+}
+
+impl Region {
+    fn union(self, other: Region) -> Region {
+        match (self, other) {
+            (Region::Cells(a0, a1), Region::Cells(b0, b1)) => Region::Cells(a0.min(b0), a1.max(b1)),
+            _ => Region::All,
+        }
+    }
+
+    /// The cells of `bricks`, or All when they are every brick.
+    fn of_bricks(grid: &GridSpec, bricks: &[u32]) -> Region {
+        let dims = binning::brick_dims(grid);
+        if bricks.len() as u32 >= dims.x * dims.y * dims.z {
+            return Region::All;
+        }
+        let mut region: Option<Region> = None;
+        for &b in bricks {
+            let at = glam::UVec3::new(b % dims.x, (b / dims.x) % dims.y, b / (dims.x * dims.y)) * binning::BRICK;
+            let cells = Region::Cells(at, (at + binning::BRICK - 1).min(grid.resolution - 1));
+            region = Some(region.map_or(cells, |r| r.union(cells)));
+        }
+        region.unwrap_or(Region::All)
+    }
+}
+
+/// Injections remembered for partial re-propagation.
+const EV_HISTORY: usize = 64;
 
 /// Work in progress, dropped whenever its inputs change.
 #[derive(Default)]
 struct Jobs {
-    inject: Option<InjectJob>,
+    inject: Option<(InjectJob, Region)>,
     propagate: Option<(PropagationJob, Vec<(usize, OpvKey)>)>,
     march: Option<(MarchJob, ImageKey)>,
 }
@@ -549,13 +585,17 @@ impl FogPipeline {
             let t = Instant::now();
             let units = self.inject_item(project, left(t), &mut progress.report.counters)?;
             progress.report.timings_ms.inject += self.item_ms(timer::INJECT, t, units)?;
-            if self.jobs.inject.as_ref().is_some_and(InjectJob::done) {
-                self.jobs.inject = None;
+            if self.jobs.inject.as_ref().is_some_and(|(job, _)| job.done()) {
+                let (_, region) = self.jobs.inject.take().expect("a finished injection");
                 self.baked.ev_generation += 1;
+                self.baked.ev_changes.push((self.baked.ev_generation, region));
+                if self.baked.ev_changes.len() > EV_HISTORY {
+                    self.baked.ev_changes.remove(0);
+                }
                 self.volumes_generation += 1;
             } else if left(Instant::now()).is_some_and(|ms| ms <= 0.0) {
                 progress.stage = Stage::Inject;
-                progress.stage_fraction = self.jobs.inject.as_ref().map_or(0.0, InjectJob::fraction);
+                progress.stage_fraction = self.jobs.inject.as_ref().map_or(0.0, |(job, _)| job.fraction());
                 return Ok(self.finish(progress, project, request));
             }
         }
@@ -719,9 +759,11 @@ impl FogPipeline {
             self.baked.ev = Some((key, project.particles.clone()));
             return;
         }
+        let mut region = Region::of_bricks(&project.grid, &bricks);
         // Bricks an unfinished injection has not reached yet still need doing; those it did
         // hold its particles, which the new dirty bricks were computed against.
-        if let Some(job) = self.jobs.inject.take() {
+        if let Some((job, pending)) = self.jobs.inject.take() {
+            region = region.union(pending);
             bricks.extend_from_slice(&job.bricks[job.next..]);
             bricks.sort_unstable();
             bricks.dedup();
@@ -736,13 +778,13 @@ impl FogPipeline {
             self.write_scene_uniforms(project);
         }
         let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
-        self.jobs.inject = Some(self.injector.begin(&self.ctx, &particles, bins, bricks));
+        self.jobs.inject = Some((self.injector.begin(&self.ctx, &particles, bins, bricks), region));
         self.baked.ev = Some((key, project.particles.clone()));
     }
 
     /// Runs one chunk of the injection sized to `left_ms`; returns its cost units.
     fn inject_item(&mut self, project: &Project, left_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> Result<u64, GpuError> {
-        let (Some(g), Some(job)) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
+        let (Some(g), Some((job, _))) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
         let rate = self.rates[timer::INJECT as usize];
         let budget_units = rate.units_in(left_ms);
         let mut count = Injector::chunk_align(&self.ctx);
@@ -808,8 +850,33 @@ impl FogPipeline {
             sweep_stride: project.propagation.sweep_stride,
         };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
-        let job = self.propagator.plan(&self.ctx.device, &inputs, scheme, &active);
+        let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> = targets.iter().map(|&(i, k)| self.changed_since(i, k)).collect();
+        let job = self.propagator.plan(&self.ctx.device, &inputs, scheme, &active, &changed);
         self.jobs.propagate = Some((job, targets));
+    }
+
+    /// The cells whose extinction changed since light `i`'s OPV was propagated, when only the
+    /// extinction changed (same position, scheme and stride) and the history covers it; None
+    /// when the whole OPV must be recomputed.
+    fn changed_since(&self, i: usize, target: OpvKey) -> Option<(glam::UVec3, glam::UVec3)> {
+        let baked = self.baked.opvs.get(i).copied().flatten()?;
+        if (OpvKey { ev_generation: target.ev_generation, ..baked }) != target {
+            return None;
+        }
+        let first = self.baked.ev_changes.first()?.0;
+        if baked.ev_generation + 1 < first {
+            return None;
+        }
+        let mut region: Option<Region> = None;
+        for &(generation, r) in &self.baked.ev_changes {
+            if generation > baked.ev_generation && generation <= target.ev_generation {
+                region = Some(region.map_or(r, |u| u.union(r)));
+            }
+        }
+        match region? {
+            Region::Cells(lo, hi) => Some((lo, hi)),
+            Region::All => None,
+        }
     }
 
     /// Runs the next batch of propagation dispatches sized to `left_ms`; returns its cells.
@@ -939,7 +1006,9 @@ impl FogPipeline {
         let kept = g.spec.cell_count() * 4 * g.light_count.min(light_count) as u64;
         if kept > 0 {
             let mut encoder = device.create_command_encoder(&Default::default());
+            // Both: the sweep keeps each cell's mean in-box extinction in the second one.
             encoder.copy_buffer_to_buffer(&g.opv[0], 0, &opv[0], 0, kept);
+            encoder.copy_buffer_to_buffer(&g.opv[1], 0, &opv[1], 0, kept);
             self.ctx.queue.submit([encoder.finish()]);
         }
         g.lights_buf = lights_buf;

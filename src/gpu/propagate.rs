@@ -85,7 +85,19 @@ impl Propagator {
 
     /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
     /// order by [`encode_next`](Self::encode_next), in one submit or spread over many.
-    pub fn plan(&self, device: &wgpu::Device, inputs: &PropagationInputs, scheme: Scheme, active: &[u32]) -> PropagationJob {
+    ///
+    /// `changed[k]`, when given, bounds the cells (inclusive) whose extinction changed since
+    /// light `active[k]`'s OPV was last propagated from the same position: the sweep then
+    /// starts at the first batch of shells those cells can reach, since every cell depends
+    /// only on cells closer to the light. The other schemes recompute everything.
+    pub fn plan(
+        &self,
+        device: &wgpu::Device,
+        inputs: &PropagationInputs,
+        scheme: Scheme,
+        active: &[u32],
+        changed: &[Option<(glam::UVec3, glam::UVec3)>],
+    ) -> PropagationJob {
         let cells = inputs.grid.cell_count();
         let (work, groups, units, iterations) = match scheme {
             Scheme::Giroud => {
@@ -119,8 +131,18 @@ impl Propagator {
                 (work, vec![g; iterations as usize], vec![cells * active.len() as u64; iterations as usize], iterations)
             }
             Scheme::Sweep => {
-                let lights: Vec<(u32, Vec3)> = active.iter().map(|&l| (l, inputs.positions[l as usize])).collect();
-                let plan = sweep_steps(inputs.grid, &lights, inputs.sweep_stride);
+                let lights: Vec<(u32, Vec3, u32)> = active
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &l)| {
+                        let position = inputs.positions[l as usize];
+                        let first = changed.get(k).copied().flatten().map_or(0, |cells| {
+                            first_changed_batch(inputs.grid, position, inputs.sweep_stride, cells)
+                        });
+                        (l, position, first)
+                    })
+                    .collect();
+                let plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride);
                 let units = plan
                     .steps
                     .iter()
@@ -159,6 +181,12 @@ impl Propagator {
                 let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
                 (self.per_dispatch(device, inputs, &params, Which::Exact, &[], None), groups, units, 1)
             }
+        };
+        // Cells computed: the sweep's boxes (a partial sweep skips some), every cell otherwise.
+        let cells = match scheme {
+            Scheme::Sweep => units.iter().sum::<u64>(),
+            Scheme::Giroud => cells * active.len() as u64 * iterations as u64,
+            Scheme::Exact => cells * active.len() as u64,
         };
         PropagationJob { lights: active.to_vec(), work, groups, units, next: 0, iterations, cells }
     }
@@ -206,8 +234,7 @@ impl Propagator {
         if job.done() {
             counters.propagation_iterations = counters.propagation_iterations.max(job.iterations);
             counters.lights_propagated += job.lights.len() as u32;
-            let passes = if matches!(job.work, Work::Giroud { .. }) { job.iterations as u64 } else { 1 };
-            counters.cells_propagated += job.cells * job.lights.len() as u64 * passes;
+            counters.cells_propagated += job.cells;
         }
     }
 
@@ -279,6 +306,7 @@ pub struct PropagationJob {
     units: Vec<u64>,
     next: usize,
     iterations: u32,
+    /// Cells the whole job computes.
     cells: u64,
 }
 
@@ -427,8 +455,15 @@ pub struct SweepPlan {
 /// Plans the sweep of `lights` (OPV index, position) with interpolation stride `stride`:
 /// dispatch j solves batch j of every light that has one.
 pub fn sweep_steps(grid: &GridSpec, lights: &[(u32, Vec3)], stride: u32) -> SweepPlan {
-    let frames: Vec<(u32, ShellFrame)> = lights.iter().map(|&(l, p)| (l, ShellFrame::new(grid, p, stride))).collect();
-    let batches = frames.iter().map(|(_, f)| f.batches).max().unwrap_or(0);
+    let all: Vec<(u32, Vec3, u32)> = lights.iter().map(|&(l, p)| (l, p, 0)).collect();
+    sweep_steps_from(grid, &all, stride)
+}
+
+/// [`sweep_steps`] where each light `(index, position, first)` starts at batch `first`: the
+/// batches before it are left as they are.
+pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u32) -> SweepPlan {
+    let frames: Vec<(u32, ShellFrame, u32)> = lights.iter().map(|&(l, p, first)| (l, ShellFrame::new(grid, p, stride), first)).collect();
+    let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
     let flush = |plan: &mut SweepPlan, first_box: usize, threads: u64| {
         if plan.boxes.len() == first_box {
@@ -446,7 +481,7 @@ pub fn sweep_steps(grid: &GridSpec, lights: &[(u32, Vec3)], stride: u32) -> Swee
     };
     for batch in 0..batches {
         let (mut first_box, mut threads) = (plan.boxes.len(), 0u64);
-        for &(light, frame) in frames.iter().filter(|(_, f)| batch < f.batches) {
+        for &(light, frame, _) in frames.iter().filter(|(_, f, first)| batch < f.batches && batch >= *first) {
             for face in 0..6 {
                 let Some((lo, size)) = frame.face_box(grid, batch, face) else { continue };
                 let cells = size.iter().map(|&s| s as u64).product::<u64>();
@@ -473,6 +508,29 @@ pub fn sweep_steps(grid: &GridSpec, lights: &[(u32, Vec3)], stride: u32) -> Swee
         flush(&mut plan, first_box, threads);
     }
     plan
+}
+
+/// The first batch of shells of a light at `position` that cells `changed` (inclusive cell
+/// bounds) can affect. A cell at Chebyshev level L (in cells from the shells' centre) reads
+/// the extinction only along its path towards the light, whose levels fall monotonically,
+/// through stencils one cell wide, and otherwise only cells of earlier batches: it can change
+/// only if L + 1 reaches the nearest changed cell. One batch and two levels of slack absorb
+/// rounding. A far light's shells are centred on a nearer point of its line, where that
+/// argument does not hold: it starts at 0.
+pub fn first_changed_batch(grid: &GridSpec, position: Vec3, stride: u32, changed: (glam::UVec3, glam::UVec3)) -> u32 {
+    let frame = ShellFrame::new(grid, position, stride);
+    let light = ((position - grid.min) / grid.cell_size() - 0.5).to_array();
+    if (0..3).any(|i| (frame.anchor[i] - light[i]).abs() > 1e-3) {
+        return 0;
+    }
+    let (lo, hi) = (changed.0.as_vec3().to_array(), changed.1.as_vec3().to_array());
+    let nearest = (0..3).map(|i| (lo[i] - frame.anchor[i]).max(frame.anchor[i] - hi[i]).max(0.0)).fold(0.0f32, f32::max);
+    let first = ((nearest - 2.0 - frame.level0) / frame.width).floor() - 1.0;
+    if first > 0.0 {
+        first as u32
+    } else {
+        0
+    }
 }
 
 /// Jacobi sweeps after which the `giroud` gather has converged exactly: one more than the
