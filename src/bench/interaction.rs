@@ -154,7 +154,7 @@ pub fn run(quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, Be
     let start = StartProject { project, path: None, name: "cloud.ron".into(), error: None };
     let h = Harness::builder()
         // The window size whose viewport is about 840×455 points in the default layout.
-        .with_size(Vec2::new(1355.0, 851.0))
+        .with_size(Vec2::new(1384.0, 869.0))
         .wgpu_setup(crate::editor::wgpu_setup())
         .build_eframe(move |cc| {
             let mut app = EditorApp::new(cc, start, EditorOptions::default());

@@ -308,7 +308,7 @@ pub(super) fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8]) -
 }
 
 /// Share of a bounded budget the quick preview march may take.
-const QUICK_SHARE: f64 = 0.5;
+const QUICK_SHARE: f64 = 0.4;
 
 impl FogPipeline {
     pub fn new(ctx: GpuContext) -> Self {

@@ -142,7 +142,7 @@ impl Propagator {
                         (l, position, first)
                     })
                     .collect();
-                let plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride);
+                let plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride, ITEM_THREADS);
                 let units = plan
                     .steps
                     .iter()
@@ -358,6 +358,12 @@ const ANCHOR_CELLS: f64 = (1u64 << 19) as f64;
 /// Threads per sweep dispatch before a batch is split over several dispatches.
 const MAX_THREADS_PER_DISPATCH: u64 = 1 << 30;
 
+/// The same limit for the scheduler's work items (a batch's cells do not read each other, so
+/// any split between its boxes is valid): small enough that one dispatch fits an interactive
+/// frame budget on a software adapter, large enough that dispatch overhead stays negligible
+/// on a GPU.
+pub const ITEM_THREADS: u64 = 1 << 15;
+
 /// How one light's cells are ordered into batches of Chebyshev shells.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShellFrame {
@@ -456,12 +462,13 @@ pub struct SweepPlan {
 /// dispatch j solves batch j of every light that has one.
 pub fn sweep_steps(grid: &GridSpec, lights: &[(u32, Vec3)], stride: u32) -> SweepPlan {
     let all: Vec<(u32, Vec3, u32)> = lights.iter().map(|&(l, p)| (l, p, 0)).collect();
-    sweep_steps_from(grid, &all, stride)
+    sweep_steps_from(grid, &all, stride, MAX_THREADS_PER_DISPATCH)
 }
 
-/// [`sweep_steps`] where each light `(index, position, first)` starts at batch `first`: the
-/// batches before it are left as they are.
-pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u32) -> SweepPlan {
+/// [`sweep_steps`] where each light `(index, position, first)` starts at batch `first` (the
+/// batches before it are left as they are), with at most `max_threads` per dispatch where
+/// boxes allow.
+pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u32, max_threads: u64) -> SweepPlan {
     let frames: Vec<(u32, ShellFrame, u32)> = lights.iter().map(|&(l, p, first)| (l, ShellFrame::new(grid, p, stride), first)).collect();
     let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
@@ -485,7 +492,7 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
             for face in 0..6 {
                 let Some((lo, size)) = frame.face_box(grid, batch, face) else { continue };
                 let cells = size.iter().map(|&s| s as u64).product::<u64>();
-                if threads + cells > MAX_THREADS_PER_DISPATCH && threads > 0 {
+                if threads + cells > max_threads && threads > 0 {
                     flush(&mut plan, first_box, threads);
                     first_box = plan.boxes.len();
                     threads = 0;
