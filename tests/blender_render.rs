@@ -9,6 +9,9 @@
 //! `verify` bounds against the exact reference) and for the two renderers' different
 //! interpolation of the voxels.
 
+mod common;
+use common::Rng;
+
 use exr::prelude::*;
 use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
 use glam::{UVec3, Vec3};
@@ -28,27 +31,6 @@ fn venv_python() -> PathBuf {
     let ok = Command::new(&py).args(["-c", "import bpy"]).output().map(|o| o.status.success()).unwrap_or(false);
     assert!(ok, "this test needs Blender's bpy 4.5 in the project's test venv ({}), which is missing: run ./setup.sh", py.display());
     py
-}
-
-struct Rng(u64);
-impl Rng {
-    fn f(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, a: f32, b: f32) -> f32 {
-        a + (b - a) * self.f()
-    }
-    fn dir(&mut self) -> Vec3 {
-        loop {
-            let v = Vec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
-            if v.length() > 0.2 && v.length() < 1.0 {
-                return v.normalize();
-            }
-        }
-    }
 }
 
 /// A cloud of gaussians well inside a grid off the origin, lights outside the cloud, a camera

@@ -147,3 +147,27 @@ fn export_json_is_the_summary_alone_and_no_temporary_remains() {
     let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(names, vec!["room.vdb".to_string()]);
 }
+
+/// With stderr on a terminal (a pseudo-terminal from `script`) the progress bar is drawn there
+/// and `--json` on stdout carries the same fields as without one; `--quiet` draws nothing.
+#[test]
+fn json_is_the_same_with_a_progress_bar_on_a_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("a.png");
+    let json = dir.path().join("out.json");
+    let bin = env!("CARGO_BIN_EXE_fogsmith");
+    let args = format!("render {} -o {} --width 48 --height 27 --json", demo("cloud.ron").display(), png.display());
+    let piped = fogsmith().args(args.split(' ')).output().unwrap();
+    let without = json_of(&piped);
+    for quiet in [false, true] {
+        let cmd = format!("{bin} {args}{} > {}", if quiet { " --quiet" } else { "" }, json.display());
+        let out = Command::new("script").args(["-qec", &cmd, "/dev/null"]).output().expect("script (util-linux) runs a command on a pseudo-terminal");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
+        let with: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).expect("stdout is the JSON alone");
+        let keys = |v: &serde_json::Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
+        assert_eq!(keys(&with), keys(&without));
+        assert_eq!(with["width"], without["width"]);
+        let terminal = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(terminal.contains('%'), !quiet, "the bar is drawn on the terminal unless --quiet: {terminal:?}");
+    }
+}

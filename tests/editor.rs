@@ -35,6 +35,14 @@ fn harness_with(start: StartProject, options: EditorOptions) -> Harness<'static,
     h
 }
 
+/// The editor as it starts for a user: the frame-budgeted preview, nothing rendered yet.
+fn progressive_harness() -> Harness<'static, EditorApp> {
+    Harness::builder()
+        .with_size(Vec2::new(1280.0, 800.0))
+        .wgpu_setup(fogsmith::editor::wgpu_setup())
+        .build_eframe(|cc| EditorApp::new(cc, demo(), EditorOptions::default()))
+}
+
 fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {
     h.state().pipeline().expect("the editor shares egui-wgpu's device with the pipeline").read_ev().expect("EV readback")
 }
@@ -276,10 +284,7 @@ fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
 /// same scene, bit for bit.
 #[test]
 fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake() {
-    let mut h = Harness::builder()
-        .with_size(Vec2::new(1280.0, 800.0))
-        .wgpu_setup(fogsmith::editor::wgpu_setup())
-        .build_eframe(|cc| EditorApp::new(cc, demo(), EditorOptions::default()));
+    let mut h = progressive_harness();
     let settle = |h: &mut Harness<'_, EditorApp>| {
         for _ in 0..5000 {
             h.step();
@@ -551,4 +556,37 @@ fn particle_outlines_can_be_limited_to_the_selection() {
     h.run_steps(2);
     let some = circles(&h);
     assert_eq!(all - some, n - 1, "the unselected particles' outlines went ({all} → {some} circles)");
+}
+
+/// With the frame-budgeted preview an export asked for mid-bake waits for the bake; the status
+/// bar says so with a Cancel button, and cancelling leaves no file and says so. Asked again, it
+/// completes once the bake has and names the file.
+#[test]
+fn an_export_waits_for_the_bake_and_can_be_cancelled() {
+    let mut h = progressive_harness();
+    h.step();
+    assert!(!h.state().preview_status().unwrap().converged, "the first frame starts the bake");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fog.vdb");
+    h.state_mut().export(Export::Vdb, path.clone());
+    h.step();
+    h.get_by_label("Cancel").click();
+    h.step();
+    assert!(h.state().messages().iter().any(|(_, m)| m.contains("Export cancelled")), "{:?}", h.state().messages());
+    for _ in 0..3000 {
+        h.step();
+        if h.state().preview_status().unwrap().converged && h.state().busy() == 0 {
+            break;
+        }
+    }
+    h.run_steps(3);
+    assert!(!path.exists(), "a cancelled export writes nothing");
+
+    h.state_mut().export(Export::Vdb, path.clone());
+    wait_idle(&mut h);
+    h.run_steps(2);
+    assert!(path.exists(), "the export completes: {:?}", h.state().messages());
+    assert!(h.state().messages().iter().any(|(_, m)| m.contains("Exported") && m.contains("fog.vdb")), "{:?}", h.state().messages());
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names.len(), 1, "no temporary file remains: {names:?}");
 }

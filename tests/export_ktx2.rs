@@ -1,19 +1,12 @@
 //! KTX2 export: randomized volumes written as R16F and R8 3D textures, parsed back by the
 //! `ktx2` crate and compared texel by texel; the Bevy FogVolume snippet; errors on bad input.
 
+mod common;
+use common::Rng;
+
 use fogsmith::export::ktx::{fog_volume_snippet, r8_texel, write_ktx2, Ktx2Format};
 use fogsmith::scene::{GridSpec, Medium, Volume};
 use glam::{UVec3, Vec3};
-
-struct Rng(u64);
-impl Rng {
-    fn f(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
 
 /// A random grid (non-cubic resolution and cells) with exact zeros, tiny and large values.
 fn random_volume(seed: u64) -> Volume {

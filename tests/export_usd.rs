@@ -2,6 +2,9 @@
 //! by Pixar's USD (usd-core) and imported by Blender 4.5 (bpy), both from the project's
 //! test-only venv (./setup.sh); and the `fogsmith export --usd` command end to end.
 
+mod common;
+use common::Rng;
+
 use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use fogsmith::export::usd::{asset_path, write_usd, UsdField, UsdOptions, GROUND_HALF_SIZE};
 use fogsmith::export::vdb::{grids_from_volumes, write_vdb, GridSelection, VdbOptions};
@@ -32,23 +35,6 @@ fn run_checker(module: &str, script: &str, stages: &[PathBuf]) -> Vec<Value> {
     let v: Vec<Value> = stdout.lines().filter(|l| l.starts_with('{')).map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(v.len(), stages.len(), "{script}: {stdout}");
     v
-}
-
-/// A small deterministic generator (xorshift) for randomized projects.
-struct Rng(u64);
-impl Rng {
-    fn f(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, a: f32, b: f32) -> f32 {
-        a + (b - a) * self.f()
-    }
-    fn v(&mut self, a: f32, b: f32) -> Vec3 {
-        Vec3::new(self.range(a, b), self.range(a, b), self.range(a, b))
-    }
 }
 
 fn random_project(seed: u64) -> Project {

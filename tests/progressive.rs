@@ -150,3 +150,44 @@ fn a_local_edit_repropagates_only_the_shells_it_reaches() {
     gpu.update(&p, &request).unwrap();
     assert_same_as_fresh(&gpu, &p, &request);
 }
+
+/// What `update_with` reports: stages in pipeline order, each stage's fraction rising within
+/// [0, 1], then the converged result; returning false stops it with `Cancelled`.
+#[test]
+fn update_progress_is_monotone_and_cancellable() {
+    let mut gpu = pipeline();
+    let p = small_scene(32, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-2.0, 0.3, 0.1)]);
+    let request = FrameRequest::for_project(&p);
+    let rank = |s: Stage| match s {
+        Stage::Inject => 0,
+        Stage::Propagate { .. } => 1,
+        Stage::March => 2,
+        Stage::Done => 3,
+    };
+    let mut seen: Vec<(u32, f64)> = Vec::new();
+    let report = gpu
+        .update_with(&p, &FrameRequest { force: true, ..request }, Duration::ZERO, &mut |progress| {
+            seen.push((rank(progress.stage), progress.stage_fraction));
+            true
+        })
+        .unwrap();
+    assert!(seen.len() > 2, "a zero slice reports between items: {seen:?}");
+    for w in seen.windows(2) {
+        assert!(w[0].0 <= w[1].0, "stages go forward: {seen:?}");
+        if w[0].0 == w[1].0 {
+            assert!(w[0].1 <= w[1].1, "fractions rise within a stage: {seen:?}");
+        }
+    }
+    assert!(seen.iter().all(|&(_, f)| (0.0..=1.0).contains(&f)));
+    assert_eq!(report.counters.lights_propagated, 2);
+    assert_same_as_fresh(&gpu, &p, &request);
+
+    let mut calls = 0;
+    let err = gpu
+        .update_with(&p, &FrameRequest { force: true, ..request }, Duration::ZERO, &mut |_| {
+            calls += 1;
+            calls < 3
+        })
+        .unwrap_err();
+    assert!(matches!(err, fogsmith::gpu::GpuError::Cancelled), "{err}");
+}

@@ -15,7 +15,8 @@ use egui_dock::{DockArea, DockState, NodeIndex};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
 /// The dockable panels.
@@ -273,6 +274,17 @@ impl GpuView {
     }
 }
 
+/// An export written in a background thread: its progress and a request to stop it.
+pub(crate) struct ExportJob {
+    path: PathBuf,
+    /// Fraction written, as f32 bits.
+    fraction: Arc<AtomicU32>,
+    cancel: Arc<AtomicBool>,
+}
+
+/// The result of an export cancelled from the status bar.
+const EXPORT_CANCELLED: &str = "cancelled";
+
 /// What the preview shows, for scripted drivers of the editor (tests, `bench`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PreviewStatus {
@@ -361,6 +373,8 @@ pub struct EditorState {
     pub(crate) slice: SliceCache,
     /// An export waiting for the bake to complete.
     pending_export: Option<(Export, PathBuf)>,
+    /// The export being written in the background.
+    export_job: Option<ExportJob>,
     pub(crate) rename: Option<(super::tools::Hit, String)>,
     pub(crate) outliner_anchor: Option<super::tools::Hit>,
     jobs_tx: mpsc::Sender<JobResult>,
@@ -444,6 +458,7 @@ impl EditorApp {
             continuous: options.measure_fps.is_some(),
             slice: SliceCache::default(),
             pending_export: None,
+            export_job: None,
             rename: None,
             outliner_anchor: None,
             jobs_tx,
@@ -937,25 +952,41 @@ impl EditorState {
         };
         let infos = crate::export::light_infos(project);
         let p = path.clone();
+        let job = ExportJob {
+            path: path.clone(),
+            fraction: Arc::new(AtomicU32::new(0)),
+            cancel: Arc::new(AtomicBool::new(false)),
+        };
+        let (fraction, cancel) = (job.fraction.clone(), job.cancel.clone());
+        self.export_job = Some(job);
         self.spawn(&format!("Exporting {}", path.display()), move || {
+            // Written beside the target and moved onto it only if not cancelled meanwhile.
+            let mut staged = crate::cli::progress::Staged::default();
+            let set = |f: f32| fraction.store(f.to_bits(), Ordering::Relaxed);
             let result = match kind {
                 Export::Vdb => {
-                    use crate::export::vdb::{grids_from_volumes, write_vdb, GridSelection, VdbOptions};
+                    use crate::export::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbOptions};
                     let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, *l)).collect();
                     let grids = grids_from_volumes(&ev, &lights, GridSelection::default());
-                    write_vdb(&p, &grids, &VdbOptions::default())
+                    staged
+                        .write(&p, |temp| write_vdb_with_progress(temp, &grids, &VdbOptions::default(), &mut |f| set(f)))
                         .map(|stats| format!("{} grids, {} bytes", stats.grids.len(), stats.bytes))
-                        .map_err(|e| e.to_string())
                 }
                 Export::ExrSlices => {
                     let names: Vec<String> = (0..opvs.len()).map(|i| format!("optical_depth_{i}")).collect();
                     let mut channels: Vec<(&str, &crate::scene::Volume)> = vec![("density", &ev)];
                     channels.extend(names.iter().map(String::as_str).zip(opvs.iter()));
-                    crate::export::exr::write_slices_exr(&p, &channels)
+                    staged
+                        .write(&p, |temp| crate::export::exr::write_slices_exr(temp, &channels))
                         .map(|_| format!("{} volumes", channels.len()))
-                        .map_err(|e| e.to_string())
                 }
             };
+            let result = match result {
+                Ok(_) if cancel.load(Ordering::Relaxed) => Err(EXPORT_CANCELLED.to_string()),
+                Ok(summary) => staged.commit().map(|_| summary).map_err(|e| e.to_string()),
+                Err(e) => Err(e),
+            };
+            set(1.0);
             JobResult::Exported { path: p, result }
         });
     }
@@ -972,6 +1003,14 @@ impl EditorState {
             }
             JobResult::Picked { path: None, .. } => self.after_save = None,
             JobResult::Picked { purpose, path: Some(path), .. } => self.picked(purpose, path),
+            JobResult::Exported { path, result } if self.export_job.as_ref().is_some_and(|j| j.path == path) => {
+                self.export_job = None;
+                match result {
+                    Ok(summary) => self.info(format!("Exported {}: {summary}", path.display())),
+                    Err(e) if e == EXPORT_CANCELLED => self.info(format!("Export cancelled; {} is unchanged", path.display())),
+                    Err(e) => self.error(format!("Export to {} failed: {e}", path.display())),
+                }
+            }
             JobResult::Exported { path, result: Ok(summary) } => self.info(format!("Exported {}: {summary}", path.display())),
             JobResult::Exported { path, result: Err(e) } => self.error(format!("Export to {} failed: {e}", path.display())),
             JobResult::Loaded { path, result: Ok(project) } => {
@@ -1129,8 +1168,10 @@ impl EditorState {
         // After every panel has applied this frame's input, so the preview shows it in the
         // frame being painted.
         self.render_preview();
-        if let Some((kind, path)) = self.pending_export.take() {
-            self.export_to(kind, path);
+        if self.gpu.as_ref().is_some_and(|g| !g.refining()) {
+            if let Some((kind, path)) = self.pending_export.take() {
+                self.export_to(kind, path);
+            }
         }
         self.scripted(ctx);
     }
@@ -1475,6 +1516,27 @@ impl EditorState {
             if let Some(job) = self.busy.last() {
                 ui.spinner();
                 ui.label(job.as_str());
+                ui.separator();
+            }
+            if let Some(job) = &self.export_job {
+                let f = f32::from_bits(job.fraction.load(Ordering::Relaxed));
+                let name = job.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+                ui.add(egui::ProgressBar::new(f).desired_width(160.0).show_percentage().text(format!("exporting {name}")));
+                if job.cancel.load(Ordering::Relaxed) {
+                    ui.label("cancelling…");
+                } else if ui.button("Cancel").on_hover_text(format!("Stop the export; {} stays as it was", job.path.display())).clicked() {
+                    job.cancel.store(true, Ordering::Relaxed);
+                }
+                ui.separator();
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+            }
+            if let Some((_, path)) = &self.pending_export {
+                let path = path.clone();
+                ui.label(format!("{} waits for the bake", path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()));
+                if ui.button("Cancel").on_hover_text("Do not export").clicked() {
+                    self.pending_export = None;
+                    self.info(format!("Export cancelled; {} is unchanged", path.display()));
+                }
                 ui.separator();
             }
             if let Some(gpu) = self.gpu.as_ref().filter(|g| g.refining()) {

@@ -478,8 +478,11 @@ impl FogPipeline {
         on_progress: &mut dyn FnMut(&Progress) -> bool,
     ) -> Result<FrameReport, GpuError> {
         let mut total: Option<FrameReport> = None;
+        let mut request = *request;
         loop {
-            let progress = self.run(project, request, Some(slice), false)?;
+            let progress = self.run(project, &request, Some(slice), false)?;
+            // Forced once, then continued.
+            request.force = false;
             let r = progress.report;
             match &mut total {
                 None => total = Some(r),

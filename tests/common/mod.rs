@@ -40,3 +40,32 @@ pub fn homogeneous_scene(res: u32, beta: f32, light: Vec3) -> Project {
     p.medium.base_extinction = beta;
     p
 }
+
+/// A small deterministic generator (xorshift) for randomized scenes.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// Uniform in [0, 1).
+    pub fn f(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+    pub fn range(&mut self, a: f32, b: f32) -> f32 {
+        a + (b - a) * self.f()
+    }
+    /// Each component in [a, b).
+    pub fn v(&mut self, a: f32, b: f32) -> Vec3 {
+        Vec3::new(self.range(a, b), self.range(a, b), self.range(a, b))
+    }
+    /// A random unit direction.
+    pub fn dir(&mut self) -> Vec3 {
+        loop {
+            let v = self.v(-1.0, 1.0);
+            if v.length() > 0.2 && v.length() < 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+}
