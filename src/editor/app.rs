@@ -109,7 +109,7 @@ fn recovery_interval_s() -> f64 {
 /// GPU time the preview may take per frame. The rest of a frame (egui's layout and
 /// painting) stays well within 100 ms on a software adapter, so the window keeps following
 /// the pointer while the pipeline refines the preview over the following frames.
-pub const FRAME_BUDGET_MS: f64 = 35.0;
+pub const FRAME_BUDGET_MS: f64 = 30.0;
 
 /// How the preview trades responsiveness for finished frames.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
