@@ -490,10 +490,10 @@ fn reset_layout_escape_and_the_viewport_tab() {
 
     h.get_by_label("preview").click();
     h.run_steps(2);
-    assert!(h.query_by_label("full res").is_some(), "the quality drop-down opened");
+    assert!(h.query_by_label("wait for full").is_some(), "the quality drop-down opened");
     h.key_press(egui::Key::Escape);
     h.run_steps(2);
-    assert!(h.query_by_label("full res").is_none(), "Escape closes the drop-down");
+    assert!(h.query_by_label("wait for full").is_none(), "Escape closes the drop-down");
 
     assert!(!h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Viewport), "the Viewport tab has no close button");
     assert!(h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Slices));

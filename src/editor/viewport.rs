@@ -66,17 +66,17 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
         use super::app::Quality;
         egui::ComboBox::new("quality", "preview")
             .selected_text(match state.quality {
-                Quality::Balanced => "balanced",
-                Quality::Full => "full res",
+                Quality::Balanced => "live",
+                Quality::Full => "wait for full",
             })
             .show_ui(ui, |ui| {
-                ui.selectable_value(&mut state.quality, Quality::Balanced, "balanced")
-                    .on_hover_text("Lower the preview resolution when the adapter is slow, so a still frame takes well under a second");
-                ui.selectable_value(&mut state.quality, Quality::Full, "full res")
-                    .on_hover_text("Always march every pixel when still (seconds per frame on software adapters)");
+                ui.selectable_value(&mut state.quality, Quality::Balanced, "live")
+                    .on_hover_text("Each frame shows the edit at once (coarser, shadows may lag), then refines to full resolution over the next frames");
+                ui.selectable_value(&mut state.quality, Quality::Full, "wait for full")
+                    .on_hover_text("Every frame waits for the full-resolution image with fresh shadows (the window pauses; seconds per edit on software adapters)");
             })
             .response
-            .on_hover_text("Preview resolution. While the camera moves the preview is always coarser, then refines.");
+            .on_hover_text("How the preview trades responsiveness for finished frames");
         ui.separator();
         let mut exposure = state.session.project().render.exposure;
         let r = ui
