@@ -619,7 +619,7 @@ impl FogPipeline {
             if !targets.is_empty() || !fits {
                 let t = Instant::now();
                 let budget = left(t).map(|ms| ms * QUICK_SHARE);
-                self.quick_march(project, request, key.clone(), budget, &mut progress.report.counters)?;
+                self.quick_march(request, key.clone(), budget, &mut progress.report.counters)?;
                 progress.report.timings_ms.march += ms(t);
                 progress.new_image = true;
             }
@@ -664,7 +664,7 @@ impl FogPipeline {
                 Some(t) if t.width == request.width && t.height == request.height => t,
                 _ => ImageTarget::new(&self.ctx.device, request.width, request.height),
             };
-            let job = self.begin_march(project, &target, key.clone());
+            let job = self.begin_march(&target, key.clone());
             self.full = Some(target);
             self.jobs.march = Some((job, key.clone()));
         }
@@ -706,23 +706,12 @@ impl FogPipeline {
 
     /// Fills in what is on show.
     fn finish(&self, mut progress: Progress, project: &Project, request: &FrameRequest) -> Progress {
-        if let Some((key, level)) = &self.baked.shown {
-            let target = match level {
-                Level::Quick => &self.quick,
-                Level::Full => &self.full,
-            };
-            progress.shown_size = target.as_ref().map_or([0, 0], |t| [t.width, t.height]);
-            let fresh: Vec<Option<OpvKey>> = project
-                .lights
-                .iter()
-                .enumerate()
-                .map(|(i, l)| self.opv_key(project, l, request.scheme).and_then(|k| (key.opvs.get(i).copied().flatten() == Some(k)).then_some(k)))
-                .collect();
-            progress.shadows_stale = project
-                .lights
-                .iter()
-                .enumerate()
-                .any(|(i, l)| self.opv_key(project, l, request.scheme).is_some() && fresh[i].is_none());
+        if let Some((key, _)) = &self.baked.shown {
+            progress.shown_size = self.shown_target().map_or([0, 0], |t| [t.width, t.height]);
+            // A propagated light whose OPV on show differs from what the scene needs now.
+            progress.shadows_stale = project.lights.iter().enumerate().any(|(i, l)| {
+                self.opv_key(project, l, request.scheme).is_some_and(|k| key.opvs.get(i).copied().flatten() != Some(k))
+            });
         }
         progress
     }
@@ -911,9 +900,8 @@ impl FogPipeline {
         }
     }
 
-    fn begin_march(&mut self, project: &Project, target: &ImageTarget, key: ImageKey) -> MarchJob {
+    fn begin_march(&mut self, target: &ImageTarget, key: ImageKey) -> MarchJob {
         let g = self.grid.as_ref().expect("ensure_grid ran");
-        let _ = project;
         let inputs = MarchInputs {
             grid_buf: &g.grid_buf,
             ev_view: &g.ev_view,
@@ -928,7 +916,7 @@ impl FogPipeline {
 
     /// Marches the whole image at the largest size whose cost fits `budget_ms` (at most
     /// half the requested size per axis) and shows it.
-    fn quick_march(&mut self, project: &Project, request: &FrameRequest, key: ImageKey, budget_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> Result<(), GpuError> {
+    fn quick_march(&mut self, request: &FrameRequest, key: ImageKey, budget_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> Result<(), GpuError> {
         let rate = self.rates[timer::MARCH as usize];
         let pixels = (request.width as f64 * request.height as f64).max(1.0);
         let affordable = rate.units_in(budget_ms) as f64;
@@ -941,7 +929,7 @@ impl FogPipeline {
             _ => ImageTarget::new(&self.ctx.device, w, h),
         };
         let t = Instant::now();
-        let mut job = self.begin_march(project, &target, key.clone());
+        let mut job = self.begin_march(&target, key.clone());
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         self.marcher.encode_band(&self.ctx, &target, &mut encoder, &mut job, h, None);
         self.ctx.queue.submit([encoder.finish()]);
