@@ -39,8 +39,9 @@ echo "setup.sh: system packages ready (${#missing[@]} installed now)."
 
 # Test-only validators from PyPI, in a git-ignored virtual environment inside the project
 # (never needed to run Fogsmith: `./setup.sh --no-validators` skips them): Pixar's usd-core
-# checks the USD export, and Blender as a Python module (bpy 4.5, for Debian's Python 3.11)
-# imports it. Each package is installed only when the venv cannot import it yet.
+# checks the USD export, Blender as a Python module (bpy 4.5, for Debian's Python 3.11)
+# imports it, and OpenEXR's own bindings read the EXR exports. Each package is installed
+# only when the venv cannot import it yet.
 if [ "${1:-}" = "--no-validators" ]; then
   exit 0
 fi
@@ -51,6 +52,7 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 need=()
 "$VENV/bin/python" -c "from pxr import Usd, UsdVol, UsdLux, UsdValidation" 2>/dev/null || need+=("usd-core==26.11")
+"$VENV/bin/python" -c "import OpenEXR; OpenEXR.File" 2>/dev/null || need+=("openexr==3.5.3")
 "$VENV/bin/python" -c "import bpy, sys; sys.exit(0 if bpy.app.version[:2] == (4, 5) else 1)" 2>/dev/null || need+=("bpy==4.5.*")
 if [ ${#need[@]} -gt 0 ]; then
   echo "setup.sh: installing ${need[*]} into $VENV (bpy is a ~370 MB download)"
