@@ -67,7 +67,8 @@ pub struct Session {
 impl Session {
     /// A session on `project`, read from `path` (or never saved when `path` is `None`;
     /// `name` is then shown in the title). It starts without unsaved changes.
-    pub fn new(project: Project, path: Option<PathBuf>, name: &str) -> Self {
+    pub fn new(mut project: Project, path: Option<PathBuf>, name: &str) -> Self {
+        project.ensure_unique_ids();
         let name = path
             .as_deref()
             .and_then(Path::file_name)
@@ -217,7 +218,10 @@ impl Session {
     /// Appends particles (one undo step per `tag`) and returns how many there are now.
     pub fn add_particles(&mut self, tag: EditTag, particles: impl IntoIterator<Item = Particle>) -> usize {
         let p = self.edit(tag);
-        p.particles.extend(particles);
+        for mut q in particles {
+            q.id = p.new_particle_id();
+            p.particles.push(q);
+        }
         p.particles.len()
     }
 
@@ -319,12 +323,14 @@ impl Session {
         let (np, nl) = (project.particles.len(), project.lights.len());
         for &i in &sel.particles {
             if let Some(p) = project.particles.get(i).cloned() {
-                project.particles.push(Particle { center: p.center + offset, ..p });
+                let id = project.new_particle_id();
+                project.particles.push(Particle { id, center: p.center + offset, ..p });
             }
         }
         for &i in &sel.lights {
             if let Some(l) = project.lights.get(i).cloned() {
-                project.lights.push(Light { position: l.position + offset, ..l });
+                let id = project.new_light_id();
+                project.lights.push(Light { id, position: l.position + offset, ..l });
             }
         }
         let (np2, nl2) = (project.particles.len(), project.lights.len());
@@ -345,8 +351,9 @@ impl Session {
 
     /// Like [`Self::add_light`], as part of the edit `tag` (adding and placing a light by
     /// dragging is one undo step).
-    pub fn add_light_tagged(&mut self, tag: EditTag, light: Light) -> usize {
+    pub fn add_light_tagged(&mut self, tag: EditTag, mut light: Light) -> usize {
         let project = self.edit(tag);
+        light.id = project.new_light_id();
         project.lights.push(light);
         let i = project.lights.len() - 1;
         self.selection.clear();

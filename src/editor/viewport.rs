@@ -302,14 +302,11 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
             // then places it).
             let hit = tools::pick(project, vp, pos);
             let point = tools::working_plane_point(project, vp, pos);
-            let count = project.lights.len();
             let tag = state.session.new_tag();
             let light = match hit {
                 Some(Hit::Light(i)) => Some(i),
                 _ => point.map(|point| {
-                    let mut light = crate::scene::Light::new(point, 2.0, Vec3::ONE);
-                    light.name = Some(format!("Light {}", count + 1));
-                    state.session.add_light_tagged(tag, light)
+                    state.session.add_light_tagged(tag, crate::scene::Light::new(point, 2.0, Vec3::ONE))
                 }),
             };
             light.map(|i| {
