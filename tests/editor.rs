@@ -618,6 +618,15 @@ fn names_follow_stable_ids_after_deletions() {
     assert_eq!(lights.last().unwrap().id, last_light_id);
     assert!(lights.iter().all(|l| l.id != project.lights[0].id), "the deleted light's id is gone");
 
+    // The undo history names the deleted objects by id.
+    let label = h.state().session().undo_label().expect("an undo step");
+    assert_eq!(label, format!("Delete Particles #0, #1, #2 and 2 more and Light #{}", project.lights[0].id));
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains(&format!("Undo {label}"));
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+
     // New objects take fresh ids, never one of a deleted object.
     let before_max = project.particles.iter().map(|p| p.id).max().unwrap();
     let n = h.state_mut().session_mut().add_particles(0, [fogsmith::scene::Particle::new(glam::Vec3::new(0.0, 1.0, 0.0), 0.2, 1.0)]);

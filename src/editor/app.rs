@@ -1565,10 +1565,12 @@ impl EditorState {
     }
 
     fn edit_menu(&mut self, ui: &mut egui::Ui) {
-        if ui.add_enabled(self.session.can_undo(), egui::Button::new("Undo").shortcut_text("Ctrl+Z")).clicked() {
+        let undo = self.session.undo_label().map_or("Undo".to_string(), |l| format!("Undo {l}"));
+        if ui.add_enabled(self.session.can_undo(), egui::Button::new(undo).shortcut_text("Ctrl+Z")).clicked() {
             self.undo();
         }
-        if ui.add_enabled(self.session.can_redo(), egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z")).clicked() {
+        let redo = self.session.redo_label().map_or("Redo".to_string(), |l| format!("Redo {l}"));
+        if ui.add_enabled(self.session.can_redo(), egui::Button::new(redo).shortcut_text("Ctrl+Shift+Z")).clicked() {
             self.redo();
         }
         ui.separator();
