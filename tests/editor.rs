@@ -677,3 +677,42 @@ fn an_imported_vdb_shows_in_the_ev_and_its_slice() {
     h.run_steps(3);
     assert!(h.state().messages().iter().any(|(error, m)| *error && m.contains("gone.vdb")), "{:?}", h.state().messages());
 }
+
+/// Particles reaching outside the grid box: the viewport warns with their count, and "Fit grid
+/// to particles" (keeping the resolution here) is one undo step after which none crosses.
+#[test]
+fn particles_outside_the_grid_are_named_and_the_grid_fits_them() {
+    let mut h = harness(demo());
+    let g = h.state().session().project().grid;
+    let already = h.state().session().project().particles_crossing_grid().len();
+    // Two particles whose support (≈2.15 r) pokes out of the open front (+z) face, one well
+    // inside. (The demo's walls seal its other faces.)
+    let inside = (g.min + g.max) * 0.5;
+    h.state_mut().session_mut().add_particles(
+        0,
+        [
+            fogsmith::scene::Particle::new(glam::Vec3::new(inside.x, inside.y, g.max.z - 0.2), 0.3, 2.0),
+            fogsmith::scene::Particle::new(glam::Vec3::new(inside.x, inside.y, g.max.z + 0.5), 0.3, 2.0),
+            fogsmith::scene::Particle::new(inside, 0.1, 2.0),
+        ],
+    );
+    h.run_steps(2);
+    let n = already + 2;
+    assert_eq!(h.state().session().project().particles_crossing_grid().len(), n);
+    h.get_by_label_contains(&format!("{n} particles reach outside the grid box"));
+
+    h.get_by_label("keep resolution").click();
+    h.run_steps(1);
+    h.get_by_label("Fit grid to particles").click();
+    h.run_steps(3);
+    let fitted = h.state().session().project().grid;
+    assert_eq!(fitted.resolution, g.resolution, "the resolution is kept");
+    assert!(fitted.max.z > g.max.z + 0.5, "the box grew to hold the particle outside: {fitted:?}");
+    assert!(h.state().session().project().particles_crossing_grid().is_empty());
+    assert!(h.query_by_label_contains("reach outside the grid box").is_none(), "the warning is gone");
+    assert_eq!(h.state().gpu_error(), None, "the preview renders the fitted grid");
+
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().session().project().grid, g, "one undo restores the grid");
+}

@@ -176,3 +176,19 @@ fn code_built_projects_save_with_distinct_ids() {
     let back = load_project(&path).unwrap();
     assert_eq!(back.particles.iter().map(|q| q.id).collect::<Vec<_>>(), [0, 1, 2]);
 }
+
+/// What the outside-the-box rule says on the demos (printed; see the README).
+#[test]
+fn demos_particles_crossing_the_grid() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("projects");
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let p = load_project(&path).unwrap();
+        let crossing = p.particles_crossing_grid();
+        println!("{}: {} of {} particles cross the grid box", path.display(), crossing.len(), p.particles.len());
+        for keep in [fogsmith::scene::FitKeep::CellSize, fogsmith::scene::FitKeep::Resolution] {
+            let g = p.fit_grid_to_particles(keep).unwrap();
+            println!("  fit {keep:?}: {:?} .. {:?} {:?}", g.min, g.max, g.resolution);
+        }
+    }
+}

@@ -405,6 +405,8 @@ pub struct EditorState {
     base_loaded: Option<(Option<crate::scene::BaseVolume>, crate::scene::GridSpec, Option<PathBuf>)>,
     /// File → Import VDB… while its window is open.
     import: Option<super::import::ImportVdb>,
+    /// What "Fit grid to particles" keeps.
+    pub(crate) fit_keep: crate::scene::FitKeep,
 }
 
 /// The slice currently shown and what it was made from.
@@ -486,6 +488,7 @@ impl EditorApp {
             outline_all: persisted.outline_all.unwrap_or(true),
             base_loaded: None,
             import: None,
+            fit_keep: crate::scene::FitKeep::default(),
         };
         if state.options.recovery {
             let dir = crate::scene::recovery::state_dir();

@@ -7,12 +7,14 @@
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
 
 mod base;
+mod fit;
 mod ids;
 pub mod io;
 pub mod recovery;
 mod validate;
 mod volume;
 
+pub use fit::{FitKeep, SUPPORT_FRACTION};
 pub use ids::NextIds;
 pub use io::{load_project, parse_project, save_project, ProjectError};
 pub use validate::{ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_INTENSITY, MAX_RESOLUTION_DEFAULT};
