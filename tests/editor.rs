@@ -590,3 +590,129 @@ fn an_export_waits_for_the_bake_and_can_be_cancelled() {
     let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(names.len(), 1, "no temporary file remains: {names:?}");
 }
+
+/// Ids are stable: after deleting other particles and a light, the Inspector, Outliner and
+/// the Slices light list still name every object by the id it had.
+#[test]
+fn names_follow_stable_ids_after_deletions() {
+    let mut h = harness(demo());
+    let project = h.state().session().project().clone();
+    assert!(project.particles.len() > 24 && project.lights.len() >= 2, "the demo has the wisp and two lights");
+    let wisp_id = project.particles[24].id;
+    let last_light_id = project.lights.last().unwrap().id;
+    {
+        let s = h.state_mut().session_mut();
+        s.selection.particles = (0..5).collect();
+        s.selection.lights = [0].into();
+        assert_eq!(s.delete_selection(), 6);
+        s.selection.particles = [19].into();
+    }
+    h.run_steps(3);
+    assert_eq!(h.state().session().project().particles[19].id, wisp_id);
+    let shown = h.query_all_by_label(&format!("Particle #{wisp_id}")).count();
+    assert!(shown >= 2, "the Inspector and the Outliner name the wisp by its id ({shown} labels)");
+    assert_eq!(h.query_all_by_label("Particle #0").count(), 0, "the deleted particle #0's name is not reused");
+    assert_eq!(h.query_all_by_label("Particle #5").count(), 1, "the first row is the particle that was #5");
+    // Lights keep their ids too.
+    let lights = &h.state().session().project().lights;
+    assert_eq!(lights.last().unwrap().id, last_light_id);
+    assert!(lights.iter().all(|l| l.id != project.lights[0].id), "the deleted light's id is gone");
+
+    // The undo history names the deleted objects by id.
+    let label = h.state().session().undo_label().expect("an undo step");
+    assert_eq!(label, format!("Delete Particles #0, #1, #2 and 2 more and Light #{}", project.lights[0].id));
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains(&format!("Undo {label}"));
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+
+    // New objects take fresh ids, never one of a deleted object.
+    let before_max = project.particles.iter().map(|p| p.id).max().unwrap();
+    let n = h.state_mut().session_mut().add_particles(0, [fogsmith::scene::Particle::new(glam::Vec3::new(0.0, 1.0, 0.0), 0.2, 1.0)]);
+    let added = h.state().session().project().particles[n - 1].id;
+    assert!(added > before_max, "new particle id {added} is above every id used before ({before_max})");
+}
+
+/// File → Import VDB…: the grid picker imports a grid, the editor's pipeline loads it through
+/// the project, and the EV (and its slice) shows base + particles; undo takes it out again.
+#[test]
+fn an_imported_vdb_shows_in_the_ev_and_its_slice() {
+    use fogsmith::export::vdb::{write_vdb, VdbGrid, VdbOptions};
+    let mut h = harness(demo());
+    h.run_steps(2);
+    let grid = h.state().session().project().grid;
+    let without = read_ev(&h);
+    let layer: Vec<f32> = (0..grid.cell_count()).map(|i| ((i % 5) as f32) * 0.1).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = dir.path().join("base.vdb");
+    let volume = Volume::new(grid, layer.clone());
+    write_vdb(&vdb, &[VdbGrid::from_volume("smoke", &volume), VdbGrid::from_volume("density", &volume)], &VdbOptions::default()).unwrap();
+
+    h.state_mut().import_vdb(vdb.clone());
+    h.run_steps(2);
+    h.get_by_label("Import VDB");
+    h.get_by_label("Import").click();
+    h.run_steps(4);
+    let base = h.state().session().project().base_volume.clone().expect("the import set the base volume");
+    assert_eq!(base.grid, "density");
+    assert_eq!(base.path, vdb, "a VDB outside the project's folder keeps its absolute path");
+    let with = read_ev(&h);
+    for i in (0..layer.len()).step_by(97) {
+        let want = without.data[i] + layer[i];
+        assert!((with.data[i] - want).abs() <= 1e-4 * want.max(1.0), "cell {i}: EV {} vs {want}", with.data[i]);
+    }
+    let s = h.state().current_slice().expect("the Slices panel shows the EV").clone();
+    let expected = fogsmith::editor::slices::extract(&with, s.axis, s.index);
+    assert_eq!(s.values, expected.values, "the EV slice shows the imported density");
+
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(4);
+    assert!(h.state().session().project().base_volume.is_none());
+    assert!(max_diff(&without, &read_ev(&h)) < 1e-6, "undo takes the base volume out of the EV");
+
+    // A base volume that cannot load is reported, not silently dropped.
+    h.state_mut().session_mut().edit(0).base_volume =
+        Some(fogsmith::scene::BaseVolume { path: dir.path().join("gone.vdb"), grid: "density".into(), scale: 1.0 });
+    h.run_steps(3);
+    assert!(h.state().messages().iter().any(|(error, m)| *error && m.contains("gone.vdb")), "{:?}", h.state().messages());
+}
+
+/// Particles reaching outside the grid box: the viewport warns with their count, and "Fit grid
+/// to particles" (keeping the resolution here) is one undo step after which none crosses.
+#[test]
+fn particles_outside_the_grid_are_named_and_the_grid_fits_them() {
+    let mut h = harness(demo());
+    let g = h.state().session().project().grid;
+    let already = h.state().session().project().particles_crossing_grid().len();
+    // Two particles whose support (≈2.15 r) pokes out of the open front (+z) face, one well
+    // inside. (The demo's walls seal its other faces.)
+    let inside = (g.min + g.max) * 0.5;
+    h.state_mut().session_mut().add_particles(
+        0,
+        [
+            fogsmith::scene::Particle::new(glam::Vec3::new(inside.x, inside.y, g.max.z - 0.2), 0.3, 2.0),
+            fogsmith::scene::Particle::new(glam::Vec3::new(inside.x, inside.y, g.max.z + 0.5), 0.3, 2.0),
+            fogsmith::scene::Particle::new(inside, 0.1, 2.0),
+        ],
+    );
+    h.run_steps(2);
+    let n = already + 2;
+    assert_eq!(h.state().session().project().particles_crossing_grid().len(), n);
+    h.get_by_label_contains(&format!("{n} particles reach outside the grid box"));
+
+    h.get_by_label("keep resolution").click();
+    h.run_steps(1);
+    h.get_by_label("Fit grid to particles").click();
+    h.run_steps(3);
+    let fitted = h.state().session().project().grid;
+    assert_eq!(fitted.resolution, g.resolution, "the resolution is kept");
+    assert!(fitted.max.z > g.max.z + 0.5, "the box grew to hold the particle outside: {fitted:?}");
+    assert!(h.state().session().project().particles_crossing_grid().is_empty());
+    assert!(h.query_by_label_contains("reach outside the grid box").is_none(), "the warning is gone");
+    assert_eq!(h.state().gpu_error(), None, "the preview renders the fitted grid");
+
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().session().project().grid, g, "one undo restores the grid");
+}

@@ -81,7 +81,7 @@ fn write_stage(dir: &Path, name: &str, p: &Project, frame: Frame) -> (PathBuf, P
     let lights: Vec<(&Volume, LightInfo)> = p
         .lights
         .iter()
-        .map(|l| (&opv, LightInfo { position: l.position.to_array(), intensity: l.intensity, color: l.color.to_array() }.in_frame(&frame)))
+        .map(|l| (&opv, LightInfo { id: l.id, position: l.position.to_array(), intensity: l.intensity, color: l.color.to_array() }.in_frame(&frame)))
         .collect();
     let grids = grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: false });
     let vdb = dir.join(format!("{name}.vdb"));

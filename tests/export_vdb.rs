@@ -52,7 +52,7 @@ fn test_volume(min: Vec3, max: Vec3) -> Volume {
 }
 
 fn light() -> LightInfo {
-    LightInfo { position: [1.5, 3.0, -0.25], intensity: 40.0, color: [1.0, 0.9, 0.8] }
+    LightInfo { id: 7, position: [1.5, 3.0, -0.25], intensity: 40.0, color: [1.0, 0.9, 0.8] }
 }
 
 fn opv_of(ev: &Volume) -> Volume {
@@ -159,6 +159,7 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
             let p: Vec<f64> = o["meta"]["light_position"].as_array().unwrap().iter().map(f).collect();
             assert_eq!(p, frame.point_f32(light().position).map(f64::from), "{tag} {}", g.name);
             assert_eq!(f(&o["meta"]["light_intensity"]), 40.0);
+            assert_eq!(f(&o["meta"]["light_id"]), 7.0, "{tag} {}: the light's stable id", g.name);
         }
         // Active voxels, leaves and the active bbox.
         assert_eq!(o["active"].as_u64().unwrap(), s.active_voxels, "{tag} {} active voxels", g.name);

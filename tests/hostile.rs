@@ -62,7 +62,7 @@ enum Edit {
 const TOKENS: &[&str] = &[
     "(", ")", "[", "]", "{", "}", ",", ":", "\"", "//", "/*", "*/", "-", ".", "e", "\n", "é", "\u{0}", "\\",
     "Some(", "None", "true", "r#\"", "'", "#![enable(implicit_some)]", "particles: [", "lights: []",
-    "resolution: (4096, 4096, 4096)", "resolution: (0, 1, 1)", "version: 2", "scheme: warp",
+    "resolution: (4096, 4096, 4096)", "resolution: (0, 1, 1)", "version: 3", "version: 2", "scheme: warp",
     "base_volume: (path: \"/nonexistent.vdb\")",
 ];
 const NUMBERS: &[&str] = &[

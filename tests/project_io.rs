@@ -124,3 +124,71 @@ fn saving_to_an_unwritable_place_fails_cleanly() {
     let err = save_project(Path::new("/nonexistent-dir/fog.ron"), &p).unwrap_err();
     assert!(err.to_string().contains("/nonexistent-dir/fog.ron"), "{err}");
 }
+
+/// A version-1 file (no ids) migrates: ids are the list positions, the counters follow them,
+/// and the project saves as the current version with its ids.
+#[test]
+fn version_1_files_get_ids_in_list_order() {
+    let text = EXAMPLE.replace(
+        "(center: (0.0, 1.5, 0.0), radius: 0.6, density: 3.0),",
+        "(center: (0.0, 1.5, 0.0), radius: 0.6, density: 3.0),\n        (center: (0.5, 1.5, 0.0), radius: 0.4, density: 1.0),\n        (center: (-0.5, 1.5, 0.0), radius: 0.3, density: 2.0),",
+    );
+    assert!(text.contains("version: 1"));
+    let mut p = parse(&text).unwrap();
+    assert_eq!(p.version, fogsmith::scene::PROJECT_VERSION);
+    assert_eq!(p.particles.iter().map(|q| q.id).collect::<Vec<_>>(), [0, 1, 2]);
+    assert_eq!(p.lights[0].id, 0);
+    assert_eq!(p.particle_label(2), "Particle #2");
+    p.particles.remove(1);
+    assert_eq!(p.particle_label(1), "Particle #2", "an erase does not rename the others");
+    assert_eq!(p.new_particle_id(), 3);
+    assert_eq!(p.new_light_id(), 1);
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v2.ron");
+    save_project(&path, &p).unwrap();
+    let saved = std::fs::read_to_string(&path).unwrap();
+    assert!(saved.contains("version: 2") && saved.contains("id: 2"), "{saved}");
+    let back = load_project(&path).unwrap();
+    assert_eq!(back, p);
+}
+
+#[test]
+fn duplicate_ids_and_unknown_versions_are_clear_errors() {
+    let text = EXAMPLE.replace("version: 1", "version: 2").replace(
+        "(center: (0.0, 1.5, 0.0), radius: 0.6, density: 3.0),",
+        "(id: 4, center: (0.0, 1.5, 0.0), radius: 0.6, density: 3.0),\n        (id: 4, center: (0.5, 1.5, 0.0), radius: 0.4, density: 1.0),",
+    );
+    let err = parse(&text).unwrap_err().to_string();
+    assert!(err.contains("scene.ron:7:") && err.contains("particles[1].id") && err.contains("own id"), "{err}");
+    let err = parse(&EXAMPLE.replace("version: 1", "version: 9")).unwrap_err().to_string();
+    assert!(err.contains("version 9") && err.contains("newer Fogsmith"), "{err}");
+}
+
+/// A project built in code (every id 0) is numbered when saved, so the file loads again.
+#[test]
+fn code_built_projects_save_with_distinct_ids() {
+    let mut p = Project::default();
+    p.particles = (0..3).map(|i| fogsmith::scene::Particle::new(glam::Vec3::new(i as f32 * 0.3, 1.0, 0.0), 0.2, 1.0)).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("code.ron");
+    save_project(&path, &p).unwrap();
+    let back = load_project(&path).unwrap();
+    assert_eq!(back.particles.iter().map(|q| q.id).collect::<Vec<_>>(), [0, 1, 2]);
+}
+
+/// What the outside-the-box rule says on the demos (printed; see the README).
+#[test]
+fn demos_particles_crossing_the_grid() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("projects");
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let p = load_project(&path).unwrap();
+        let crossing = p.particles_crossing_grid();
+        println!("{}: {} of {} particles cross the grid box", path.display(), crossing.len(), p.particles.len());
+        for keep in [fogsmith::scene::FitKeep::CellSize, fogsmith::scene::FitKeep::Resolution] {
+            let g = p.fit_grid_to_particles(keep).unwrap();
+            println!("  fit {keep:?}: {:?} .. {:?} {:?}", g.min, g.max, g.resolution);
+        }
+    }
+}

@@ -1,7 +1,6 @@
 //! Command-line interface: the editor (no subcommand), headless rendering, export,
 //! verification and adapter information.
 
-use crate::export::load_base_layer;
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::output::write_image;
 use crate::scene::{load_project, Project, Scheme};
@@ -161,7 +160,7 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     let mut pipeline = FogPipeline::new(ctx);
     // Before the base layer is resampled and uploaded: it is as large as one light's OPV.
     pipeline.check_limits(&project, request.width, request.height)?;
-    let layer = load_base_layer(&project, Some(&args.project))?;
+    let layer = project.load_base_volume(Some(&args.project))?;
     pipeline.set_base_layer(layer);
     let mut bar = progress::Bar::new(args.quiet);
     let report = match pipeline.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {

@@ -20,6 +20,16 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let mut gpu = FogPipeline::new(ctx);
+    gpu.check_limits(&project, width, height)?;
+    if project.load_base_volume(Some(path))?.is_some() {
+        // The base volume loads (so a bad file is reported), but the exact reference models
+        // only the particles and the base fog: comparing would report the layer as error.
+        return Err(format!(
+            "{}: verify compares with the exact reference, which does not model base_volume; remove base_volume from a copy of the project to verify its particles",
+            path.display()
+        )
+        .into());
+    }
     let mut bar = super::progress::Bar::new(quiet);
     let report = match gpu.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
         Err(crate::gpu::GpuError::Cancelled) => return Err(super::progress::Cancelled.into()),

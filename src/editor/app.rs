@@ -157,6 +157,7 @@ enum Pick {
     Open,
     SaveAs,
     Export(Export),
+    ImportVdb,
 }
 
 /// Identifies the exact optical depths computed for one slice of one project state.
@@ -400,6 +401,12 @@ pub struct EditorState {
     built_in_explained: bool,
     /// Outline every particle in the viewport; otherwise only the selection.
     pub(crate) outline_all: bool,
+    /// What the pipeline's base layer was loaded from: base volume, grid and project file.
+    base_loaded: Option<(Option<crate::scene::BaseVolume>, crate::scene::GridSpec, Option<PathBuf>)>,
+    /// File → Import VDB… while its window is open.
+    import: Option<super::import::ImportVdb>,
+    /// What "Fit grid to particles" keeps.
+    pub(crate) fit_keep: crate::scene::FitKeep,
 }
 
 /// The slice currently shown and what it was made from.
@@ -479,6 +486,9 @@ impl EditorApp {
             built_in_dialog: None,
             built_in_explained: false,
             outline_all: persisted.outline_all.unwrap_or(true),
+            base_loaded: None,
+            import: None,
+            fit_keep: crate::scene::FitKeep::default(),
         };
         if state.options.recovery {
             let dir = crate::scene::recovery::state_dir();
@@ -587,6 +597,14 @@ impl EditorApp {
     /// View → Particle outlines: every particle, or only the selection.
     pub fn set_outline_all(&mut self, all: bool) {
         self.state.outline_all = all;
+    }
+    /// File → Import VDB…, as the menu does.
+    pub fn import_vdb_dialog(&mut self) {
+        self.state.import_vdb_dialog();
+    }
+    /// Opens the Import VDB window on `path`, as after choosing it in the file dialog.
+    pub fn import_vdb(&mut self, path: PathBuf) {
+        self.state.import_vdb(path);
     }
     /// Whether Fogsmith's own file dialog is open.
     pub fn built_in_dialog_open(&self) -> bool {
@@ -751,6 +769,20 @@ impl EditorState {
             Quality::Balanced => Some(Duration::from_secs_f64(FRAME_BUDGET_MS * 1e-3)),
             Quality::Full => None,
         };
+        // The base volume, loaded through the project like every other path.
+        let project = self.session.project();
+        let key = (project.base_volume.clone(), project.grid, self.session.path().map(Path::to_owned));
+        if self.base_loaded.as_ref() != Some(&key) {
+            let loaded = project.load_base_volume(self.session.path());
+            let failed = loaded.as_ref().err().map(|e| format!("The base volume is left out of the fog: {e}"));
+            gpu.pipeline.set_base_layer(loaded.ok().flatten());
+            gpu.converged = None;
+            self.base_loaded = Some(key);
+            if let Some(message) = failed {
+                self.error(message);
+            }
+        }
+        let Some(gpu) = &mut self.gpu else { return };
         let before = gpu.error.clone();
         gpu.render(&self.session, self.epoch, self.preview_size, budget);
         if gpu.refining() {
@@ -892,11 +924,41 @@ impl EditorState {
         }
     }
 
+    /// File → Import VDB…: asks for the file (as Open does), then shows the grid picker.
+    pub(crate) fn import_vdb_dialog(&mut self) {
+        let spec = DialogSpec { title: "Import VDB", filter: "OpenVDB", extension: "vdb", file_name: None, directory: self.dialog_directory() };
+        self.choose_file(Pick::ImportVdb, spec);
+    }
+
+    /// Opens the import window on `path` directly (a dropped file, scripted use).
+    pub(crate) fn import_vdb(&mut self, path: PathBuf) {
+        self.picked(Pick::ImportVdb, path);
+    }
+
+    fn import_window(&mut self, ctx: &Context) {
+        let Some(import) = &mut self.import else { return };
+        match import.ui(ctx) {
+            Some(true) => {
+                let base = import.base_volume(self.session.path());
+                self.import = None;
+                let text = format!("Base volume: grid {:?} of {}, × {}", base.grid, base.path.display(), base.scale);
+                self.session.edit(super::session::NEW_STEP).base_volume = Some(base);
+                self.info(text);
+            }
+            Some(false) => self.import = None,
+            None => {}
+        }
+    }
+
     fn picked(&mut self, purpose: Pick, path: PathBuf) {
         match purpose {
             Pick::Open => self.perform(Action::Open(path)),
             Pick::SaveAs => self.save_to(path),
             Pick::Export(kind) => self.export_to(kind, path),
+            Pick::ImportVdb => match super::import::ImportVdb::open(path) {
+                Ok(import) => self.import = Some(import),
+                Err(e) => self.error(format!("Cannot import: {e}")),
+            },
         }
     }
 
@@ -1132,10 +1194,13 @@ impl EditorState {
         }
         let dropped: Vec<PathBuf> = ctx.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).filter(|p| !p.as_os_str().is_empty()).collect());
         if let Some(path) = dropped.into_iter().next() {
-            if path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("ron")) {
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+            if ext == "ron" {
                 self.request(Action::Open(path));
+            } else if ext == "vdb" {
+                self.import_vdb(path);
             } else {
-                self.error(format!("{}: not a Fogsmith project; drop a .ron file", path.display()));
+                self.error(format!("{}: not a Fogsmith project or VDB; drop a .ron or .vdb file", path.display()));
             }
         }
         if ctx.input(|i| i.viewport().close_requested()) && self.session.is_dirty() && !self.quit_confirmed {
@@ -1155,6 +1220,7 @@ impl EditorState {
         self.recovery_dialog(ctx);
         self.confirm_dialog(ctx);
         self.built_in_dialog(ctx);
+        self.import_window(ctx);
         self.shortcuts_window(ctx);
         self.show_toasts(ctx);
         let title = format!("{}{} — Fogsmith", self.session.name(), if self.session.is_dirty() { " ●" } else { "" });
@@ -1482,6 +1548,15 @@ impl EditorState {
                 self.export_dialog(Export::ExrSlices);
             }
         });
+        ui.separator();
+        if ui.button("Import VDB…").on_hover_text("Use a density grid from an OpenVDB file as the base of the fog").clicked() {
+            self.import_vdb_dialog();
+        }
+        if self.session.project().base_volume.is_some()
+            && ui.button("Remove base volume").on_hover_text("Drop the imported VDB grid from the fog").clicked()
+        {
+            self.session.edit(super::session::NEW_STEP).base_volume = None;
+        }
         let can_revert = self.session.path().is_some();
         if ui.add_enabled(can_revert, egui::Button::new("Revert")).on_hover_text("Reload the file, dropping unsaved changes").clicked() {
             self.request(Action::Revert);
@@ -1493,10 +1568,12 @@ impl EditorState {
     }
 
     fn edit_menu(&mut self, ui: &mut egui::Ui) {
-        if ui.add_enabled(self.session.can_undo(), egui::Button::new("Undo").shortcut_text("Ctrl+Z")).clicked() {
+        let undo = self.session.undo_label().map_or("Undo".to_string(), |l| format!("Undo {l}"));
+        if ui.add_enabled(self.session.can_undo(), egui::Button::new(undo).shortcut_text("Ctrl+Z")).clicked() {
             self.undo();
         }
-        if ui.add_enabled(self.session.can_redo(), egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z")).clicked() {
+        let redo = self.session.redo_label().map_or("Redo".to_string(), |l| format!("Redo {l}"));
+        if ui.add_enabled(self.session.can_redo(), egui::Button::new(redo).shortcut_text("Ctrl+Shift+Z")).clicked() {
             self.redo();
         }
         ui.separator();

@@ -12,6 +12,7 @@
 
 pub mod app;
 pub mod files;
+mod import;
 mod panels;
 pub mod session;
 pub mod slices;

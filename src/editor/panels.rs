@@ -24,7 +24,8 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
         .response
         .on_hover_text("EV: extinction σt; OPV: optical depth T towards a light; exp(−T): transmittance; error: |T − T_exact| against the CPU reference on this slice");
         if s.field.needs_light() {
-            let name = |i: usize| format!("light {i}");
+            let project = state.session.project();
+            let name = |i: usize| project.light_label(i);
             egui::ComboBox::from_id_salt("slice-light").selected_text(name(s.light)).show_ui(ui, |ui| {
                 for i in 0..lights {
                     ui.selectable_value(&mut s.light, i, name(i));
@@ -261,8 +262,8 @@ pub(crate) fn outliner(state: &mut EditorState, ui: &mut Ui) {
 
 fn item_name(project: &Project, hit: Hit) -> (String, bool) {
     match hit {
-        Hit::Particle(i) => project.particles.get(i).map_or((String::new(), false), |p| (p.name.clone().unwrap_or_else(|| format!("Particle {i}")), p.hidden)),
-        Hit::Light(i) => project.lights.get(i).map_or((String::new(), false), |l| (l.name.clone().unwrap_or_else(|| format!("Light {i}")), l.hidden)),
+        Hit::Particle(i) => (project.particle_label(i), project.particles.get(i).is_some_and(|p| p.hidden)),
+        Hit::Light(i) => (project.light_label(i), project.lights.get(i).is_some_and(|l| l.hidden)),
     }
 }
 
@@ -489,7 +490,7 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
     if sel.particles.len() == 1 && sel.lights.is_empty() {
         let i = *sel.particles.iter().next().unwrap_or(&0);
         let Some(p) = state.session.project().particles.get(i).cloned() else { return };
-        ui.label(format!("Particle {i}"));
+        ui.label(state.session.project().particle_label(i));
         ui.label("centre");
         if let Some((v, t)) = drag_vec3(ui, p.center, 0.005, " m", "Centre of the gaussian") {
             if let Some(q) = state.session.edit(t).particles.get_mut(i) {
@@ -517,7 +518,7 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
     if sel.lights.len() == 1 && sel.particles.is_empty() {
         let i = *sel.lights.iter().next().unwrap_or(&0);
         let Some(l) = state.session.project().lights.get(i).cloned() else { return };
-        ui.label(l.name.clone().unwrap_or_else(|| format!("Light {i}")));
+        ui.label(state.session.project().light_label(i));
         ui.label("position");
         if let Some((v, t)) = drag_vec3(ui, l.position, 0.005, " m", "Position of the point light") {
             if let Some(q) = state.session.edit(t).lights.get_mut(i) {

@@ -67,7 +67,8 @@ pub struct Session {
 impl Session {
     /// A session on `project`, read from `path` (or never saved when `path` is `None`;
     /// `name` is then shown in the title). It starts without unsaved changes.
-    pub fn new(project: Project, path: Option<PathBuf>, name: &str) -> Self {
+    pub fn new(mut project: Project, path: Option<PathBuf>, name: &str) -> Self {
+        project.ensure_unique_ids();
         let name = path
             .as_deref()
             .and_then(Path::file_name)
@@ -179,6 +180,16 @@ impl Session {
         self.undo.len()
     }
 
+    /// What Undo would take back, named by ids ("Delete Particle #24"); None with nothing to undo.
+    pub fn undo_label(&self) -> Option<String> {
+        self.undo.last().map(|s| describe_change(&s.project, &self.project))
+    }
+
+    /// What Redo would bring back.
+    pub fn redo_label(&self) -> Option<String> {
+        self.redo.last().map(|s| describe_change(&self.project, &s.project))
+    }
+
     /// Restores the state before the last edit; the camera stays where the user put it.
     pub fn undo(&mut self) -> bool {
         let Some(s) = self.undo.pop() else { return false };
@@ -217,7 +228,10 @@ impl Session {
     /// Appends particles (one undo step per `tag`) and returns how many there are now.
     pub fn add_particles(&mut self, tag: EditTag, particles: impl IntoIterator<Item = Particle>) -> usize {
         let p = self.edit(tag);
-        p.particles.extend(particles);
+        for mut q in particles {
+            q.id = p.new_particle_id();
+            p.particles.push(q);
+        }
         p.particles.len()
     }
 
@@ -319,12 +333,14 @@ impl Session {
         let (np, nl) = (project.particles.len(), project.lights.len());
         for &i in &sel.particles {
             if let Some(p) = project.particles.get(i).cloned() {
-                project.particles.push(Particle { center: p.center + offset, ..p });
+                let id = project.new_particle_id();
+                project.particles.push(Particle { id, center: p.center + offset, ..p });
             }
         }
         for &i in &sel.lights {
             if let Some(l) = project.lights.get(i).cloned() {
-                project.lights.push(Light { position: l.position + offset, ..l });
+                let id = project.new_light_id();
+                project.lights.push(Light { id, position: l.position + offset, ..l });
             }
         }
         let (np2, nl2) = (project.particles.len(), project.lights.len());
@@ -345,8 +361,9 @@ impl Session {
 
     /// Like [`Self::add_light`], as part of the edit `tag` (adding and placing a light by
     /// dragging is one undo step).
-    pub fn add_light_tagged(&mut self, tag: EditTag, light: Light) -> usize {
+    pub fn add_light_tagged(&mut self, tag: EditTag, mut light: Light) -> usize {
         let project = self.edit(tag);
+        light.id = project.new_light_id();
         project.lights.push(light);
         let i = project.lights.len() - 1;
         self.selection.clear();
@@ -374,6 +391,60 @@ impl Session {
     /// Replaces the whole project (File → New, Open, Revert): history and selection reset.
     pub fn replace(&mut self, project: Project, path: Option<PathBuf>, name: &str) {
         *self = Session::new(project, path, name);
+    }
+}
+
+/// An undo step in words, from the objects whose ids appear, disappear or change between
+/// `before` and `after`, and the settings that change.
+pub fn describe_change(before: &Project, after: &Project) -> String {
+    use std::collections::HashMap;
+    fn ids_text(kind: &str, ids: &[u32]) -> String {
+        let mut ids = ids.to_vec();
+        ids.sort_unstable();
+        let shown: Vec<String> = ids.iter().take(3).map(|i| format!("#{i}")).collect();
+        let more = if ids.len() > 3 { format!(" and {} more", ids.len() - 3) } else { String::new() };
+        let plural = if ids.len() > 1 { "s" } else { "" };
+        format!("{kind}{plural} {}{more}", shown.join(", "))
+    }
+    fn diff<T: PartialEq>(a: &[T], b: &[T], id: impl Fn(&T) -> u32) -> [Vec<u32>; 3] {
+        let old: HashMap<u32, &T> = a.iter().map(|x| (id(x), x)).collect();
+        let new: HashMap<u32, &T> = b.iter().map(|x| (id(x), x)).collect();
+        let added = b.iter().map(&id).filter(|i| !old.contains_key(i)).collect();
+        let removed = a.iter().map(&id).filter(|i| !new.contains_key(i)).collect();
+        let changed = b.iter().filter(|x| old.get(&id(x)).is_some_and(|o| *o != *x)).map(&id).collect();
+        [added, removed, changed]
+    }
+    let particles = diff(&before.particles, &after.particles, |p| p.id);
+    let lights = diff(&before.lights, &after.lights, |l| l.id);
+    let mut parts = Vec::new();
+    for (verb, k) in [("Add", 0), ("Delete", 1), ("Change", 2)] {
+        let mut objects = Vec::new();
+        if !particles[k].is_empty() {
+            objects.push(ids_text("Particle", &particles[k]));
+        }
+        if !lights[k].is_empty() {
+            objects.push(ids_text("Light", &lights[k]));
+        }
+        if !objects.is_empty() {
+            parts.push(format!("{verb} {}", objects.join(" and ")));
+        }
+    }
+    let settings = [
+        ("grid", before.grid != after.grid),
+        ("medium", before.medium != after.medium),
+        ("base volume", before.base_volume != after.base_volume),
+        ("render settings", before.render != after.render),
+        ("propagation", before.propagation != after.propagation),
+        ("surfaces", before.surfaces != after.surfaces),
+    ];
+    let changed: Vec<&str> = settings.iter().filter(|(_, c)| *c).map(|(n, _)| *n).collect();
+    if !changed.is_empty() {
+        parts.push(format!("Change {}", changed.join(", ")));
+    }
+    if parts.is_empty() {
+        "Edit".into()
+    } else {
+        parts.join("; ")
     }
 }
 
@@ -447,6 +518,21 @@ mod tests {
         assert!(s.project().particles.is_empty());
         s.undo();
         assert_eq!(s.project().particles.len(), 5);
+    }
+
+    #[test]
+    fn undo_labels_name_ids() {
+        let mut s = session();
+        s.selection.particles = [1, 2].into();
+        s.delete_selection();
+        assert_eq!(s.undo_label().unwrap(), "Delete Particles #1, #2");
+        s.selection.particles = [1].into();
+        s.translate_selection(NEW_STEP, Vec3::X);
+        assert_eq!(s.undo_label().unwrap(), "Change Particle #3", "list position 1 is now the particle with id 3");
+        s.add_particles(NEW_STEP, [Particle::new(Vec3::ONE, 0.1, 1.0)]);
+        assert_eq!(s.undo_label().unwrap(), "Add Particle #4");
+        s.undo();
+        assert_eq!(s.redo_label().unwrap(), "Add Particle #4");
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The Viewport tab: the tool bar, the pipeline's preview, camera navigation, the tools'
 //! pointer handling and the overlays (grid box, particle outlines, light gizmos, selection).
 
+use crate::scene::FitKeep;
 use super::app::{EditorState, Gesture};
 use super::tools::{self, Hit, Stroke, Tool};
 use super::view::{self, ViewProjection};
@@ -13,6 +14,7 @@ const MAX_OUTLINES: usize = 20_000;
 
 pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     toolbar(state, ui);
+    grid_warning(state, ui);
     let rect = ui.available_rect_before_wrap();
     if rect.width() < 8.0 || rect.height() < 8.0 {
         return;
@@ -41,6 +43,52 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
         }
     }
     overlays(state, &painter, rect, response.hover_pos());
+}
+
+/// A warning row while particles reach outside the grid box, with "Fit grid to particles".
+fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
+    let crossing = state.session.project().particles_crossing_grid().len();
+    if crossing == 0 {
+        return;
+    }
+    ui.horizontal_wrapped(|ui| {
+        let text = format!(
+            "⚠ {crossing} particle{} reach{} outside the grid box: their fog is cut off at its faces",
+            if crossing == 1 { "" } else { "s" },
+            if crossing == 1 { "es" } else { "" }
+        );
+        ui.colored_label(ui.visuals().warn_fg_color, text).on_hover_text(format!(
+            "A particle crosses the box when the ball where its extinction exceeds {} % of its peak (radius ≈ {:.2} r) is not inside the box",
+            crate::scene::SUPPORT_FRACTION * 100.0,
+            (1.0 / crate::scene::SUPPORT_FRACTION).ln().sqrt()
+        ));
+        let keep = &mut state.fit_keep;
+        ui.selectable_value(keep, FitKeep::CellSize, "keep cell size").on_hover_text("The resolution follows the new box");
+        ui.selectable_value(keep, FitKeep::Resolution, "keep resolution").on_hover_text("The cells stretch with the new box");
+        if ui.button("Fit grid to particles").on_hover_text("Resize the grid box to hold every visible particle (one undo step)").clicked() {
+            fit_grid(state);
+        }
+    });
+}
+
+/// Resizes the grid box to the visible particles, as one undo step.
+pub(crate) fn fit_grid(state: &mut EditorState) {
+    let max_edge = state.gpu.as_ref().map_or(1024, |g| g.pipeline.context().max_grid_edge());
+    match state.session.project().fit_grid_to_particles(state.fit_keep) {
+        Ok(g) if g.resolution.max_element() > max_edge => state.error(format!(
+            "Cannot fit the grid: it would need {:?} cells, more than this adapter's {max_edge} per axis; keep the resolution instead",
+            g.resolution.to_array()
+        )),
+        Ok(g) => {
+            state.session.edit(crate::editor::session::NEW_STEP).grid = g;
+            let r = g.resolution;
+            state.info(format!(
+                "Grid fitted to the particles: ({:.2}, {:.2}, {:.2}) to ({:.2}, {:.2}, {:.2}) m, {}×{}×{} cells",
+                g.min.x, g.min.y, g.min.z, g.max.x, g.max.y, g.max.z, r.x, r.y, r.z
+            ));
+        }
+        Err(e) => state.error(format!("Cannot fit the grid: {e}")),
+    }
 }
 
 fn toolbar(state: &mut EditorState, ui: &mut Ui) {
@@ -302,14 +350,11 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
             // then places it).
             let hit = tools::pick(project, vp, pos);
             let point = tools::working_plane_point(project, vp, pos);
-            let count = project.lights.len();
             let tag = state.session.new_tag();
             let light = match hit {
                 Some(Hit::Light(i)) => Some(i),
                 _ => point.map(|point| {
-                    let mut light = crate::scene::Light::new(point, 2.0, Vec3::ONE);
-                    light.name = Some(format!("Light {}", count + 1));
-                    state.session.add_light_tagged(tag, light)
+                    state.session.add_light_tagged(tag, crate::scene::Light::new(point, 2.0, Vec3::ONE))
                 }),
             };
             light.map(|i| {

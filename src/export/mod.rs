@@ -33,6 +33,8 @@ use std::path::{Path, PathBuf};
 /// caller from the project's lights.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightInfo {
+    /// The light's stable id in the project (written as `light_id`).
+    pub id: u32,
     /// World-space position, metres.
     pub position: [f32; 3],
     /// Radiant intensity, W/sr.
@@ -111,16 +113,13 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), ExportError> {
     write_bytes_atomic(path, text.as_bytes())
 }
 
-/// The project's `base_volume` resampled into its grid, or None when it has none. A relative
-/// path is resolved against `project_path`'s folder.
+/// The project's `base_volume` resampled into its grid, or None when it has none: see
+/// [`crate::scene::Project::load_base_volume`], which every path uses.
 pub fn load_base_layer(
     project: &crate::scene::Project,
     project_path: Option<&Path>,
 ) -> Result<Option<crate::scene::Volume>, ExportError> {
-    let Some(base) = &project.base_volume else { return Ok(None) };
-    let dir = project_path.and_then(Path::parent);
-    let path = base.resolved_path(dir);
-    vdb_read::import_density(&path, Some(&base.grid), &project.grid, base.scale).map(Some)
+    project.load_base_volume(project_path)
 }
 
 /// Export metadata of the project's lights, indexed like its OPVs.
@@ -128,6 +127,6 @@ pub fn light_infos(project: &crate::scene::Project) -> Vec<LightInfo> {
     project
         .lights
         .iter()
-        .map(|l| LightInfo { position: l.position.to_array(), intensity: l.intensity, color: l.color.to_array() })
+        .map(|l| LightInfo { id: l.id, position: l.position.to_array(), intensity: l.intensity, color: l.color.to_array() })
         .collect()
 }

@@ -66,8 +66,8 @@
 //! `name`, `class` ("fog volume" or "unknown"), `creator` ("fogsmith"), `file_compression`,
 //! `file_bbox_min`/`file_bbox_max`, `file_voxel_count`, `is_saved_as_half_float` (half only),
 //! the export frame as `up_axis` ("Y" or "Z"), `meters_per_unit` (double: 1 or 0.01) and
-//! `handedness` ("right" or "left"), and on a light's grids `light_index` (int32),
-//! `light_position` (vec3s, in the export frame), `light_intensity` (float, W/sr),
+//! `handedness` ("right" or "left"), and on a light's grids `light_index` (int32, its place
+//! in the list), `light_id` (int32, its stable id in the project), `light_position` (vec3s, in the export frame), `light_intensity` (float, W/sr),
 //! `light_color` (vec3s, linear RGB). The file's own metadata holds `creator` and the frame.
 
 use super::frame::Frame;
@@ -260,6 +260,7 @@ pub fn grids_from_volumes<'a>(
     for (i, (opv, light)) in lights.iter().enumerate() {
         let meta = vec![
             ("light_index".to_string(), MetaValue::Int32(i as i32)),
+            ("light_id".to_string(), MetaValue::Int32(light.id as i32)),
             ("light_position".to_string(), MetaValue::Vec3s(light.position)),
             ("light_intensity".to_string(), MetaValue::Float(light.intensity)),
             ("light_color".to_string(), MetaValue::Vec3s(light.color)),

@@ -37,17 +37,53 @@ pub fn parse_project(text: &str, origin: &Path) -> Result<Project, ProjectError>
         col: e.position.col,
         message: e.code.to_string(),
     })?;
-    let project = migrate(project);
-    project.validate(MAX_RESOLUTION_DEFAULT).map_err(|error| {
+    let invalid = |error: ValidationError| {
         let (line, col) = locate_field(text, &error.field).unwrap_or((1, 1));
         ProjectError::Invalid { path: origin.to_owned(), line, col, error }
-    })?;
+    };
+    let project = migrate(project).map_err(invalid)?;
+    project.validate(MAX_RESOLUTION_DEFAULT).map_err(invalid)?;
     Ok(project)
 }
 
-/// Brings an older project up to [`PROJECT_VERSION`]. Version 1 is the first format.
-fn migrate(project: Project) -> Project {
-    project
+/// Brings an older project up to [`PROJECT_VERSION`] and checks what the version implies.
+///
+/// - Version 1 had no ids: particles and lights get their list positions as ids, so what
+///   the editor called "Particle 79" stays #79.
+/// - Version 2: ids must be unique per kind; the next-id counters are raised above every
+///   id in use.
+fn migrate(mut project: Project) -> Result<Project, ValidationError> {
+    let field = |f: &str, problem: String| ValidationError { field: f.into(), problem };
+    match project.version {
+        1 => {
+            for (i, p) in project.particles.iter_mut().enumerate() {
+                p.id = i as u32;
+            }
+            for (i, l) in project.lights.iter_mut().enumerate() {
+                l.id = i as u32;
+            }
+            project.next_id = super::NextIds { particle: project.particles.len() as u32, light: project.lights.len() as u32 };
+            project.version = 2;
+        }
+        PROJECT_VERSION => {
+            if let Some((a, b)) = super::ids::first_duplicate(project.particles.iter().map(|p| p.id)) {
+                let msg = format!("id {} is already used by particles[{a}]; give every particle its own id", project.particles[b].id);
+                return Err(field(&format!("particles[{b}].id"), msg));
+            }
+            if let Some((a, b)) = super::ids::first_duplicate(project.lights.iter().map(|l| l.id)) {
+                let msg = format!("id {} is already used by lights[{a}]; give every light its own id", project.lights[b].id);
+                return Err(field(&format!("lights[{b}].id"), msg));
+            }
+        }
+        v => {
+            return Err(field(
+                "version",
+                format!("version {v} is not a project format this build reads (1 to {PROJECT_VERSION}); a newer Fogsmith wrote it, or the number was edited"),
+            ))
+        }
+    }
+    project.raise_next_ids();
+    Ok(project)
 }
 
 /// The project as RON text, in the shape of the documented example.
@@ -64,6 +100,16 @@ pub fn save_project(path: &Path, project: &Project) -> Result<(), ProjectError> 
             "the project has version {}, but this build writes only version {PROJECT_VERSION}",
             project.version
         )));
+    }
+    let mut unique;
+    let mut project = project;
+    if super::ids::first_duplicate(project.particles.iter().map(|p| p.id)).is_some()
+        || super::ids::first_duplicate(project.lights.iter().map(|l| l.id)).is_some()
+    {
+        // A project built in code: number it so that the file loads.
+        unique = project.clone();
+        unique.ensure_unique_ids();
+        project = &unique;
     }
     let text = to_ron_string(project)?;
     write_atomic(path, text.as_bytes(), true).map_err(|source| ProjectError::Io { path: path.to_owned(), source })

@@ -6,11 +6,16 @@
 //! Every optional field has a default documented on its type, so a project file only
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
 
+mod base;
+mod fit;
+mod ids;
 pub mod io;
 pub mod recovery;
 mod validate;
 mod volume;
 
+pub use fit::{FitKeep, SUPPORT_FRACTION};
+pub use ids::NextIds;
 pub use io::{load_project, parse_project, save_project, ProjectError};
 pub use validate::{ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_INTENSITY, MAX_RESOLUTION_DEFAULT};
 pub use volume::Volume;
@@ -18,8 +23,9 @@ pub use volume::Volume;
 use glam::{UVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
-/// The project format version this build writes. Older versions are migrated on load.
-pub const PROJECT_VERSION: u32 = 1;
+/// The project format version this build writes. Older versions are migrated on load
+/// (version 1 had no ids: its particles and lights get their list positions).
+pub const PROJECT_VERSION: u32 = 2;
 
 /// A whole fog scene, as saved in a `.ron` project file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -39,6 +45,8 @@ pub struct Project {
     /// particles. Default none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub base_volume: Option<BaseVolume>,
+    /// The ids the next new particle and light get (see [`NextIds`]).
+    pub next_id: NextIds,
 }
 
 /// A VDB density grid used as a base layer of the extinction volume.
@@ -85,6 +93,7 @@ impl Default for Project {
             propagation: PropagationSettings::default(),
             surfaces: Surfaces::default(),
             base_volume: None,
+            next_id: NextIds::default(),
         }
     }
 }
@@ -152,6 +161,10 @@ impl Default for Medium {
 /// A gaussian blob of fog: σ_t(x) = density · exp(−|x − center|² / radius²).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Particle {
+    /// Stable identifier, unique among the project's particles: the editor names the
+    /// particle "Particle #id" whatever its place in the list. Default 0.
+    #[serde(default)]
+    pub id: u32,
     pub center: Vec3,
     /// r in exp(−d²/r²), metres; must be > 0.
     pub radius: f32,
@@ -167,7 +180,7 @@ pub struct Particle {
 
 impl Particle {
     pub fn new(center: Vec3, radius: f32, density: f32) -> Self {
-        Self { center, radius, density, name: None, hidden: false }
+        Self { id: 0, center, radius, density, name: None, hidden: false }
     }
 
     /// Distance beyond which this particle's extinction is below `epsilon` (physics.md §2):
@@ -188,6 +201,9 @@ fn is_false(b: &bool) -> bool {
 /// An isotropic point light.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Light {
+    /// Stable identifier, unique among the project's lights ("Light #id"). Default 0.
+    #[serde(default)]
+    pub id: u32,
     pub position: Vec3,
     /// Radiant intensity I in W/sr; must be ≥ 0.
     pub intensity: f32,
@@ -203,7 +219,7 @@ pub struct Light {
 
 impl Light {
     pub fn new(position: Vec3, intensity: f32, color: Vec3) -> Self {
-        Self { position, intensity, color, name: None, hidden: false }
+        Self { id: 0, position, intensity, color, name: None, hidden: false }
     }
     /// Radiant intensity per RGB channel.
     pub fn radiance_rgb(&self) -> Vec3 {
