@@ -72,7 +72,7 @@ const DEFAULT_RES: u32 = 32;
 fn base(res: u32) -> Project {
     let mut p = Project::default();
     p.grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(res) };
-    p.medium = Medium { base_extinction: 0.0, albedo: 0.8, anisotropy: 0.3 };
+    p.medium = Medium { base_extinction: 0.0, albedo: 0.8, anisotropy: 0.3, ..Medium::default() };
     p.camera = Camera { position: Vec3::new(0.3, 0.4, 3.5), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 45.0 };
     p.render.width = 24;
     p.render.height = 17;

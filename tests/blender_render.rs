@@ -41,7 +41,7 @@ fn random_scene(seed: u64) -> Project {
     let centre = Vec3::new(r.range(-1.0, 1.0), r.range(0.0, 2.0), r.range(-1.0, 1.0));
     let mut p = Project {
         grid: GridSpec { min: centre - Vec3::splat(1.5), max: centre + Vec3::splat(1.5), resolution: UVec3::new(40, 36, 44) },
-        medium: Medium { base_extinction: 0.0, albedo: r.range(0.5, 1.0), anisotropy: r.range(-0.3, 0.6) },
+        medium: Medium { base_extinction: 0.0, albedo: r.range(0.5, 1.0), anisotropy: r.range(-0.3, 0.6), ..Medium::default() },
         ..Default::default()
     };
     p.particles = (0..6)

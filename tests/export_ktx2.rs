@@ -110,7 +110,7 @@ fn every_texel_reads_back_with_the_ktx2_crate() {
 #[test]
 fn bevy_snippet_matches_the_grid() {
     let vol = random_volume(3);
-    let medium = Medium { base_extinction: 0.05, albedo: 0.7, anisotropy: 0.3 };
+    let medium = Medium { base_extinction: 0.05, albedo: 0.7, anisotropy: 0.3, ..Medium::default() };
     let dir = tempfile::tempdir().unwrap();
     let info = write_ktx2(&dir.path().join("d.ktx2"), &vol, Ktx2Format::R8).unwrap();
     let text = fog_volume_snippet(&vol, &medium, &info, "fog/d.ktx2");

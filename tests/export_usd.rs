@@ -43,7 +43,7 @@ fn random_project(seed: u64) -> Project {
     let min = r.v(-3.0, 1.0);
     let max = min + r.v(0.5, 3.0);
     p.grid = GridSpec { min, max, resolution: UVec3::new(8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32) };
-    p.medium = Medium { base_extinction: r.range(0.0, 0.2), albedo: r.f(), anisotropy: r.range(-0.5, 0.8) };
+    p.medium = Medium { base_extinction: r.range(0.0, 0.2), albedo: r.f(), anisotropy: r.range(-0.5, 0.8), ..Medium::default() };
     let n = 1 + (r.f() * 3.0) as usize;
     p.lights = (0..n).map(|_| Light::new(r.v(-4.0, 4.0), r.range(0.5, 50.0), r.v(0.2, 1.0))).collect();
     if n > 1 {

@@ -86,7 +86,7 @@ fn scene(rng: &mut Rng, resolution: UVec3, base: f32) -> (Project, usize) {
     let cell = 0.05;
     let size = resolution.as_vec3() * cell;
     p.grid = GridSpec { min: -0.5 * size + Vec3::new(0.3, -0.1, 0.2), max: 0.5 * size + Vec3::new(0.3, -0.1, 0.2), resolution };
-    p.medium = Medium { base_extinction: base, albedo: 0.8, anisotropy: 0.0 };
+    p.medium = Medium { base_extinction: base, albedo: 0.8, anisotropy: 0.0, ..Medium::default() };
     let n = 6 + rng.pick(10);
     for _ in 0..n {
         let r = cell * rng.range(min_radius(), 10.0);

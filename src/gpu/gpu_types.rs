@@ -19,9 +19,14 @@ pub struct GridParams {
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LightGpu {
     pub position: [f32; 3],
-    pub _pad0: f32,
+    /// 0 point, 1 spot, 2 directional (`LIGHT_*` in `shaders/common.wgsl`).
+    pub kind: u32,
     pub rgb: [f32; 3],
-    pub _pad1: f32,
+    /// Spot half-angle in radians.
+    pub angle: f32,
+    /// Unit spot axis or direction of travel of a directional light.
+    pub direction: [f32; 3],
+    pub blend: f32,
 }
 
 #[repr(C)]

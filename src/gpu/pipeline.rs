@@ -806,7 +806,7 @@ impl FogPipeline {
     /// The OPV inputs light `l` needs, or None when it is not propagated at all (hidden,
     /// dark or culled).
     fn opv_key(&self, project: &Project, l: &Light, scheme: Scheme) -> Option<OpvKey> {
-        if l.hidden || l.intensity <= 0.0 || light_is_negligible(project, l) {
+        if l.hidden || l.intensity <= 0.0 || light_is_negligible(project, l) || !l.reaches_box(project.grid.min, project.grid.max) {
             return None;
         }
         Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride })
@@ -820,7 +820,8 @@ impl FogPipeline {
             match self.opv_key(project, light, scheme) {
                 None => {
                     counters.lights_skipped += 1;
-                    counters.lights_culled += light_is_negligible(project, light) as u32;
+                    counters.lights_culled +=
+                        (light_is_negligible(project, light) || !light.reaches_box(project.grid.min, project.grid.max)) as u32;
                 }
                 Some(k) if self.baked.opvs[i] == Some(k) => counters.lights_skipped += 1,
                 Some(k) => targets.push((i, k)),
@@ -1134,8 +1135,14 @@ fn ms(t: Instant) -> f64 {
 }
 
 fn light_gpu(l: &Light, culled: bool) -> LightGpu {
+    use crate::scene::LightKind;
     let rgb = if l.hidden || culled { glam::Vec3::ZERO } else { l.radiance_rgb() };
-    LightGpu { position: l.position.to_array(), _pad0: 0.0, rgb: rgb.to_array(), _pad1: 0.0 }
+    let (kind, direction, angle, blend) = match l.kind {
+        LightKind::Point => (0, glam::Vec3::ZERO, 0.0, 0.0),
+        LightKind::Spot { direction, angle_deg, blend } => (1, direction.normalize_or_zero(), angle_deg.to_radians(), blend),
+        LightKind::Directional { direction } => (2, direction.normalize_or_zero(), 0.0, 0.0),
+    };
+    LightGpu { position: l.position.to_array(), kind, rgb: rgb.to_array(), angle, direction: direction.to_array(), blend }
 }
 
 /// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
@@ -1167,7 +1174,13 @@ pub const CULL_RADIANCE: f32 = 1e-6;
 /// and a pixel receives at most I·albedo·max(phase) / d² (d: the light's distance to the grid
 /// box), since ∫σ_t·exp(−τ) along a ray is below 1.
 pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
-    if project.medium.base_extinction > 0.0 || !project.surfaces.is_empty() || project.base_volume.is_some() {
+    if !l.reaches_box(project.grid.min, project.grid.max)
+        && project.medium.base_extinction <= 0.0
+        && project.surfaces.is_empty()
+    {
+        return true;
+    }
+    if matches!(l.kind, crate::scene::LightKind::Directional { .. }) || project.medium.base_extinction > 0.0 || !project.surfaces.is_empty() || project.base_volume.is_some() {
         return false;
     }
     let g = project.grid;

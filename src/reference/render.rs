@@ -9,7 +9,7 @@
 //! carrying base fog only.
 
 use super::{par_fill, quad, Medium64};
-use crate::scene::{Camera, Project};
+use crate::scene::{Camera, Light, Project};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -47,12 +47,20 @@ pub fn default_step(project: &Project) -> f64 {
 struct Light64 {
     position: DVec3,
     rgb: DVec3,
+    light: Light,
+}
+
+impl Light64 {
+    /// The spot's cone factor at `x` (1 for a point light).
+    fn cone(&self, x: DVec3) -> f64 {
+        self.light.cone_factor(x)
+    }
 }
 
 fn lights64(project: &Project) -> Vec<Light64> {
     project
         .visible_lights()
-        .map(|l| Light64 { position: l.position.as_dvec3(), rgb: l.radiance_rgb().as_dvec3() })
+        .map(|l| Light64 { position: l.position.as_dvec3(), rgb: l.radiance_rgb().as_dvec3(), light: l.clone() })
         .filter(|l| l.rgb.max_element() > 0.0)
         .collect()
 }
@@ -120,8 +128,12 @@ fn in_scattered(medium: &Medium64, lights: &[Light64], phase: Phase, x: DVec3, d
             if d2 == 0.0 {
                 return DVec3::ZERO;
             }
+            let cone = l.cone(x);
+            if cone == 0.0 {
+                return DVec3::ZERO;
+            }
             let cos = to_x.dot(-dir) / d2.sqrt();
-            l.rgb * (phase.eval(cos) / d2 * (-medium.optical_depth(x, l.position)).exp())
+            l.rgb * (cone * phase.eval(cos) / d2 * (-medium.optical_depth(x, l.position)).exp())
         })
         .sum()
 }
@@ -232,9 +244,13 @@ pub fn in_scatter_adaptive(
             if d2 == 0.0 {
                 return 0.0;
             }
+            let cone = light.cone(x);
+            if cone == 0.0 {
+                return 0.0;
+            }
             let cos = to_x.dot(-dir) / d2.sqrt();
             let depth = view.optical_depth(origin, x) + medium.optical_depth(x, light.position);
-            albedo * medium.extinction(x) * phase.eval(cos) / d2 * (-depth).exp()
+            cone * albedo * medium.extinction(x) * phase.eval(cos) / d2 * (-depth).exp()
         };
         let mut points = split.clone();
         points.push(dir.dot(light.position - origin));
@@ -303,10 +319,11 @@ fn surface_radiance(medium: &Medium64, lights: &[Light64], x: DVec3, normal: DVe
             let to_light = l.position - x;
             let d2 = to_light.length_squared();
             let cos = normal.dot(to_light) / d2.sqrt();
-            if d2 == 0.0 || cos <= 0.0 {
+            let cone = l.cone(x);
+            if d2 == 0.0 || cos <= 0.0 || cone == 0.0 {
                 return DVec3::ZERO;
             }
-            albedo / PI * l.rgb * (cos / d2 * (-medium.optical_depth(x, l.position)).exp())
+            albedo / PI * l.rgb * (cone * cos / d2 * (-medium.optical_depth(x, l.position)).exp())
         })
         .sum()
 }

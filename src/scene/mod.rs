@@ -17,7 +17,9 @@ mod volume;
 pub use fit::{FitKeep, SUPPORT_FRACTION};
 pub use ids::NextIds;
 pub use io::{load_project, parse_project, save_project, ProjectError};
-pub use validate::{ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_INTENSITY, MAX_RESOLUTION_DEFAULT};
+pub use validate::{
+    ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_HEIGHT_FALLOFF, MAX_INTENSITY, MAX_NOISE_AMPLITUDE, MAX_RESOLUTION_DEFAULT,
+};
 pub use volume::Volume;
 
 use glam::{UVec3, Vec3};
@@ -150,12 +152,105 @@ pub struct Medium {
     pub albedo: f32,
     /// Henyey–Greenstein asymmetry g in (−1, 1); 0 is isotropic. Default 0.
     pub anisotropy: f32,
+    /// Exponential height fog: the base fog is β(y) = base_extinction · exp(−k·(y − y₀))
+    /// with k = `height_falloff` (1/m, ≥ 0) and y₀ = `height_origin` (m). Default 0 and 0:
+    /// homogeneous base fog.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub height_falloff: f32,
+    #[serde(skip_serializing_if = "is_zero")]
+    pub height_origin: f32,
+    /// Fractal noise modulating the particles' density (see [`Noise`]). Default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<Noise>,
 }
 
 impl Default for Medium {
     fn default() -> Self {
-        Self { base_extinction: 0.0, albedo: 1.0, anisotropy: 0.0 }
+        Self { base_extinction: 0.0, albedo: 1.0, anisotropy: 0.0, height_falloff: 0.0, height_origin: 0.0, noise: None }
     }
+}
+
+impl Medium {
+    /// Base-fog extinction at height `y`: β₀·exp(−k·(y − y₀)), the exponent clamped so that
+    /// it cannot overflow far below y₀.
+    pub fn base_at(&self, y: f64) -> f64 {
+        self.base_extinction as f64 * (-(self.height_falloff as f64) * (y - self.height_origin as f64)).min(MAX_HEIGHT_EXPONENT).exp()
+    }
+}
+
+/// Largest exponent −k·(y − y₀) of the height fog: far below y₀ the fog stops growing, so
+/// its extinction and every optical depth stay finite.
+pub const MAX_HEIGHT_EXPONENT: f64 = 80.0;
+
+fn is_zero(v: &f32) -> bool {
+    *v == 0.0
+}
+
+/// Deterministic fractal noise that modulates the particles' extinction:
+/// σ_particles · max(0, 1 + amplitude · n(x)). Written in a project as
+/// `(amplitude, frequency, octaves, seed)`.
+///
+/// n(x) = Σ_{o < octaves} 0.5^o · v(2^o · frequency · x, seed + o) / Σ_{o < octaves} 0.5^o,
+/// where v is 3D value noise on the integer lattice: v(p, s) is the trilinear interpolation,
+/// with smoothstep weights 3t² − 2t³, of lattice values h(i, j, k, s) in [−1, 1],
+/// h = 2·(hash(i, j, k, s) / 2³²) − 1 with hash the PCG-style integer hash of
+/// [`noise_hash`]. So n lies in [−1, 1], and its smallest feature at octave o has the size
+/// 1 / (2^o · frequency) metres. Octaves whose lattice is finer than two grid cells (above
+/// the grid's Nyquist limit) are dropped: see [`Noise::effective_octaves`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "(f32, f32, u32, u32)", into = "(f32, f32, u32, u32)")]
+pub struct Noise {
+    /// Strength of the modulation; 0 leaves the particles unchanged.
+    pub amplitude: f32,
+    /// Lattice frequency of the first octave, in 1/m.
+    pub frequency: f32,
+    /// Number of octaves, 1..=16.
+    pub octaves: u32,
+    pub seed: u32,
+}
+
+impl From<(f32, f32, u32, u32)> for Noise {
+    fn from((amplitude, frequency, octaves, seed): (f32, f32, u32, u32)) -> Self {
+        Self { amplitude, frequency, octaves, seed }
+    }
+}
+
+impl From<Noise> for (f32, f32, u32, u32) {
+    fn from(n: Noise) -> Self {
+        (n.amplitude, n.frequency, n.octaves, n.seed)
+    }
+}
+
+/// Largest number of noise octaves a project may ask for.
+pub const MAX_NOISE_OCTAVES: u32 = 16;
+
+impl Noise {
+    /// The octaves kept on `grid`: octave o has lattice spacing 1 / (2^o · frequency), and
+    /// is kept only while that spacing is at least two cells (the smallest cell edge), so no
+    /// feature is smaller than the grid can represent. At least the first octave is kept.
+    pub fn effective_octaves(&self, grid: &GridSpec) -> u32 {
+        let cell = grid.cell_size().min_element() as f64;
+        let mut kept = 1;
+        while kept < self.octaves && 1.0 / (2f64.powi(kept as i32) * self.frequency as f64) >= 2.0 * cell {
+            kept += 1;
+        }
+        kept
+    }
+}
+
+/// The integer hash behind [`Noise`] (a PCG output permutation applied to a lattice point
+/// and seed); the GPU's `noise_hash` in `shaders/noise.wgsl` is the same function.
+pub fn noise_hash(i: i32, j: i32, k: i32, seed: u32) -> u32 {
+    let mut h = seed.wrapping_mul(0x9E37_79B9) ^ (i as u32).wrapping_mul(0x85EB_CA6B);
+    h = pcg(h) ^ (j as u32).wrapping_mul(0xC2B2_AE35);
+    h = pcg(h) ^ (k as u32).wrapping_mul(0x27D4_EB2F);
+    pcg(h)
+}
+
+fn pcg(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28).wrapping_add(4))) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
 }
 
 /// A gaussian blob of fog: σ_t(x) = density · exp(−|x − center|² / radius²).
@@ -198,15 +293,40 @@ fn is_false(b: &bool) -> bool {
     !*b
 }
 
-/// An isotropic point light.
+/// What kind of light a [`Light`] is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub enum LightKind {
+    /// Isotropic point light at `position`, radiant intensity `intensity` W/sr.
+    #[default]
+    Point,
+    /// A point light whose intensity is multiplied by a cone factor (physics.md §9): full
+    /// within `angle_deg`·(1 − `blend`) of `direction`, zero beyond `angle_deg` (the cone's
+    /// half-angle, in (0, 90]), a smoothstep in angle between.
+    Spot { direction: Vec3, angle_deg: f32, blend: f32 },
+    /// A sun: parallel light travelling along `direction` (need not be normalised);
+    /// `intensity` is the irradiance in W/m² on a plane facing it, before any fog, and
+    /// `position` is ignored.
+    Directional { direction: Vec3 },
+}
+
+impl LightKind {
+    pub fn is_point(&self) -> bool {
+        matches!(self, LightKind::Point)
+    }
+}
+
+/// A light: a point light by default (see [`LightKind`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Light {
     /// Stable identifier, unique among the project's lights ("Light #id"). Default 0.
     #[serde(default)]
     pub id: u32,
     pub position: Vec3,
-    /// Radiant intensity I in W/sr; must be ≥ 0.
+    /// Radiant intensity I in W/sr (irradiance in W/m² for a directional light); must be ≥ 0.
     pub intensity: f32,
+    /// Default `Point`.
+    #[serde(default, skip_serializing_if = "LightKind::is_point")]
+    pub kind: LightKind,
     /// Per-channel scale of the intensity (linear RGB). Default white (1, 1, 1).
     #[serde(default = "white")]
     pub color: Vec3,
@@ -219,12 +339,77 @@ pub struct Light {
 
 impl Light {
     pub fn new(position: Vec3, intensity: f32, color: Vec3) -> Self {
-        Self { id: 0, position, intensity, color, name: None, hidden: false }
+        Self { id: 0, position, intensity, color, kind: LightKind::Point, name: None, hidden: false }
     }
     /// Radiant intensity per RGB channel.
     pub fn radiance_rgb(&self) -> Vec3 {
         self.color * self.intensity
     }
+
+    /// The spot's cone factor towards `x` (1 for other kinds): with θ the angle between the
+    /// axis and x − position, t = clamp((A − θ)/(A·B), 0, 1) and factor t²(3 − 2t) (physics.md §9).
+    pub fn cone_factor(&self, x: glam::DVec3) -> f64 {
+        match self.kind {
+            LightKind::Spot { direction, angle_deg, blend } => {
+                cone_factor(direction.as_dvec3(), angle_deg as f64, blend as f64, x - self.position.as_dvec3())
+            }
+            _ => 1.0,
+        }
+    }
+}
+
+impl Light {
+    /// Whether any of this light can fall inside the box [min, max]: false only for a spot
+    /// whose cone provably misses it (its cone factor is 0 on the whole box), so the box's
+    /// optical depths towards it are never needed. Conservative: the cone is tested against
+    /// the box's bounding sphere and against the half-space behind the apex, with a margin.
+    pub fn reaches_box(&self, min: Vec3, max: Vec3) -> bool {
+        let LightKind::Spot { direction, angle_deg, .. } = self.kind else { return true };
+        let (min, max, s) = (min.as_dvec3(), max.as_dvec3(), self.position.as_dvec3());
+        let axis = direction.as_dvec3().normalize_or_zero();
+        if axis == glam::DVec3::ZERO {
+            return true;
+        }
+        let center = 0.5 * (min + max);
+        let radius = 0.5 * (max - min).length();
+        let v = center - s;
+        let dist = v.length();
+        if dist <= radius * (1.0 + 1e-6) {
+            return true;
+        }
+        let margin = 1e-3;
+        let phi = (axis.dot(v) / dist).clamp(-1.0, 1.0).acos();
+        if phi - (radius / dist).asin() > (angle_deg as f64).to_radians() + margin {
+            return false;
+        }
+        // The cone (half-angle ≤ 90°) lies in front of the plane through the apex.
+        let behind = (0..8).all(|n| {
+            let corner = glam::DVec3::new(
+                if n & 1 == 0 { min.x } else { max.x },
+                if n & 2 == 0 { min.y } else { max.y },
+                if n & 4 == 0 { min.z } else { max.z },
+            );
+            axis.dot(corner - s) < -margin * radius
+        });
+        !behind
+    }
+}
+
+/// Cone factor of a spot with axis `axis`, half-angle `angle_deg` and blend `blend` at offset
+/// `v` from its apex (physics.md §9). A hard edge (blend 0) is 1 inside the cone, 0 outside.
+pub fn cone_factor(axis: glam::DVec3, angle_deg: f64, blend: f64, v: glam::DVec3) -> f64 {
+    let (la, lv) = (axis.length(), v.length());
+    if la == 0.0 || lv == 0.0 {
+        return 1.0;
+    }
+    let cos = (axis.dot(v) / (la * lv)).clamp(-1.0, 1.0);
+    let theta = cos.acos();
+    let a = angle_deg.to_radians();
+    if blend <= 0.0 {
+        return if theta <= a { 1.0 } else { 0.0 };
+    }
+    let t = ((a - theta) / (a * blend)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
 }
 
 fn white() -> Vec3 {

@@ -4,7 +4,7 @@
 //! so the editor and the CLI can both point at it; the RON loader adds file, line and
 //! column.
 
-use super::{GridSpec, Project};
+use super::{GridSpec, LightKind, Project};
 use glam::Vec3;
 
 /// Largest grid edge accepted before a device is known (wgpu's default 3D texture limit is
@@ -81,6 +81,40 @@ fn at_least(field: &str, v: f32, min: f32) -> Result<(), ValidationError> {
     }
 }
 
+/// Largest height-fog falloff k in 1/m.
+pub const MAX_HEIGHT_FALLOFF: f32 = 1e6;
+/// Largest noise amplitude: the modulation max(0, 1 + a·n) then stays below 1 + this.
+pub const MAX_NOISE_AMPLITUDE: f32 = 100.0;
+
+fn direction(field: &str, v: Vec3) -> Result<(), ValidationError> {
+    finite3(field, v)?;
+    if v.length_squared() < 1e-12 || !v.length_squared().is_finite() {
+        return Err(err(field, format!("must be a non-zero direction, got ({}, {}, {})", v.x, v.y, v.z)));
+    }
+    Ok(())
+}
+
+fn light_kind(i: usize, kind: &LightKind) -> Result<(), ValidationError> {
+    match *kind {
+        LightKind::Point => Ok(()),
+        LightKind::Directional { direction: d } => direction(&format!("lights[{i}].kind.direction"), d),
+        LightKind::Spot { direction: d, angle_deg, blend } => {
+            direction(&format!("lights[{i}].kind.direction"), d)?;
+            let field = format!("lights[{i}].kind.angle_deg");
+            finite(&field, angle_deg)?;
+            if !(angle_deg > 0.0 && angle_deg <= 90.0) {
+                return Err(err(field, format!("the cone's half-angle must be within (0, 90] degrees, got {angle_deg}")));
+            }
+            let field = format!("lights[{i}].kind.blend");
+            finite(&field, blend)?;
+            if !(0.0..=1.0).contains(&blend) {
+                return Err(err(field, format!("must be within [0, 1], got {blend}")));
+            }
+            Ok(())
+        }
+    }
+}
+
 impl GridSpec {
     /// Checks bounds and resolution against `max_resolution` cells per axis.
     pub fn validate(&self, max_resolution: u32) -> Result<(), ValidationError> {
@@ -123,6 +157,36 @@ impl Project {
         if m.anisotropy.abs() >= 1.0 {
             return Err(err("medium.anisotropy", format!("must be within (−1, 1), got {}", m.anisotropy)));
         }
+        at_least("medium.height_falloff", m.height_falloff, 0.0)?;
+        if m.height_falloff > MAX_HEIGHT_FALLOFF {
+            return Err(err(
+                "medium.height_falloff",
+                format!("must be at most {MAX_HEIGHT_FALLOFF:e} /m (a layer a micrometre thick), got {}", m.height_falloff),
+            ));
+        }
+        finite("medium.height_origin", m.height_origin)?;
+        if m.height_origin.abs() > MAX_COORDINATE {
+            return Err(err("medium.height_origin", format!("must be within ±{MAX_COORDINATE:e} m, got {}", m.height_origin)));
+        }
+        if let Some(n) = &m.noise {
+            finite("medium.noise.amplitude", n.amplitude)?;
+            if !(0.0..=MAX_NOISE_AMPLITUDE).contains(&n.amplitude) {
+                return Err(err(
+                    "medium.noise.amplitude",
+                    format!("must be within [0, {MAX_NOISE_AMPLITUDE}], got {}", n.amplitude),
+                ));
+            }
+            finite("medium.noise.frequency", n.frequency)?;
+            if !(n.frequency > 0.0 && n.frequency <= 1e6) {
+                return Err(err("medium.noise.frequency", format!("must be within (0, 1e6] per metre, got {}", n.frequency)));
+            }
+            if !(1..=super::MAX_NOISE_OCTAVES).contains(&n.octaves) {
+                return Err(err(
+                    "medium.noise.octaves",
+                    format!("must be within 1..={}, got {}", super::MAX_NOISE_OCTAVES, n.octaves),
+                ));
+            }
+        }
         for (i, p) in self.particles.iter().enumerate() {
             position(&format!("particles[{i}].center"), p.center)?;
             finite(&format!("particles[{i}].radius"), p.radius)?;
@@ -141,6 +205,7 @@ impl Project {
             if l.color.min_element() < 0.0 {
                 return Err(err(format!("lights[{i}].color"), "components must be ≥ 0"));
             }
+            light_kind(i, &l.kind)?;
             let peak = l.intensity as f64 * l.color.max_element() as f64;
             if peak > MAX_INTENSITY as f64 {
                 return Err(err(

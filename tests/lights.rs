@@ -1,0 +1,132 @@
+//! Spot and directional lights on the real pipeline against the exact CPU reference.
+
+mod common;
+
+use common::{pipeline, small_scene, Rng};
+use fogsmith::gpu::FrameRequest;
+use fogsmith::measure::image_error;
+use fogsmith::reference::{render_reference, RefRenderOptions};
+use fogsmith::scene::{Ground, LightKind, Project, StepPolicy};
+use glam::Vec3;
+
+/// GPU image and reference image of `project`; panics on NaN or infinity.
+fn render_both(project: &Project) -> (Vec<[f32; 4]>, Vec<[f64; 3]>, fogsmith::gpu::FrameReport) {
+    let mut gpu = pipeline();
+    let (w, h) = (project.render.width, project.render.height);
+    let report = gpu.update(project, &FrameRequest::for_project(project)).unwrap();
+    let image = gpu.read_image().unwrap();
+    let reference = render_reference(project, w, h, &RefRenderOptions::default());
+    let err = image_error(&image, &reference);
+    assert!(!err.nan_or_inf, "the GPU image holds NaN or infinity");
+    (image.rgba.clone(), reference, report)
+}
+
+fn spot(direction: Vec3, angle_deg: f32, blend: f32) -> LightKind {
+    LightKind::Spot { direction, angle_deg, blend }
+}
+
+/// A spot aimed across the fog and the floor so that its cone's edge runs through the
+/// picture. Edge pixels are those whose reference radiance is between 5 % and 95 % of the
+/// same light's as a point light (the cone factor ramps there); over them the spot's absolute
+/// RMSE must stay within 10 % of the point light's plus 2e-4 of the peak (see
+/// `random_spots_match_reference`), for a soft and a hard edge.
+#[test]
+fn spot_cone_matches_reference_at_its_edge() {
+    for blend in [0.3f32, 0.0] {
+        let mut p = small_scene(48, &[Vec3::new(-1.6, 1.4, 0.8)]);
+        p.lights[0].intensity = 12.0;
+        p.lights[0].kind = spot(Vec3::new(1.0, -0.8, -0.4), 22.0, blend);
+        p.render.step_policy = StepPolicy::Fixed;
+        p.render.step_factor = 0.25;
+        p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.6) });
+        let (image, reference, _) = render_both(&p);
+        let mut point = p.clone();
+        point.lights[0].kind = LightKind::Point;
+        let (point_image, point_reference, _) = render_both(&point);
+        let peak = point_reference.iter().flatten().fold(0.0f64, |a, b| a.max(*b));
+        let (mut spot_sq, mut point_sq, mut n) = (0.0f64, 0.0f64, 0);
+        for i in 0..reference.len() {
+            let ratio = reference[i][0] / point_reference[i][0].max(1e-30);
+            if ratio > 0.05 && ratio < 0.95 {
+                for c in 0..3 {
+                    spot_sq += (image[i][c] as f64 - reference[i][c]).powi(2);
+                    point_sq += (point_image[i][c] as f64 - point_reference[i][c]).powi(2);
+                }
+                n += 1;
+            }
+        }
+        let (spot_rmse, point_rmse) = ((spot_sq / (3 * n) as f64).sqrt(), (point_sq / (3 * n) as f64).sqrt());
+        println!("spot blend {blend}: {n} edge pixels, absolute RMSE {spot_rmse:.3e}, point light {point_rmse:.3e}, peak {peak:.3e}");
+        assert!(n > 20, "the cone's edge must cross the picture ({n} pixels)");
+        assert!(spot_rmse <= 1.1 * point_rmse + 2e-4 * peak, "blend {blend}: {spot_rmse:e} vs {point_rmse:e}");
+    }
+}
+
+/// Absolute RMSE over all channels of the GPU image of `project` against the reference.
+fn abs_rmse(project: &Project) -> f64 {
+    let (image, reference, _) = render_both(project);
+    let e = image_error(&fogsmith::gpu::Image { width: project.render.width, height: project.render.height, rgba: image }, &reference);
+    let mean = reference.iter().flatten().sum::<f64>() / (3 * reference.len()) as f64;
+    e.rel_rmse * mean
+}
+
+/// Random spots (direction, angle, blend, placement) on a cloud with base fog and a floor.
+/// A spot's radiance is the point light's times the cone factor (≤ 1), and the grid's and
+/// the march's errors scale with the radiance, so the spot's absolute error must stay below
+/// the same light's as a point light, plus the cone's own quadrature error at its ramp:
+/// bounded by 10 % of the point light's error and 2e-4 of the peak radiance.
+#[test]
+fn random_spots_match_reference() {
+    let mut rng = Rng(0x5eed_0014);
+    for case in 0..5 {
+        let pos = rng.dir() * rng.range(1.2, 2.0);
+        let mut p = small_scene(40, &[pos]);
+        p.lights[0].intensity = 10.0;
+        let aim = (-pos + rng.v(-0.5, 0.5)).normalize();
+        p.lights[0].kind = spot(aim, rng.range(10.0, 60.0), rng.range(0.0, 1.0));
+        p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5) });
+        p.render.step_policy = StepPolicy::Fixed;
+        p.render.step_factor = 0.25;
+        let spot_err = abs_rmse(&p);
+        let mut point = p.clone();
+        point.lights[0].kind = LightKind::Point;
+        let point_err = abs_rmse(&point);
+        let (_, reference, _) = render_both(&point);
+        let peak = reference.iter().flatten().fold(0.0f64, |a, b| a.max(*b));
+        println!("random spot {case} at {pos}: {:?}: absolute RMSE {spot_err:.3e}, as a point light {point_err:.3e} (peak {peak:.3e})", p.lights[0].kind);
+        assert!(spot_err <= 1.1 * point_err + 2e-4 * peak, "case {case}: {spot_err:e} vs {point_err:e}");
+    }
+}
+
+/// A spot whose cone cannot reach the grid costs nothing: no propagation, and without base
+/// fog or surfaces it is culled outright; the image is that of the scene without it.
+#[test]
+fn spot_pointing_away_from_the_grid_costs_nothing() {
+    let mut p = small_scene(32, &[Vec3::new(0.0, 2.0, 0.0), Vec3::new(1.5, 0.5, 0.5)]);
+    p.medium.base_extinction = 0.0;
+    p.lights[0].kind = spot(Vec3::Y, 30.0, 0.2);
+    let mut gpu = pipeline();
+    let report = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
+    assert_eq!(report.counters.lights_propagated, 1, "only the point light is propagated");
+    assert_eq!(report.counters.lights_culled, 1);
+    let with = gpu.read_image().unwrap();
+    let mut without = p.clone();
+    without.lights[0].hidden = true;
+    let mut gpu2 = pipeline();
+    gpu2.update(&without, &FrameRequest::for_project(&without)).unwrap();
+    let reference = gpu2.read_image().unwrap();
+    assert!(with.rgba.iter().all(|px| px.iter().all(|v| v.is_finite())));
+    assert_eq!(with.rgba, reference.rgba, "a spot aimed away changes nothing");
+
+    // With base fog it lights the fog outside the grid but still needs no optical depths.
+    p.medium.base_extinction = 0.05;
+    let report = gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
+    assert_eq!(report.counters.lights_propagated, 1);
+    let image = gpu.read_image().unwrap();
+    let reference = render_reference(&p, p.render.width, p.render.height, &RefRenderOptions::default());
+    let e = image_error(&image, &reference);
+    println!("spot aimed away through base fog: relative RMSE {:.4}", e.rel_rmse);
+    assert!(!e.nan_or_inf);
+    assert!(e.rel_rmse < 0.02, "{}", e.rel_rmse);
+}
+
