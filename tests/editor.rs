@@ -716,3 +716,49 @@ fn particles_outside_the_grid_are_named_and_the_grid_fits_them() {
     h.run_steps(2);
     assert_eq!(h.state().session().project().grid, g, "one undo restores the grid");
 }
+
+/// One command table: every shortcut dispatches its command (through the dispatcher the
+/// editor uses), appears on the Help → Shortcuts sheet, and no two commands share one.
+#[test]
+fn every_command_shortcut_dispatches_and_is_on_the_help_sheet() {
+    use fogsmith::editor::commands::{format_shortcut, help_sheet, Command};
+    let sheet = help_sheet();
+    let mut seen: Vec<(egui::KeyboardShortcut, Command)> = Vec::new();
+    for c in Command::ALL {
+        for s in c.shortcuts() {
+            if let Some((_, other)) = seen.iter().find(|(t, _)| *t == s) {
+                panic!("{c:?} and {other:?} share {}", format_shortcut(&s));
+            }
+            seen.push((s, c));
+            let ctx = egui::Context::default();
+            let event = Event::Key { key: s.logical_key, physical_key: None, pressed: true, repeat: false, modifiers: s.modifiers };
+            let input = egui::RawInput { events: vec![event], ..Default::default() };
+            let mut got = Vec::new();
+            let _ = ctx.run_ui(input, |ui| got = Command::pressed(ui.ctx(), false, true));
+            assert_eq!(got, vec![c], "{} dispatches {c:?}", format_shortcut(&s));
+            assert!(
+                sheet.iter().any(|(keys, what)| what == c.text() && keys.split(" / ").any(|k| k == format_shortcut(&s))),
+                "{c:?} ({}) is on the help sheet",
+                format_shortcut(&s)
+            );
+        }
+    }
+    assert!(seen.len() > 25, "the table holds the editor's shortcuts");
+
+    // Through the real editor: the slice steps one cell with ] and PageDown, the toolbar
+    // shows the tool shortcuts from the table, and the help sheet lists the commands.
+    let mut h = harness(demo());
+    let k0 = h.state_mut().slice_settings_mut().index;
+    h.key_press(egui::Key::CloseBracket);
+    h.run_steps(2);
+    assert_eq!(h.state().last_command(), Some(Command::SliceNext));
+    assert_eq!(h.state_mut().slice_settings_mut().index, k0 + 1, "] steps the slice one cell");
+    h.key_press(egui::Key::PageDown);
+    h.run_steps(2);
+    assert_eq!(h.state_mut().slice_settings_mut().index, k0, "PageDown steps it back");
+    h.get_by_label("Paint (B)");
+    h.key_press(egui::Key::F1);
+    h.run_steps(2);
+    h.get_by_label("Ctrl+Shift+Z / Ctrl+Y");
+    h.get_by_label("Next slice");
+}

@@ -2,6 +2,7 @@
 //! threads, recent files, drag-and-drop, unsaved-changes confirmation), messages, and the
 //! bridge to the pipeline (one shared device, the preview handed to egui-wgpu as a texture).
 
+use super::commands::Command;
 use super::files::{DialogSpec, FileDialogs};
 use super::session::Session;
 use super::slices::{Slice, SliceSettings};
@@ -10,7 +11,7 @@ use super::{EditorError, EditorOptions};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext, Progress};
 use crate::scene::{load_project, save_project, Project};
 use eframe::egui_wgpu::{self, wgpu};
-use egui::{Context, Id, Key, KeyboardShortcut, Modifiers};
+use egui::{Context, Id, Key};
 use egui_dock::{DockArea, DockState, NodeIndex};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -407,6 +408,8 @@ pub struct EditorState {
     import: Option<super::import::ImportVdb>,
     /// What "Fit grid to particles" keeps.
     pub(crate) fit_keep: crate::scene::FitKeep,
+    /// The command run last, for scripted drivers.
+    last_command: Option<Command>,
 }
 
 /// The slice currently shown and what it was made from.
@@ -489,6 +492,7 @@ impl EditorApp {
             base_loaded: None,
             import: None,
             fit_keep: crate::scene::FitKeep::default(),
+            last_command: None,
         };
         if state.options.recovery {
             let dir = crate::scene::recovery::state_dir();
@@ -598,6 +602,10 @@ impl EditorApp {
     pub fn set_outline_all(&mut self, all: bool) {
         self.state.outline_all = all;
     }
+    /// The command run last, from a menu or a shortcut.
+    pub fn last_command(&self) -> Option<Command> {
+        self.state.last_command
+    }
     /// File → Import VDB…, as the menu does.
     pub fn import_vdb_dialog(&mut self) {
         self.state.import_vdb_dialog();
@@ -620,7 +628,7 @@ impl EditorApp {
             ui.menu_button("Edit", |ui| self.state.edit_menu(ui));
             ui.menu_button("View", |ui| self.view_menu(ui));
             ui.menu_button("Help", |ui| {
-                if ui.button("Shortcuts").on_hover_text("All keyboard and mouse shortcuts (F1)").clicked() {
+                if Command::Shortcuts.menu_button(ui, true) {
                     self.state.show_shortcuts = true;
                 }
             });
@@ -1322,87 +1330,14 @@ impl EditorState {
     }
 
     fn shortcuts(&mut self, ctx: &Context) {
-        let cmd = |k| KeyboardShortcut::new(Modifiers::COMMAND, k);
-        let cmd_shift = |k| KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, k);
         let typing = ctx.egui_wants_keyboard_input();
-        let pressed = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
-        if pressed(cmd_shift(Key::S)) {
-            self.save_as_dialog();
-        }
-        if pressed(cmd(Key::S)) {
-            self.save();
-        }
-        if typing {
-            return;
-        }
-        if pressed(cmd_shift(Key::Z)) || pressed(cmd(Key::Y)) {
-            self.redo();
-        }
-        if pressed(cmd(Key::Z)) {
-            self.undo();
-        }
-        if pressed(cmd(Key::O)) {
-            self.request(Action::OpenDialog);
-        }
-        if pressed(cmd(Key::N)) {
-            self.request(Action::New);
-        }
-        if pressed(cmd(Key::A)) {
-            self.session.select_all();
-        }
-        if pressed(cmd(Key::D)) {
-            self.duplicate();
-        }
-        if ctx.input(|i| i.modifiers.command) {
-            return;
-        }
-        let key = |k: Key| ctx.input_mut(|i| i.consume_key(Modifiers::NONE, k));
-        if key(Key::F1) {
-            self.show_shortcuts = !self.show_shortcuts;
-        }
-        if key(Key::Delete) || key(Key::X) || key(Key::Backspace) {
-            self.delete();
-        }
-        for tool in Tool::ALL {
-            let k = match tool {
-                Tool::Select => Key::Q,
-                Tool::Paint => Key::B,
-                Tool::Scale => Key::R,
-                Tool::Erase => Key::E,
-                Tool::Light => Key::L,
-            };
-            if key(k) {
-                self.tool = tool;
-            }
-        }
-        if key(Key::F) {
-            self.frame_selection();
-        }
-        // Escape closes an open drop-down or menu first (egui reads the key itself).
-        if !egui::Popup::is_any_open(ctx) && key(Key::Escape) {
-            if self.modal.is_some() {
-                self.cancel_modal();
-            } else {
-                self.session.selection.clear();
-            }
-        }
         let pointer = ctx.input(|i| i.pointer.hover_pos());
         let in_viewport = pointer.zip(self.viewport_rect).is_some_and(|(p, r)| r.contains(p));
-        if in_viewport && self.modal.is_none() && !self.session.selection.is_empty() {
-            if let Some(start) = pointer {
-                if key(Key::G) {
-                    self.start_modal(false, start);
-                } else if key(Key::S) && !self.session.selection.particles.is_empty() {
-                    self.start_modal(true, start);
-                }
-            }
+        for command in Command::pressed(ctx, typing, in_viewport) {
+            self.run(command);
         }
-        use super::view::AxisView;
-        let views = [(Key::Num1, AxisView::Front), (Key::Num3, AxisView::Right), (Key::Num7, AxisView::Top)];
-        for (k, v) in views {
-            if key(k) {
-                self.axis_view(v);
-            }
+        if typing || ctx.input(|i| i.modifiers.command) {
+            return;
         }
         let step = 0.08;
         let orbit = ctx.input(|i| {
@@ -1425,13 +1360,64 @@ impl EditorState {
             let c = super::view::orbit(&self.session.project().camera, orbit.x, orbit.y);
             self.session.set_camera(c);
         }
-        if key(Key::Plus) || key(Key::Equals) {
-            let c = super::view::zoom(&self.session.project().camera, 0.85);
-            self.session.set_camera(c);
-        }
-        if key(Key::Minus) {
-            let c = super::view::zoom(&self.session.project().camera, 1.0 / 0.85);
-            self.session.set_camera(c);
+    }
+
+    /// Runs `command`, from a menu or a shortcut.
+    pub(crate) fn run(&mut self, command: Command) {
+        use super::view::AxisView;
+        self.last_command = Some(command);
+        let zoom = |s: &mut Self, f: f32| {
+            let c = super::view::zoom(&s.session.project().camera, f);
+            s.session.set_camera(c);
+        };
+        match command {
+            Command::New => self.request(Action::New),
+            Command::Open => self.request(Action::OpenDialog),
+            Command::Save => self.save(),
+            Command::SaveAs => self.save_as_dialog(),
+            Command::ImportVdb => self.import_vdb_dialog(),
+            Command::ExportVdb => self.export_dialog(Export::Vdb),
+            Command::ExportExr => self.export_dialog(Export::ExrSlices),
+            Command::Revert => self.request(Action::Revert),
+            Command::Quit => self.request(Action::Quit),
+            Command::Undo => self.undo(),
+            Command::Redo => self.redo(),
+            Command::SelectAll => self.session.select_all(),
+            Command::Duplicate => self.duplicate(),
+            Command::Delete => self.delete(),
+            Command::Escape => {
+                if self.modal.is_some() {
+                    self.cancel_modal();
+                } else {
+                    self.session.selection.clear();
+                }
+            }
+            Command::Grab | Command::ScaleSelection => {
+                let scale = command == Command::ScaleSelection;
+                let start = self.ctx.input(|i| i.pointer.hover_pos());
+                let applicable = if scale { !self.session.selection.particles.is_empty() } else { !self.session.selection.is_empty() };
+                if let (Some(start), true, true) = (start, applicable, self.modal.is_none()) {
+                    self.start_modal(scale, start);
+                }
+            }
+            Command::FitGrid => super::viewport::fit_grid(self),
+            Command::ToolSelect => self.tool = Tool::Select,
+            Command::ToolPaint => self.tool = Tool::Paint,
+            Command::ToolScale => self.tool = Tool::Scale,
+            Command::ToolErase => self.tool = Tool::Erase,
+            Command::ToolLight => self.tool = Tool::Light,
+            Command::FrameSelection => self.frame_selection(),
+            Command::ViewFront => self.axis_view(AxisView::Front),
+            Command::ViewRight => self.axis_view(AxisView::Right),
+            Command::ViewTop => self.axis_view(AxisView::Top),
+            Command::ZoomIn => zoom(self, 0.85),
+            Command::ZoomOut => zoom(self, 1.0 / 0.85),
+            Command::SliceNext | Command::SlicePrevious => {
+                let max = self.session.project().grid.resolution.to_array()[self.slices.axis.index()].saturating_sub(1);
+                let i = self.slices.index.min(max);
+                self.slices.index = if command == Command::SliceNext { (i + 1).min(max) } else { i.saturating_sub(1) };
+            }
+            Command::Shortcuts => self.show_shortcuts = !self.show_shortcuts,
         }
     }
 
@@ -1500,28 +1486,39 @@ impl EditorState {
 
     fn camera_menu(&mut self, ui: &mut egui::Ui) {
         use super::view::AxisView;
-        for (label, v, key) in [
-            ("Front", AxisView::Front, "1"),
-            ("Back", AxisView::Back, ""),
-            ("Right", AxisView::Right, "3"),
-            ("Left", AxisView::Left, ""),
-            ("Top", AxisView::Top, "7"),
-        ] {
-            if ui.add(egui::Button::new(label).shortcut_text(key)).clicked() {
-                self.axis_view(v);
+        let views = [
+            (Some(Command::ViewFront), "Front", AxisView::Front),
+            (None, "Back", AxisView::Back),
+            (Some(Command::ViewRight), "Right", AxisView::Right),
+            (None, "Left", AxisView::Left),
+            (Some(Command::ViewTop), "Top", AxisView::Top),
+        ];
+        for (command, label, v) in views {
+            match command {
+                Some(c) => {
+                    if c.menu_button(ui, true) {
+                        self.run(c);
+                    }
+                }
+                None => {
+                    if ui.button(label).clicked() {
+                        self.axis_view(v);
+                    }
+                }
             }
         }
-        if ui.add(egui::Button::new("Frame selection").shortcut_text("F")).on_hover_text("Aim at the selection, or the whole grid").clicked() {
-            self.frame_selection();
+        for c in [Command::FrameSelection, Command::ZoomIn, Command::ZoomOut] {
+            if c.menu_button(ui, true) {
+                self.run(c);
+            }
         }
     }
 
     fn file_menu(&mut self, ui: &mut egui::Ui) {
-        if ui.add(egui::Button::new("New").shortcut_text("Ctrl+N")).on_hover_text("Start an empty project").clicked() {
-            self.request(Action::New);
-        }
-        if ui.add(egui::Button::new("Open…").shortcut_text("Ctrl+O")).on_hover_text("Open a .ron project").clicked() {
-            self.request(Action::OpenDialog);
+        for c in [Command::New, Command::Open] {
+            if c.menu_button(ui, true) {
+                self.run(c);
+            }
         }
         ui.menu_button("Open Recent", |ui| {
             if self.recent.is_empty() {
@@ -1534,23 +1531,21 @@ impl EditorState {
             }
         });
         ui.separator();
-        if ui.add(egui::Button::new("Save").shortcut_text("Ctrl+S")).on_hover_text("Save (keeps the previous file as .bak)").clicked() {
-            self.save();
-        }
-        if ui.add(egui::Button::new("Save As…").shortcut_text("Ctrl+Shift+S")).on_hover_text("Save under a new name").clicked() {
-            self.save_as_dialog();
+        for c in [Command::Save, Command::SaveAs] {
+            if c.menu_button(ui, true) {
+                self.run(c);
+            }
         }
         ui.menu_button("Export", |ui| {
-            if ui.button("OpenVDB…").on_hover_text("Density and optical depth per light as an OpenVDB file").clicked() {
-                self.export_dialog(Export::Vdb);
-            }
-            if ui.button("EXR slices…").on_hover_text("Every z slice of density and optical depth per light in one OpenEXR").clicked() {
-                self.export_dialog(Export::ExrSlices);
+            for c in [Command::ExportVdb, Command::ExportExr] {
+                if c.menu_button(ui, true) {
+                    self.run(c);
+                }
             }
         });
         ui.separator();
-        if ui.button("Import VDB…").on_hover_text("Use a density grid from an OpenVDB file as the base of the fog").clicked() {
-            self.import_vdb_dialog();
+        if Command::ImportVdb.menu_button(ui, true) {
+            self.run(Command::ImportVdb);
         }
         if self.session.project().base_volume.is_some()
             && ui.button("Remove base volume").on_hover_text("Drop the imported VDB grid from the fog").clicked()
@@ -1558,33 +1553,35 @@ impl EditorState {
             self.session.edit(super::session::NEW_STEP).base_volume = None;
         }
         let can_revert = self.session.path().is_some();
-        if ui.add_enabled(can_revert, egui::Button::new("Revert")).on_hover_text("Reload the file, dropping unsaved changes").clicked() {
-            self.request(Action::Revert);
+        if Command::Revert.menu_button(ui, can_revert) {
+            self.run(Command::Revert);
         }
         ui.separator();
-        if ui.button("Quit").clicked() {
-            self.request(Action::Quit);
+        if Command::Quit.menu_button(ui, true) {
+            self.run(Command::Quit);
         }
     }
 
     fn edit_menu(&mut self, ui: &mut egui::Ui) {
         let undo = self.session.undo_label().map_or("Undo".to_string(), |l| format!("Undo {l}"));
-        if ui.add_enabled(self.session.can_undo(), egui::Button::new(undo).shortcut_text("Ctrl+Z")).clicked() {
-            self.undo();
+        if Command::Undo.menu_button_text(ui, self.session.can_undo(), &undo) {
+            self.run(Command::Undo);
         }
         let redo = self.session.redo_label().map_or("Redo".to_string(), |l| format!("Redo {l}"));
-        if ui.add_enabled(self.session.can_redo(), egui::Button::new(redo).shortcut_text("Ctrl+Shift+Z")).clicked() {
-            self.redo();
+        if Command::Redo.menu_button_text(ui, self.session.can_redo(), &redo) {
+            self.run(Command::Redo);
         }
         ui.separator();
-        if ui.add(egui::Button::new("Select all").shortcut_text("Ctrl+A")).clicked() {
-            self.session.select_all();
+        let has_selection = !self.session.selection.is_empty();
+        for (c, enabled) in [(Command::SelectAll, true), (Command::Duplicate, has_selection), (Command::Delete, has_selection)] {
+            if c.menu_button(ui, enabled) {
+                self.run(c);
+            }
         }
-        if ui.add(egui::Button::new("Duplicate").shortcut_text("Ctrl+D")).clicked() {
-            self.duplicate();
-        }
-        if ui.add(egui::Button::new("Delete").shortcut_text("Del / X")).clicked() {
-            self.delete();
+        ui.separator();
+        let has_particles = !self.session.project().particles.is_empty();
+        if Command::FitGrid.menu_button(ui, has_particles) {
+            self.run(Command::FitGrid);
         }
     }
 
@@ -1684,9 +1681,9 @@ impl EditorState {
         let mut open = self.show_shortcuts;
         egui::Window::new("Shortcuts").open(&mut open).resizable(false).show(ctx, |ui| {
             egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
-                for (k, v) in SHORTCUTS {
-                    ui.label(*k);
-                    ui.label(*v);
+                for (k, v) in super::commands::help_sheet() {
+                    ui.label(k);
+                    ui.label(v);
                     ui.end_row();
                 }
             });
@@ -1720,27 +1717,6 @@ impl EditorState {
         }
     }
 }
-
-const SHORTCUTS: &[(&str, &str)] = &[
-    ("Middle drag / right drag", "Orbit"),
-    ("Shift + middle / right drag", "Pan"),
-    ("Wheel", "Zoom (with the Scale tool: scale; Ctrl + wheel zooms)"),
-    ("Arrow keys, + / −", "Orbit, zoom"),
-    ("1 / 3 / 7", "Front / right / top view"),
-    ("F", "Frame the selection"),
-    ("Q / B / R / E / L", "Select, Paint, Scale, Erase, Light tool"),
-    ("G / S", "Grab / scale the selection with the mouse"),
-    ("Alt (Scale tool)", "Change density instead of radius"),
-    ("Shift / Ctrl + click", "Add to / toggle the selection"),
-    ("Ctrl+A", "Select all"),
-    ("Ctrl+D", "Duplicate"),
-    ("Delete / X", "Delete the selection"),
-    ("Esc", "Cancel grab/scale, clear the selection"),
-    ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo"),
-    ("Ctrl+N / Ctrl+O", "New / open"),
-    ("Ctrl+S / Ctrl+Shift+S", "Save / save as"),
-    ("F1", "This sheet"),
-];
 
 fn capitalized(s: &str) -> String {
     let mut c = s.chars();

@@ -11,6 +11,7 @@
 //! [`FogPipeline`](crate::gpu::FogPipeline) and hands the pipeline's display view to egui-wgpu.
 
 pub mod app;
+pub mod commands;
 pub mod files;
 mod import;
 mod panels;

@@ -30,13 +30,15 @@ impl Tool {
             Tool::Light => "Light",
         }
     }
-    pub fn shortcut(self) -> &'static str {
+    /// The command that picks this tool (its shortcut lives there).
+    pub fn command(self) -> super::commands::Command {
+        use super::commands::Command;
         match self {
-            Tool::Select => "Q",
-            Tool::Paint => "B",
-            Tool::Scale => "R",
-            Tool::Erase => "E",
-            Tool::Light => "L",
+            Tool::Select => Command::ToolSelect,
+            Tool::Paint => Command::ToolPaint,
+            Tool::Scale => Command::ToolScale,
+            Tool::Erase => Command::ToolErase,
+            Tool::Light => Command::ToolLight,
         }
     }
     pub fn tooltip(self) -> &'static str {

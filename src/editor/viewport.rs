@@ -94,7 +94,7 @@ pub(crate) fn fit_grid(state: &mut EditorState) {
 fn toolbar(state: &mut EditorState, ui: &mut Ui) {
     ui.horizontal_wrapped(|ui| {
         for tool in Tool::ALL {
-            let text = format!("{} ({})", tool.label(), tool.shortcut());
+            let text = format!("{} ({})", tool.label(), tool.command().shortcut_text());
             if ui.selectable_label(state.tool == tool, text).on_hover_text(tool.tooltip()).clicked() {
                 state.tool = tool;
             }

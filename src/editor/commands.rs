@@ -1,0 +1,247 @@
+//! The editor's commands, in one table: each has its text, tooltip and keyboard shortcuts,
+//! and the menus, the key dispatch and the Help → Shortcuts sheet are generated from it
+//! (after rerun's `UICommand`). What a command does is [`super::app::EditorState::run`].
+
+use egui::{Key, KeyboardShortcut, ModifierNames, Modifiers};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Command {
+    New,
+    Open,
+    Save,
+    SaveAs,
+    ImportVdb,
+    ExportVdb,
+    ExportExr,
+    Revert,
+    Quit,
+    Undo,
+    Redo,
+    SelectAll,
+    Duplicate,
+    Delete,
+    /// Cancel grab/scale, else clear the selection.
+    Escape,
+    Grab,
+    ScaleSelection,
+    FitGrid,
+    ToolSelect,
+    ToolPaint,
+    ToolScale,
+    ToolErase,
+    ToolLight,
+    FrameSelection,
+    ViewFront,
+    ViewRight,
+    ViewTop,
+    ZoomIn,
+    ZoomOut,
+    SliceNext,
+    SlicePrevious,
+    Shortcuts,
+}
+
+const fn key(k: Key) -> KeyboardShortcut {
+    KeyboardShortcut::new(Modifiers::NONE, k)
+}
+const fn cmd(k: Key) -> KeyboardShortcut {
+    KeyboardShortcut::new(Modifiers::COMMAND, k)
+}
+const fn cmd_shift(k: Key) -> KeyboardShortcut {
+    KeyboardShortcut::new(Modifiers::COMMAND.plus(Modifiers::SHIFT), k)
+}
+
+impl Command {
+    pub const ALL: [Command; 32] = [
+        Command::New,
+        Command::Open,
+        Command::Save,
+        Command::SaveAs,
+        Command::ImportVdb,
+        Command::ExportVdb,
+        Command::ExportExr,
+        Command::Revert,
+        Command::Quit,
+        Command::Undo,
+        Command::Redo,
+        Command::SelectAll,
+        Command::Duplicate,
+        Command::Delete,
+        Command::Escape,
+        Command::Grab,
+        Command::ScaleSelection,
+        Command::FitGrid,
+        Command::ToolSelect,
+        Command::ToolPaint,
+        Command::ToolScale,
+        Command::ToolErase,
+        Command::ToolLight,
+        Command::FrameSelection,
+        Command::ViewFront,
+        Command::ViewRight,
+        Command::ViewTop,
+        Command::ZoomIn,
+        Command::ZoomOut,
+        Command::SliceNext,
+        Command::SlicePrevious,
+        Command::Shortcuts,
+    ];
+
+    /// (menu text, tooltip)
+    pub fn text_and_tooltip(self) -> (&'static str, &'static str) {
+        use super::tools::Tool;
+        match self {
+            Command::New => ("New", "Start an empty project"),
+            Command::Open => ("Open…", "Open a .ron project"),
+            Command::Save => ("Save", "Save (keeps the previous file as .bak)"),
+            Command::SaveAs => ("Save As…", "Save under a new name"),
+            Command::ImportVdb => ("Import VDB…", "Use a density grid from an OpenVDB file as the base of the fog"),
+            Command::ExportVdb => ("OpenVDB…", "Density and optical depth per light as an OpenVDB file"),
+            Command::ExportExr => ("EXR slices…", "Every z slice of density and optical depth per light in one OpenEXR"),
+            Command::Revert => ("Revert", "Reload the file, dropping unsaved changes"),
+            Command::Quit => ("Quit", "Close the editor (asks about unsaved changes)"),
+            Command::Undo => ("Undo", "Take back the last edit"),
+            Command::Redo => ("Redo", "Bring back the edit undone last"),
+            Command::SelectAll => ("Select all", "Select every particle and light"),
+            Command::Duplicate => ("Duplicate", "Copy the selection, slightly offset, and select the copies"),
+            Command::Delete => ("Delete", "Delete the selection"),
+            Command::Escape => ("Cancel / deselect", "Cancel grab or scale; otherwise clear the selection"),
+            Command::Grab => ("Grab", "Move the selection with the mouse (pointer over the viewport); click confirms, Esc cancels"),
+            Command::ScaleSelection => ("Scale", "Scale the selected particles with the mouse (pointer over the viewport)"),
+            Command::FitGrid => ("Fit grid to particles", "Resize the grid box to hold every visible particle (keeps the cell size or the resolution, as chosen in the viewport's warning)"),
+            Command::ToolSelect => (Tool::Select.label(), Tool::Select.tooltip()),
+            Command::ToolPaint => (Tool::Paint.label(), Tool::Paint.tooltip()),
+            Command::ToolScale => (Tool::Scale.label(), Tool::Scale.tooltip()),
+            Command::ToolErase => (Tool::Erase.label(), Tool::Erase.tooltip()),
+            Command::ToolLight => (Tool::Light.label(), Tool::Light.tooltip()),
+            Command::FrameSelection => ("Frame selection", "Aim the camera at the selection (or the whole grid)"),
+            Command::ViewFront => ("Front", "Look along −z"),
+            Command::ViewRight => ("Right", "Look along −x"),
+            Command::ViewTop => ("Top", "Look down −y"),
+            Command::ZoomIn => ("Zoom in", "Move the camera towards its target"),
+            Command::ZoomOut => ("Zoom out", "Move the camera away from its target"),
+            Command::SliceNext => ("Next slice", "Step the Slices panel one cell up its axis"),
+            Command::SlicePrevious => ("Previous slice", "Step the Slices panel one cell down its axis"),
+            Command::Shortcuts => ("Shortcuts", "All keyboard and mouse shortcuts"),
+        }
+    }
+
+    pub fn text(self) -> &'static str {
+        self.text_and_tooltip().0
+    }
+    pub fn tooltip(self) -> &'static str {
+        self.text_and_tooltip().1
+    }
+
+    /// The keyboard shortcuts, the first one shown in menus.
+    pub fn shortcuts(self) -> Vec<KeyboardShortcut> {
+        match self {
+            Command::New => vec![cmd(Key::N)],
+            Command::Open => vec![cmd(Key::O)],
+            Command::Save => vec![cmd(Key::S)],
+            Command::SaveAs => vec![cmd_shift(Key::S)],
+            Command::Undo => vec![cmd(Key::Z)],
+            Command::Redo => vec![cmd_shift(Key::Z), cmd(Key::Y)],
+            Command::SelectAll => vec![cmd(Key::A)],
+            Command::Duplicate => vec![cmd(Key::D)],
+            Command::Delete => vec![key(Key::Delete), key(Key::X), key(Key::Backspace)],
+            Command::Escape => vec![key(Key::Escape)],
+            Command::Grab => vec![key(Key::G)],
+            Command::ScaleSelection => vec![key(Key::S)],
+            Command::ToolSelect => vec![key(Key::Q)],
+            Command::ToolPaint => vec![key(Key::B)],
+            Command::ToolScale => vec![key(Key::R)],
+            Command::ToolErase => vec![key(Key::E)],
+            Command::ToolLight => vec![key(Key::L)],
+            Command::FrameSelection => vec![key(Key::F)],
+            Command::ViewFront => vec![key(Key::Num1)],
+            Command::ViewRight => vec![key(Key::Num3)],
+            Command::ViewTop => vec![key(Key::Num7)],
+            Command::ZoomIn => vec![key(Key::Plus), key(Key::Equals)],
+            Command::ZoomOut => vec![key(Key::Minus)],
+            Command::SliceNext => vec![key(Key::CloseBracket), key(Key::PageUp)],
+            Command::SlicePrevious => vec![key(Key::OpenBracket), key(Key::PageDown)],
+            Command::Shortcuts => vec![key(Key::F1)],
+            Command::ImportVdb | Command::ExportVdb | Command::ExportExr | Command::Revert | Command::Quit | Command::FitGrid => vec![],
+        }
+    }
+
+    /// Whether the shortcut works while a text field has the keyboard.
+    pub fn works_while_typing(self) -> bool {
+        matches!(self, Command::Save | Command::SaveAs)
+    }
+
+    /// Whether the command acts at the pointer and so needs it over the viewport.
+    pub fn needs_pointer_in_viewport(self) -> bool {
+        matches!(self, Command::Grab | Command::ScaleSelection)
+    }
+
+    /// The shortcuts as the menus and the help sheet show them ("Ctrl+Shift+S / Ctrl+Y").
+    pub fn shortcut_text(self) -> String {
+        self.shortcuts().iter().map(format_shortcut).collect::<Vec<_>>().join(" / ")
+    }
+
+    /// A menu button for the command, with its shortcut and tooltip; true when clicked.
+    pub fn menu_button(self, ui: &mut egui::Ui, enabled: bool) -> bool {
+        self.menu_button_text(ui, enabled, self.text())
+    }
+
+    /// [`Self::menu_button`] with other text (Undo with the step's name).
+    pub fn menu_button_text(self, ui: &mut egui::Ui, enabled: bool, text: &str) -> bool {
+        let shortcut = self.shortcuts().first().map(format_shortcut).unwrap_or_default();
+        ui.add_enabled(enabled, egui::Button::new(text).shortcut_text(shortcut)).on_hover_text(self.tooltip()).clicked()
+    }
+
+    /// The commands whose shortcut was pressed this frame, consuming those key presses.
+    /// Shortcuts with more modifiers are matched first (Ctrl+Shift+S before Ctrl+S), and
+    /// plain keys never fire while Ctrl/Cmd is held.
+    pub fn pressed(ctx: &egui::Context, typing: bool, pointer_in_viewport: bool) -> Vec<Command> {
+        let mut table: Vec<(KeyboardShortcut, Command)> =
+            Self::ALL.iter().flat_map(|&c| c.shortcuts().into_iter().map(move |s| (s, c))).collect();
+        let weight = |m: Modifiers| m.command as u8 + m.shift as u8 + m.alt as u8;
+        table.sort_by_key(|(s, _)| std::cmp::Reverse(weight(s.modifiers)));
+        let command_held = ctx.input(|i| i.modifiers.command);
+        let mut out = Vec::new();
+        for (shortcut, c) in table {
+            if out.contains(&c) || (typing && !c.works_while_typing()) || (c.needs_pointer_in_viewport() && !pointer_in_viewport) {
+                continue;
+            }
+            if shortcut.modifiers.is_none() && command_held {
+                continue;
+            }
+            // Escape closes an open drop-down or menu first (egui reads the key itself).
+            if c == Command::Escape && egui::Popup::is_any_open(ctx) {
+                continue;
+            }
+            if ctx.input_mut(|i| i.consume_shortcut(&shortcut)) {
+                out.push(c);
+            }
+        }
+        out
+    }
+}
+
+/// "Ctrl+Shift+S", the same on every platform (the help sheet and tests read it).
+pub fn format_shortcut(s: &KeyboardShortcut) -> String {
+    s.format(&ModifierNames::NAMES, false)
+}
+
+/// Mouse gestures and held keys: not commands, listed on the help sheet after them.
+pub const GESTURES: &[(&str, &str)] = &[
+    ("Middle drag / right drag", "Orbit"),
+    ("Shift + middle / right drag", "Pan"),
+    ("Wheel", "Zoom (with the Scale tool: scale; Ctrl + wheel zooms)"),
+    ("Arrow keys (held)", "Orbit"),
+    ("Alt (Scale tool)", "Change density instead of radius"),
+    ("Shift / Ctrl + click", "Add to / toggle the selection"),
+];
+
+/// The Help → Shortcuts sheet: (keys, what they do), every command with a shortcut first.
+pub fn help_sheet() -> Vec<(String, String)> {
+    Command::ALL
+        .iter()
+        .filter(|c| !c.shortcuts().is_empty())
+        .map(|c| (c.shortcut_text(), c.text().to_string()))
+        .chain(GESTURES.iter().map(|(k, v)| (k.to_string(), v.to_string())))
+        .collect()
+}
