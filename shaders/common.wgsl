@@ -10,6 +10,11 @@ struct GridParams {
     dims: vec3u,
     // Edge, in cells, of the bins particles are listed in for injection.
     bin_size: u32,
+    // Exponential height fog: base fog β(y) = base_extinction·exp(−height_falloff·(y − height_origin)).
+    height_falloff: f32,
+    height_origin: f32,
+    _pad_h0: u32,
+    _pad_h1: u32,
 }
 
 // A light (kind LIGHT_POINT, LIGHT_SPOT or LIGHT_DIRECTIONAL): position, intensity per RGB
@@ -57,4 +62,91 @@ fn linear_index(id: vec3u) -> u32 {
 
 fn cell_count() -> u32 {
     return grid.dims.x * grid.dims.y * grid.dims.z;
+}
+
+// An optical depth standing for "opaque": exp(−OPAQUE) is 0 and sums of it stay finite.
+const OPAQUE: f32 = 1e30;
+// Largest exponent −k·(y − y₀) of the height fog (as MAX_HEIGHT_EXPONENT on the CPU).
+const MAX_HEIGHT_EXPONENT: f32 = 40.0;
+
+// Base-fog extinction at height y (physics.md §9), its exponent clamped far below y₀.
+fn base_fog_at(y: f32) -> f32 {
+    if grid.height_falloff == 0.0 {
+        return grid.base_extinction;
+    }
+    return grid.base_extinction * exp(min(-grid.height_falloff * (y - grid.height_origin), MAX_HEIGHT_EXPONENT));
+}
+
+// Optical depth of the base fog along o + t·d (|d| = 1) for t in [0, len]; len < 0 means to
+// infinity. Closed form of physics.md §9, in log space so that neither a dense layer far
+// below y₀ nor a long path into it overflows; at least OPAQUE means opaque.
+fn base_fog_depth(o: vec3f, d: vec3f, len: f32) -> f32 {
+    let beta = grid.base_extinction;
+    if beta <= 0.0 {
+        return 0.0;
+    }
+    let k = grid.height_falloff;
+    let c = k * d.y;
+    let a = min(-k * (o.y - grid.height_origin), MAX_HEIGHT_EXPONENT);
+    // ∫_0^L e^{−c t} dt = L·φ(cL), φ(x) = (1 − e^{−x})/x; for x < 0 it grows like e^{|x|}/|x|.
+    var log_f: f32;
+    if len < 0.0 {
+        if c <= 0.0 {
+            return OPAQUE;
+        }
+        log_f = -log(c);
+    } else {
+        let x = c * len;
+        if abs(x) < 1e-3 {
+            log_f = log(max(len, 1e-30)) + log(1.0 - x * (0.5 - x / 6.0));
+        } else if x > 0.0 {
+            log_f = log((1.0 - exp(-x)) / c);
+        } else {
+            // (e^{|x|} − 1)/|c| = e^{|x|}·(1 − e^{−|x|})/|c|
+            log_f = -x + log((1.0 - exp(x)) / -c);
+        }
+    }
+    let log_t = log(beta) + a + log_f;
+    if log_t > 69.0 {
+        return OPAQUE;
+    }
+    return exp(log_t);
+}
+
+// Distance from x (in or on the grid box) along u to where it leaves the box; axes with no
+// component along u never bound it, so a direction parallel to a face gives no NaN.
+fn box_exit(x: vec3f, u: vec3f) -> f32 {
+    var t = 3.4e38;
+    for (var a = 0u; a < 3u; a++) {
+        if u[a] > 1e-12 {
+            t = min(t, (grid.max[a] - x[a]) / u[a]);
+        } else if u[a] < -1e-12 {
+            t = min(t, (grid.min[a] - x[a]) / u[a]);
+        }
+    }
+    return max(t, 0.0);
+}
+
+// Where the ray x + t·u (t ≥ 0) is inside the grid box: (t_in, t_out), empty when t_out < t_in.
+fn box_span(x: vec3f, u: vec3f) -> vec2f {
+    var t0 = 0.0;
+    var t1 = 3.4e38;
+    for (var a = 0u; a < 3u; a++) {
+        if abs(u[a]) > 1e-12 {
+            let ta = (grid.min[a] - x[a]) / u[a];
+            let tb = (grid.max[a] - x[a]) / u[a];
+            t0 = max(t0, min(ta, tb));
+            t1 = min(t1, max(ta, tb));
+        } else if x[a] < grid.min[a] || x[a] > grid.max[a] {
+            return vec2f(1.0, -1.0);
+        }
+    }
+    return vec2f(t0, t1);
+}
+
+// A sun's optical depth from a point x in the grid box: the base fog beyond the box exit
+// towards the sun (−direction), in closed form.
+fn sun_beyond(x: vec3f, towards: vec3f) -> f32 {
+    let e = box_exit(x, towards);
+    return base_fog_depth(x + towards * e, towards, -1.0);
 }

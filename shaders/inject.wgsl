@@ -48,5 +48,5 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
     if grid.has_base_layer != 0u {
         layer = base_layer[linear_index(id)];
     }
-    textureStore(ev, id, vec4f(grid.base_extinction + layer + sum, 0.0, 0.0, 0.0));
+    textureStore(ev, id, vec4f(base_fog_at(x.y) + layer + sum, 0.0, 0.0, 0.0));
 }

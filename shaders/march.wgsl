@@ -10,6 +10,8 @@
 // Base fog outside the grid uses Sun et al.'s closed form (shaders/sun.wgsl) for every point
 // light whose light paths cannot meet the grid, and is marched otherwise. A spot light is a
 // point light times its cone factor (common.wgsl); samples outside its cone skip it entirely.
+// A directional light (sun) adds σ_s·p·E·exp(−T_sun) with no falloff, T_sun from its OPV
+// where its path crosses the grid and the base fog's closed form elsewhere (physics.md §9).
 //
 // Step policies inside the grid: FIXED (uniform steps), TWO_LEVEL (Tan et al.: uniform near
 // steps, then linearly growing far steps) and ADAPTIVE (step = τ_target / local max σ_t from
@@ -121,7 +123,6 @@ fn ev_at(t: Trilinear) -> f32 {
 // the eight surrounding cells. The mean extinction is smooth where T itself has a kink (at
 // the light) and constant in homogeneous fog, so this is exact there and accurate near lights.
 fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
-    let base = light * cell_count();
     let s = lights[light].position;
     var c: array<f32, 8>;
     for (var n = 0u; n < 8u; n++) {
@@ -130,10 +131,48 @@ fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
         if d < 1e-6 * grid.cell.x {
             c[n] = textureLoad(ev, p, 0).r;
         } else {
-            c[n] = opv[base + linear_index(p)] / d;
+            c[n] = opv_value(light, p) / d;
         }
     }
     return lerp3(c, t.f) * length(x - s);
+}
+
+// The optical depth stored for light `light` at cell p: every OPV read goes through here.
+fn opv_value(light: u32, p: vec3u) -> f32 {
+    return opv[light * cell_count() + linear_index(p)];
+}
+
+// A sun's optical depth from x in the grid box: the OPV holds G + B (propagate_directional.wgsl);
+// the trilinear interpolation is of the mean in-box extinction G/(exit distance), exact in
+// homogeneous fog, times x's own exit distance, plus x's own B.
+fn sun_opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
+    let towards = -lights[light].direction;
+    let beyond = sun_beyond(x, towards);
+    if beyond >= OPAQUE {
+        return OPAQUE;
+    }
+    var c: array<f32, 8>;
+    for (var n = 0u; n < 8u; n++) {
+        let p = corner(t, n);
+        let xc = grid.min + (vec3f(p) + 0.5) * grid.cell;
+        c[n] = max(opv_value(light, p) - sun_beyond(xc, towards), 0.0) / max(box_exit(xc, towards), 1e-30);
+    }
+    return lerp3(c, t.f) * box_exit(x, towards) + beyond;
+}
+
+// A sun's optical depth from anywhere: base fog (closed form) up to the grid box, if the path
+// meets it, then the box's volume; without the box, base fog all the way.
+fn sun_depth(x: vec3f, l: u32) -> f32 {
+    let towards = -lights[l].direction;
+    if inside_grid(x) {
+        return sun_opv_at(trilinear_at(x), l, x);
+    }
+    let span = box_span(x, towards);
+    if span.y < span.x {
+        return base_fog_depth(x, towards, -1.0);
+    }
+    let p = x + towards * span.x;
+    return min(base_fog_depth(x, towards, span.x) + sun_opv_at(trilinear_at(p), l, p), OPAQUE);
 }
 
 fn inside_grid(x: vec3f) -> bool {
@@ -213,6 +252,16 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
         if all(light.rgb == vec3f(0.0)) || (l < 32u && (sun_mask & (1u << l)) != 0u) {
             continue;
         }
+        if light.kind == LIGHT_DIRECTIONAL {
+            var sun: f32;
+            if inside {
+                sun = sun_opv_at(tri, l, x);
+            } else {
+                sun = sun_depth(x, l);
+            }
+            inscatter += light.rgb * (phase(dot(light.direction, -dir)) * exp(-sun));
+            continue;
+        }
         let to_x = x - light.position;
         let cone = cone_mean(light, x, dir, dt);
         if cone <= 0.0 {
@@ -267,7 +316,7 @@ fn march_growing(o: vec3f, dir: vec3f, t0: f32, t1: f32, n: u32, inside: bool) {
 fn nearest_light(x: vec3f) -> f32 {
     var d = 3.4e38;
     for (var l = 0u; l < grid.light_count; l++) {
-        if any(lights[l].rgb != vec3f(0.0)) {
+        if any(lights[l].rgb != vec3f(0.0)) && lights[l].kind != LIGHT_DIRECTIONAL {
             d = min(d, length(x - lights[l].position));
         }
     }
@@ -470,6 +519,13 @@ fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
     for (var l = 0u; l < grid.light_count; l++) {
         let light = lights[l];
         if all(light.rgb == vec3f(0.0)) {
+            continue;
+        }
+        if light.kind == LIGHT_DIRECTIONAL {
+            let cos_sun = dot(n, -light.direction);
+            if cos_sun > 0.0 {
+                l_out += albedo / PI * light.rgb * (cos_sun * exp(-sun_depth(x, l)));
+            }
             continue;
         }
         let to_light = light.position - x;

@@ -13,6 +13,9 @@ pub struct GridParams {
     pub has_base_layer: u32,
     pub dims: [u32; 3],
     pub bin_size: u32,
+    pub height_falloff: f32,
+    pub height_origin: f32,
+    pub _pad_h: [u32; 2],
 }
 
 #[repr(C)]
@@ -118,6 +121,18 @@ pub struct ExactParams {
     pub _pad: u32,
 }
 
+/// One plane of a sun's sweep (see `propagate_directional.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct PlaneParams {
+    pub light: u32,
+    /// The axis the planes are stacked along.
+    pub axis: u32,
+    pub plane: u32,
+    /// The upstream plane; equal to `plane` for the first.
+    pub previous: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -144,7 +159,9 @@ mod tests {
         let sweep = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")];
         let exact = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
         let slice = [include_str!("../../shaders/slice.wgsl")];
-        let cases: [(&[&str], &str, usize); 9] = [
+        let directional = [VOLUME_LOOKUP, include_str!("../../shaders/propagate_directional.wgsl")];
+        let cases: [(&[&str], &str, usize); 10] = [
+            (&directional, "PlaneParams", std::mem::size_of::<PlaneParams>()),
             (&sweep, "SweepBox", std::mem::size_of::<SweepBox>()),
             (&slice, "SliceParams", std::mem::size_of::<crate::gpu::slice::SliceParams>()),
             (&inject, "GridParams", std::mem::size_of::<GridParams>()),

@@ -151,6 +151,8 @@ impl GridResources {
 struct EvKey {
     grid: GridSpec,
     base_extinction: f32,
+    /// Height fog falloff and origin.
+    height: [f32; 2],
     layer_generation: u64,
     brute_force: bool,
 }
@@ -162,6 +164,8 @@ struct OpvKey {
     ev_generation: u64,
     scheme: Scheme,
     stride: u32,
+    /// A directional light, whose `position` holds its unit direction.
+    sun: bool,
 }
 
 /// Everything a march reads: two marches with equal keys give identical images.
@@ -731,6 +735,7 @@ impl FogPipeline {
         let key = EvKey {
             grid: project.grid,
             base_extinction: project.medium.base_extinction,
+            height: [project.medium.height_falloff, project.medium.height_origin],
             layer_generation: self.base_layer_generation,
             brute_force: self.brute_force_injection,
         };
@@ -809,7 +814,11 @@ impl FogPipeline {
         if l.hidden || l.intensity <= 0.0 || light_is_negligible(project, l) || !l.reaches_box(project.grid.min, project.grid.max) {
             return None;
         }
-        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride })
+        // A sun's volume depends on its direction only, whatever the scheme.
+        if let Some(direction) = sun_direction(l) {
+            return Some(OpvKey { position: direction, ev_generation: self.baked.ev_generation, scheme: Scheme::Sweep, stride: 0, sun: true });
+        }
+        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride, sun: false })
     }
 
     /// Lights whose OPV must be (re)propagated, with the inputs it will have; counts the rest.
@@ -833,6 +842,7 @@ impl FogPipeline {
     fn plan_propagation(&mut self, project: &Project, scheme: Scheme, targets: Vec<(usize, OpvKey)>) {
         let Some(g) = &self.grid else { return };
         let positions: Vec<glam::Vec3> = project.lights.iter().map(|l| l.position).collect();
+        let directions: Vec<Option<glam::Vec3>> = project.lights.iter().map(sun_direction).collect();
         let inputs = PropagationInputs {
             grid: &g.spec,
             grid_buf: &g.grid_buf,
@@ -840,6 +850,7 @@ impl FogPipeline {
             lights_buf: &g.lights_buf,
             opv: &g.opv,
             positions: &positions,
+            directions: &directions,
             sweep_stride: project.propagation.sweep_stride,
         };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
@@ -1023,6 +1034,9 @@ impl FogPipeline {
             has_base_layer: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == spec) as u32,
             dims: spec.resolution.to_array(),
             bin_size: self.bin_size,
+            height_falloff: project.medium.height_falloff,
+            height_origin: project.medium.height_origin,
+            _pad_h: [0; 2],
         }
     }
 
@@ -1132,6 +1146,14 @@ impl FogPipeline {
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
+}
+
+/// The unit direction of travel of a directional light; None for other kinds.
+fn sun_direction(l: &Light) -> Option<glam::Vec3> {
+    match l.kind {
+        crate::scene::LightKind::Directional { direction } => Some(direction.normalize_or_zero()),
+        _ => None,
+    }
 }
 
 fn light_gpu(l: &Light, culled: bool) -> LightGpu {

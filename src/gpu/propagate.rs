@@ -1,7 +1,7 @@
 //! Opacity propagation: EV → one optical-depth volume (OPV) per light, by one of three
 //! schemes (see [`Scheme`]). All OPVs live in one storage buffer, light-major.
 
-use super::gpu_types::{ExactParams, SweepBox, SweepStep};
+use super::gpu_types::{ExactParams, PlaneParams, SweepBox, SweepStep};
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot, VOLUME_LOOKUP};
 use super::Counters;
 use crate::scene::{GridSpec, Scheme};
@@ -18,6 +18,10 @@ pub struct PropagationInputs<'a> {
     pub opv: &'a [wgpu::Buffer; 2],
     /// Light positions, indexed like the OPVs.
     pub positions: &'a [Vec3],
+    /// The unit direction of travel of each directional light (None for point and spot
+    /// lights), indexed like the OPVs: those are swept by `propagate_directional.wgsl`
+    /// whatever the scheme.
+    pub directions: &'a [Option<Vec3>],
     /// Layers stepped back per interpolation by the `sweep` scheme (≥ 3).
     pub sweep_stride: u32,
 }
@@ -29,6 +33,7 @@ pub struct Propagator {
     sweep: wgpu::ComputePipeline,
     exact_layout: wgpu::BindGroupLayout,
     exact: wgpu::ComputePipeline,
+    directional: wgpu::ComputePipeline,
     uniform_align: u64,
 }
 
@@ -79,8 +84,15 @@ impl Propagator {
             &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")],
             &exact_layout,
         );
+        // Same bindings as the exact scheme, one plane of one sun per dispatch.
+        let directional = compute_pipeline(
+            device,
+            "propagate_directional",
+            &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_directional.wgsl")],
+            &exact_layout,
+        );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
-        Self { giroud_layout, giroud, sweep_layout, sweep, exact_layout, exact, uniform_align }
+        Self { giroud_layout, giroud, sweep_layout, sweep, exact_layout, exact, directional, uniform_align }
     }
 
     /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
@@ -90,7 +102,51 @@ impl Propagator {
     /// light `active[k]`'s OPV was last propagated from the same position: the sweep then
     /// starts at the first batch of shells those cells can reach, since every cell depends
     /// only on cells closer to the light. The other schemes recompute everything.
+    ///
+    /// Directional lights among `active` are swept plane by plane along their direction
+    /// (`propagate_directional.wgsl`), after the other lights' dispatches.
     pub fn plan(
+        &self,
+        device: &wgpu::Device,
+        inputs: &PropagationInputs,
+        scheme: Scheme,
+        active: &[u32],
+        changed: &[Option<(glam::UVec3, glam::UVec3)>],
+    ) -> PropagationJob {
+        let sun_of = |l: u32| inputs.directions.get(l as usize).copied().flatten();
+        let (mut points, mut points_changed, mut suns) = (Vec::new(), Vec::new(), Vec::new());
+        for (k, &l) in active.iter().enumerate() {
+            match sun_of(l) {
+                Some(direction) => suns.push((l, direction)),
+                None => {
+                    points.push(l);
+                    points_changed.push(changed.get(k).copied().flatten());
+                }
+            }
+        }
+        let mut job = if points.is_empty() {
+            PropagationJob { lights: Vec::new(), work: Work::Empty, groups: Vec::new(), units: Vec::new(), next: 0, iterations: 0, cells: 0, suns: None }
+        } else {
+            self.plan_points(device, inputs, scheme, &points, &points_changed)
+        };
+        if !suns.is_empty() {
+            let params: Vec<PlaneParams> = suns.iter().flat_map(|&(l, direction)| sun_planes(inputs.grid, l, direction, SUN_STRIDE)).collect();
+            let r = inputs.grid.resolution.to_array();
+            let start = job.groups.len();
+            for p in &params {
+                let (a1, a2) = ((p.axis as usize + 1) % 3, (p.axis as usize + 2) % 3);
+                job.groups.push([r[a1].div_ceil(8), r[a2].div_ceil(8), 1]);
+                job.units.push(r[a1] as u64 * r[a2] as u64);
+            }
+            job.cells += inputs.grid.cell_count() * suns.len() as u64;
+            job.lights.extend(suns.iter().map(|&(l, _)| l));
+            job.iterations = job.iterations.max(1);
+            job.suns = Some((start, self.per_dispatch(device, inputs, &params, Which::Directional, &[], None)));
+        }
+        job
+    }
+
+    fn plan_points(
         &self,
         device: &wgpu::Device,
         inputs: &PropagationInputs,
@@ -188,7 +244,7 @@ impl Propagator {
             Scheme::Giroud => cells * active.len() as u64 * iterations as u64,
             Scheme::Exact => cells * active.len() as u64,
         };
-        PropagationJob { lights: active.to_vec(), work, groups, units, next: 0, iterations, cells }
+        PropagationJob { lights: active.to_vec(), work, groups, units, next: 0, iterations, cells, suns: None }
     }
 
     /// Encodes up to `count` further dispatches of `job` into `encoder` and counts them.
@@ -201,6 +257,8 @@ impl Propagator {
         counters: &mut Counters,
     ) {
         let range = job.next..(job.next + count.max(1)).min(job.groups.len());
+        let sun_start = job.suns.as_ref().map_or(job.groups.len(), |(start, _)| *start);
+        let (all, range) = (range.clone(), range.start.min(sun_start)..range.end.min(sun_start));
         if let (Work::Giroud { a, b, .. }, 0) = (&job.work, job.next) {
             // Lights not being updated must survive in B too, since B feeds back into A.
             encoder.copy_buffer_to_buffer(a, 0, b, 0, None);
@@ -220,6 +278,7 @@ impl Propagator {
                     pass.set_pipeline(match which {
                         Which::Sweep => &self.sweep,
                         Which::Exact => &self.exact,
+                        Which::Directional => &self.directional,
                     });
                     for i in range.clone() {
                         pass.set_bind_group(0, bind_group, &[(i as u64 * stride) as u32]);
@@ -227,8 +286,21 @@ impl Propagator {
                         pass.dispatch_workgroups(g[0], g[1], g[2]);
                     }
                 }
+                Work::Empty => {}
+            }
+            if let Some((start, Work::PerDispatch { bind_group, stride, .. })) = &job.suns {
+                let suns = all.start.max(*start)..all.end;
+                if !suns.is_empty() {
+                    pass.set_pipeline(&self.directional);
+                }
+                for i in suns {
+                    pass.set_bind_group(0, bind_group, &[((i - start) as u64 * stride) as u32]);
+                    let g = job.groups[i];
+                    pass.dispatch_workgroups(g[0], g[1], g[2]);
+                }
             }
         }
+        let range = all;
         counters.dispatches += range.len() as u32;
         job.next = range.end;
         if job.done() {
@@ -275,7 +347,7 @@ impl Propagator {
         resources.extend(extra.iter().cloned());
         let layout = match which {
             Which::Sweep => &self.sweep_layout,
-            Which::Exact => &self.exact_layout,
+            Which::Exact | Which::Directional => &self.exact_layout,
         };
         let bind_group = bind_group(device, "propagate", layout, &resources);
         Work::PerDispatch { which, bind_group, stride, _buf: buf, _keep: keep }
@@ -286,6 +358,7 @@ impl Propagator {
 enum Which {
     Sweep,
     Exact,
+    Directional,
 }
 
 enum Work {
@@ -293,6 +366,31 @@ enum Work {
     Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: wgpu::Buffer, b: wgpu::Buffer, _active: wgpu::Buffer },
     /// One dispatch per uniform entry, each seeing its entry through a dynamic offset.
     PerDispatch { which: Which, bind_group: wgpu::BindGroup, stride: u64, _buf: wgpu::Buffer, _keep: Option<wgpu::Buffer> },
+    /// Nothing but directional lights to propagate.
+    Empty,
+}
+
+/// Planes a sun's sweep steps back per interpolation: each step integrates the medium exactly
+/// over this many planes and interpolates once, so fewer interpolations blur the shadows less.
+pub const SUN_STRIDE: u32 = 16;
+
+/// The dispatches of one sun's sweep, upstream plane first. The planes are stacked along the
+/// axis the light travels most along; each plane interpolates in the plane `stride` planes
+/// upstream (fewer interpolations, less numerical diffusion), the first `stride` planes
+/// integrate straight to the box.
+fn sun_planes(grid: &GridSpec, light: u32, direction: Vec3, stride: u32) -> Vec<PlaneParams> {
+    let towards = -direction;
+    let axis = towards.abs().max_position();
+    let n = grid.resolution[axis];
+    // The sun lies towards +axis when towards[axis] > 0: light enters at the last plane.
+    let from_top = towards[axis] > 0.0;
+    (0..n)
+        .map(|k| {
+            let plane = if from_top { n - 1 - k } else { k };
+            let previous = if k < stride { plane } else if from_top { plane + stride } else { plane - stride };
+            PlaneParams { light, axis: axis as u32, plane, previous }
+        })
+        .collect()
 }
 
 /// The dispatches that bring the OPVs of some lights up to date, each valid to run once the
@@ -308,6 +406,8 @@ pub struct PropagationJob {
     iterations: u32,
     /// Cells the whole job computes.
     cells: u64,
+    /// Directional lights' dispatches: those from this index on.
+    suns: Option<(usize, Work)>,
 }
 
 impl PropagationJob {

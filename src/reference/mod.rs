@@ -11,8 +11,10 @@
 //! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
 //!   (§4) with exact transmittance.
 //! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
+//! - [`lights`]: directional lights' optical depths and the height fog's closed form (§9).
 
 mod grid;
+pub mod lights;
 pub use crate::quad;
 mod render;
 pub mod sun;
@@ -184,6 +186,9 @@ pub fn optical_depth_volume(project: &Project, light: usize) -> Vec<f64> {
 /// # Panics
 /// If `light` is not an index into `project.lights`.
 pub fn optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    if matches!(project.lights[light].kind, crate::scene::LightKind::Directional { .. }) {
+        return lights::sun_optical_depth_cells(project, light, cells);
+    }
     let medium = Medium64::from_project(project);
     let source = project.lights[light].position.as_dvec3();
     let mut out = vec![0.0; cells.len()];
@@ -211,6 +216,9 @@ pub fn grid_optical_depth_cells(grid: &GridSpec, medium: &GridMedium64, source: 
 /// # Panics
 /// If `light` is not an index into `project.lights`.
 pub fn clipped_optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    if matches!(project.lights[light].kind, crate::scene::LightKind::Directional { .. }) {
+        return lights::sun_optical_depth_cells(project, light, cells);
+    }
     let medium = Medium64::from_project(project);
     let source = project.lights[light].position.as_dvec3();
     let mut out = vec![0.0; cells.len()];

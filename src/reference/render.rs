@@ -48,6 +48,10 @@ struct Light64 {
     position: DVec3,
     rgb: DVec3,
     light: Light,
+    /// A directional light's unit direction of travel.
+    sun: Option<DVec3>,
+    /// For a sun: the medium's gaussians without base fog (its height fog is integrated apart).
+    gaussians: Option<Medium64>,
 }
 
 impl Light64 {
@@ -57,10 +61,37 @@ impl Light64 {
     }
 }
 
+/// Light arriving at `x` from `l` per unit of its intensity: (direction of travel, cone/d² for
+/// point and spot lights or 1 for a sun, transmittance from the light).
+fn arriving(medium: &Medium64, project: &Project, l: &Light64, x: DVec3) -> Option<(DVec3, f64, f64)> {
+    if let Some(direction) = l.sun {
+        let gaussians = l.gaussians.as_ref().unwrap_or(medium);
+        let depth = super::lights::sun_optical_depth(project, gaussians, x, direction);
+        return Some((direction, 1.0, (-depth).exp()));
+    }
+    let to_x = x - l.position;
+    let d2 = to_x.length_squared();
+    let cone = l.cone(x);
+    if d2 == 0.0 || cone == 0.0 {
+        return None;
+    }
+    Some((to_x / d2.sqrt(), cone / d2, (-medium.optical_depth(x, l.position)).exp()))
+}
+
 fn lights64(project: &Project) -> Vec<Light64> {
     project
         .visible_lights()
-        .map(|l| Light64 { position: l.position.as_dvec3(), rgb: l.radiance_rgb().as_dvec3(), light: l.clone() })
+        .map(|l| Light64 {
+            position: l.position.as_dvec3(),
+            rgb: l.radiance_rgb().as_dvec3(),
+            light: l.clone(),
+            sun: match l.kind {
+                crate::scene::LightKind::Directional { direction } => Some(direction.as_dvec3().normalize()),
+                _ => None,
+            },
+            gaussians: matches!(l.kind, crate::scene::LightKind::Directional { .. })
+                .then(|| super::lights::gaussians_only(project)),
+        })
         .filter(|l| l.rgb.max_element() > 0.0)
         .collect()
 }
@@ -119,21 +150,12 @@ fn domain(project: &Project, base: f64, origin: DVec3, dir: DVec3, t_max: f64) -
 }
 
 /// Radiance arriving from all lights at `x`, scattered towards −`dir`, per unit σ_s.
-fn in_scattered(medium: &Medium64, lights: &[Light64], phase: Phase, x: DVec3, dir: DVec3) -> DVec3 {
+fn in_scattered(medium: &Medium64, project: &Project, lights: &[Light64], phase: Phase, x: DVec3, dir: DVec3) -> DVec3 {
     lights
         .iter()
-        .map(|l| {
-            let to_x = x - l.position;
-            let d2 = to_x.length_squared();
-            if d2 == 0.0 {
-                return DVec3::ZERO;
-            }
-            let cone = l.cone(x);
-            if cone == 0.0 {
-                return DVec3::ZERO;
-            }
-            let cos = to_x.dot(-dir) / d2.sqrt();
-            l.rgb * (cone * phase.eval(cos) / d2 * (-medium.optical_depth(x, l.position)).exp())
+        .filter_map(|l| {
+            let (travel, geometry, tr) = arriving(medium, project, l, x)?;
+            Some(l.rgb * (geometry * phase.eval(travel.dot(-dir)) * tr))
         })
         .sum()
 }
@@ -177,7 +199,7 @@ pub fn radiance_along_ray(
         let x = origin + dir * t;
         let inside = t >= b0 && t < b1;
         let mut h = if inside || medium.base() <= 0.0 { step } else { opts.rel_step / medium.base() };
-        let near = lights.iter().map(|l| (x - l.position).length()).fold(f64::INFINITY, f64::min);
+        let near = lights.iter().filter(|l| l.sun.is_none()).map(|l| (x - l.position).length()).fold(f64::INFINITY, f64::min);
         h = h.min((opts.rel_step * near).max(min_step));
         if t < b0 {
             h = h.min(b0 - t);
@@ -191,13 +213,13 @@ pub fn radiance_along_ray(
         let seg = view.optical_depth(x, origin + dir * t_next);
         let weight = (-tau).exp() * albedo * -(-seg).exp_m1();
         if weight > 0.0 {
-            radiance += weight * in_scattered(medium, &lights, phase, origin + dir * (0.5 * (t + t_next)), dir);
+            radiance += weight * in_scattered(medium, project, &lights, phase, origin + dir * (0.5 * (t + t_next)), dir);
         }
         tau += seg;
         t = t_next;
         let tv = (-tau).exp();
         let rest: f64 =
-            lights.iter().map(|l| l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2)).sum();
+            lights.iter().map(|l| l.rgb.element_sum() / if l.sun.is_some() { 1.0 } else { nearest_ahead(origin, dir, t, l.position).powi(2) }).sum();
         if tv == 0.0 || tv * bound_scale * rest <= opts.tolerance * radiance.element_sum() {
             break;
         }
@@ -239,21 +261,13 @@ pub fn in_scatter_adaptive(
     for light in &lights {
         let integrand = |t: f64| {
             let x = origin + dir * t;
-            let to_x = x - light.position;
-            let d2 = to_x.length_squared();
-            if d2 == 0.0 {
-                return 0.0;
-            }
-            let cone = light.cone(x);
-            if cone == 0.0 {
-                return 0.0;
-            }
-            let cos = to_x.dot(-dir) / d2.sqrt();
-            let depth = view.optical_depth(origin, x) + medium.optical_depth(x, light.position);
-            cone * albedo * medium.extinction(x) * phase.eval(cos) / d2 * (-depth).exp()
+            let Some((travel, geometry, tr)) = arriving(medium, project, light, x) else { return 0.0 };
+            geometry * albedo * medium.extinction(x) * phase.eval(travel.dot(-dir)) * tr * (-view.optical_depth(origin, x)).exp()
         };
         let mut points = split.clone();
-        points.push(dir.dot(light.position - origin));
+        if light.sun.is_none() {
+            points.push(dir.dot(light.position - origin));
+        }
         let finite_end = if dom.t1.is_finite() {
             dom.t1
         } else {
@@ -304,7 +318,7 @@ pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRe
         let mut l = DVec3::from(radiance_along_ray(&medium, project, origin, dir, t_max, opts));
         if let Some(h) = hit {
             let x = origin + dir * h.t;
-            l += (-medium.optical_depth(origin, x)).exp() * surface_radiance(&medium, &lights, x, h.normal, h.albedo);
+            l += (-medium.optical_depth(origin, x)).exp() * surface_radiance(&medium, project, &lights, x, h.normal, h.albedo);
         }
         l.to_array()
     });
@@ -312,18 +326,13 @@ pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRe
 }
 
 /// Lambertian radiance leaving a surface point lit by every light through the fog.
-fn surface_radiance(medium: &Medium64, lights: &[Light64], x: DVec3, normal: DVec3, albedo: DVec3) -> DVec3 {
+fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x: DVec3, normal: DVec3, albedo: DVec3) -> DVec3 {
     lights
         .iter()
-        .map(|l| {
-            let to_light = l.position - x;
-            let d2 = to_light.length_squared();
-            let cos = normal.dot(to_light) / d2.sqrt();
-            let cone = l.cone(x);
-            if d2 == 0.0 || cos <= 0.0 || cone == 0.0 {
-                return DVec3::ZERO;
-            }
-            albedo / PI * l.rgb * (cone * cos / d2 * (-medium.optical_depth(x, l.position)).exp())
+        .filter_map(|l| {
+            let (travel, geometry, tr) = arriving(medium, project, l, x)?;
+            let cos = normal.dot(-travel);
+            (cos > 0.0).then(|| albedo / PI * l.rgb * (geometry * cos * tr))
         })
         .sum()
 }

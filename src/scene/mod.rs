@@ -178,9 +178,10 @@ impl Medium {
     }
 }
 
-/// Largest exponent −k·(y − y₀) of the height fog: far below y₀ the fog stops growing, so
-/// its extinction and every optical depth stay finite.
-pub const MAX_HEIGHT_EXPONENT: f64 = 80.0;
+/// Largest exponent −k·(y − y₀) of the height fog: far below y₀ the fog stops growing (at
+/// e⁴⁰ times the base extinction, opaque within far less than a cell), so its extinction
+/// stays finite in single precision.
+pub const MAX_HEIGHT_EXPONENT: f64 = 40.0;
 
 fn is_zero(v: &f32) -> bool {
     *v == 0.0
