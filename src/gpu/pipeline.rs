@@ -9,7 +9,7 @@
 //! catch up over the following calls, and the full image replaces the quick one only once it
 //! is complete. [`update`](FogPipeline::update) runs the same items to completion.
 
-use super::binning::{self, bin_particles};
+use super::binning;
 use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
@@ -60,6 +60,8 @@ pub struct Counters {
     pub cells_injected: u64,
     /// Particle–cell pairs injection evaluated (list lengths × cells of the bins it read).
     pub particle_evaluations: u64,
+    /// Memory chunks whose particle–bin lists injection built and uploaded.
+    pub inject_chunks: u32,
     pub cells_propagated: u64,
     pub lights_propagated: u32,
     /// Lights whose OPV was up to date, or that are hidden, dark or culled.
@@ -285,6 +287,8 @@ pub struct FogPipeline {
     base_layer: Option<(Volume, wgpu::Buffer)>,
     base_layer_generation: u64,
     brute_force_injection: bool,
+    /// See [`FogPipeline::set_inject_chunk_bytes`].
+    inject_chunk_limit: Option<u64>,
     /// Bin edge of the last injection's particle lists (see `binning`).
     bin_size: u32,
     volumes_generation: u64,
@@ -336,6 +340,7 @@ impl FogPipeline {
             base_layer: None,
             base_layer_generation: 0,
             brute_force_injection: false,
+            inject_chunk_limit: None,
             bin_size: binning::BRICK,
             volumes_generation: 0,
         }
@@ -407,25 +412,6 @@ impl FogPipeline {
                 ),
             });
         }
-        // Each particle is listed once per bin its cut-off sphere overlaps; the count is only
-        // summed when its bound (every particle in every bin) could exceed the binding.
-        if binning::overlap_bound(&project.grid, project.particles.len()) * 4 > binding {
-            let overlaps = if self.brute_force_injection {
-                let visible = project.particles.iter().filter(|p| !p.hidden && p.density > 0.0).count() as u64;
-                visible * binning::brick_dims(&project.grid).as_u64vec3().element_product()
-            } else {
-                binning::overlap_count(&project.grid, &project.particles)
-            };
-            if overlaps * 4 > binding {
-                return Err(GpuError::Limit {
-                    what: format!("the particle–bin lists of {} particles", project.particles.len()),
-                    needed: overlaps * 4,
-                    limit: binding,
-                    adapter,
-                    suggestion: "use fewer or smaller particles (each is listed in every injection bin it reaches), or lower grid.resolution".into(),
-                });
-            }
-        }
         let light_bytes = project.lights.len() as u64 * std::mem::size_of::<LightGpu>() as u64;
         if light_bytes > binding {
             return Err(GpuError::Limit {
@@ -495,6 +481,7 @@ impl FogPipeline {
                     c.dispatches += d.dispatches;
                     c.cells_injected += d.cells_injected;
                     c.particle_evaluations += d.particle_evaluations;
+                    c.inject_chunks += d.inject_chunks;
                     c.cells_propagated += d.cells_propagated;
                     c.lights_propagated += d.lights_propagated;
                     c.propagation_iterations = c.propagation_iterations.max(d.propagation_iterations);
@@ -760,17 +747,15 @@ impl FogPipeline {
             bricks.sort_unstable();
             bricks.dedup();
         }
-        let bins = if self.brute_force_injection {
-            binning::bin_all(&project.grid, &project.particles)
-        } else {
-            bin_particles(&project.grid, &project.particles)
-        };
-        if bins.bin_size != self.bin_size {
-            self.bin_size = bins.bin_size;
+        let max_items = self.inject_chunk_bytes() / 4;
+        let counts = binning::choose_bins(&project.grid, &project.particles, max_items, self.brute_force_injection);
+        if counts.bin_size != self.bin_size {
+            self.bin_size = counts.bin_size;
             self.write_scene_uniforms(project);
         }
         let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
-        self.jobs.inject = Some((self.injector.begin(&self.ctx, &particles, bins, bricks), region));
+        let job = Injector::begin(&project.grid, project.particles.clone(), particles, counts, bricks, max_items);
+        self.jobs.inject = Some((job, region));
         self.baked.ev = Some((key, project.particles.clone()));
     }
 
@@ -1035,6 +1020,19 @@ impl FogPipeline {
         }
         let params = self.grid_params(project);
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
+    }
+
+    /// Caps the particle–bin lists of one injection chunk at `bytes` (None: one storage
+    /// binding, the most a chunk can use). Smaller chunks bound memory more tightly at the
+    /// cost of more passes; the EV is the same bit for bit.
+    pub fn set_inject_chunk_bytes(&mut self, bytes: Option<u64>) {
+        self.inject_chunk_limit = bytes;
+    }
+
+    /// The particle–bin list bytes one injection chunk may use.
+    pub fn inject_chunk_bytes(&self) -> u64 {
+        let binding = (self.ctx.limits.max_storage_buffer_binding_size as u64).min(self.ctx.limits.max_buffer_size);
+        self.inject_chunk_limit.map_or(binding, |b| b.clamp(4, binding))
     }
 
     /// Makes every cell evaluate every particle instead of only those binned into its brick:
