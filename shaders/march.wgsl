@@ -58,7 +58,7 @@ struct Surface {
 @group(0) @binding(1) var<uniform> params: MarchParams;
 @group(0) @binding(2) var ev: texture_3d<f32>;
 @group(0) @binding(3) var<storage, read> lights: array<LightGpu>;
-@group(0) @binding(4) var<storage, read> opv: array<f32>;
+// binding 4: `opv`, declared with its helper opv_load by src/gpu/opv_store.rs.
 @group(0) @binding(5) var out_hdr: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var out_ldr: texture_storage_2d<rgba8unorm, write>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
@@ -129,7 +129,7 @@ fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
         if d < 1e-6 * grid.cell.x {
             c[n] = textureLoad(ev, p, 0).r;
         } else {
-            c[n] = opv[base + linear_index(p)] / d;
+            c[n] = opv_load(base + linear_index(p)) / d;
         }
     }
     return lerp3(c, t.f) * length(x - s);

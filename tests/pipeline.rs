@@ -338,3 +338,58 @@ fn a_million_small_particles_inject() {
     }
     assert!(ev.data.iter().all(|v| v.is_finite()));
 }
+
+/// OPVs cut into many small storage segments (each light straddling several) give the same
+/// optical depths, slices and image, bit for bit, as the device's largest segments, for
+/// every scheme and after adding and removing lights.
+#[test]
+fn segmented_optical_depths_equal_one_segment_bit_for_bit() {
+    use fogsmith::gpu::{GpuContext, OpvLayout, SliceSource};
+    let mut whole = pipeline();
+    let ctx = GpuContext::new_headless().unwrap();
+    let layout = OpvLayout::with_segment_bytes(&ctx.limits, 30 * 30 * 28 * 4 * 7 / 10);
+    let mut segmented = fogsmith::gpu::FogPipeline::with_opv_layout(ctx, layout);
+    let mut p = small_scene(30, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-0.8, 0.3, 0.5), Vec3::new(0.1, -1.3, 0.2)]);
+    p.grid.resolution.z = 28;
+    scatter(&mut p, 11, 60, 0.1, 0.4);
+    for (step, scheme) in [Scheme::Sweep, Scheme::Giroud, Scheme::Exact, Scheme::Sweep].into_iter().enumerate() {
+        if step == 3 {
+            p.lights.remove(1);
+            p.lights.push(fogsmith::scene::Light::new(Vec3::new(0.5, 1.2, -0.9), 3.0, Vec3::ONE));
+        }
+        let req = FrameRequest { width: 48, height: 40, ..request(&p, scheme) };
+        whole.update(&p, &req).unwrap();
+        segmented.update(&p, &req).unwrap();
+        for l in 0..p.lights.len() {
+            let (a, b) = (whole.read_opv(l).unwrap(), segmented.read_opv(l).unwrap());
+            assert!(a.data.iter().all(|v| v.is_finite()) && a.data.iter().any(|v| *v > 0.0));
+            let differ = a.data.iter().zip(&b.data).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+            assert_eq!(differ, 0, "{scheme:?}, light {l}: {differ} OPV cells differ");
+            let (sa, sb) = (
+                whole.read_slice(SliceSource::OpticalDepth { light: l }, 2, 13).unwrap(),
+                segmented.read_slice(SliceSource::OpticalDepth { light: l }, 2, 13).unwrap(),
+            );
+            assert!(sa.values.iter().zip(&sb.values).all(|(x, y)| x.to_bits() == y.to_bits()), "{scheme:?}: slice of light {l}");
+        }
+        let (ia, ib) = (whole.read_image().unwrap(), segmented.read_image().unwrap());
+        assert!(ia.rgba.iter().zip(&ib.rgba).all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits)), "{scheme:?}: image differs");
+    }
+}
+
+/// A scene the device cannot hold is refused before anything is allocated, with the size
+/// it needs; 256³ with 8 lights is accepted.
+#[test]
+fn only_scenes_beyond_the_device_are_refused() {
+    let gpu = pipeline();
+    let mut p = small_scene(256, &[Vec3::splat(0.9); 8]);
+    gpu.check_limits(&p, 640, 360).expect("256³ with 8 lights fits");
+    p.grid.resolution = glam::UVec3::splat(2048);
+    let needed = 2048u64.pow(3) * 8 * 4;
+    let err = gpu.check_limits(&p, 640, 360).unwrap_err().to_string();
+    assert!(err.contains(&format!("needs {needed}")), "{err}");
+    assert!(err.contains("lower grid.resolution"), "{err}");
+    let fit = gpu.largest_fitting_grid(&p.grid, 8, 0, 640, 360).expect("some grid fits");
+    assert!(fit.x >= 256 && fit.x < 2048, "largest fitting grid {fit}");
+    p.grid.resolution = fit;
+    gpu.check_limits(&p, 640, 360).expect("the largest fitting grid fits");
+}
