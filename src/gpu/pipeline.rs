@@ -292,6 +292,8 @@ pub struct FogPipeline {
     /// See [`FogPipeline::set_inject_chunk_bytes`].
     inject_chunk_limit: Option<u64>,
     opv_layout: OpvLayout,
+    /// See [`FogPipeline::peak_memory_bytes`].
+    peak_memory: std::sync::atomic::AtomicU64,
     /// Bin edge of the last injection's particle lists (see `binning`).
     bin_size: u32,
     volumes_generation: u64,
@@ -351,6 +353,7 @@ impl FogPipeline {
             base_layer_generation: 0,
             brute_force_injection: false,
             inject_chunk_limit: None,
+            peak_memory: Default::default(),
             opv_layout,
             bin_size: binning::BRICK,
             volumes_generation: 0,
@@ -421,7 +424,8 @@ impl FogPipeline {
         Some(scaled(lo).resolution)
     }
 
-    fn check_sizes(&self, grid: &GridSpec, light_count: usize, particle_count: usize, width: u32, height: u32) -> Result<(), GpuError> {
+    /// [`check_limits`](Self::check_limits) for a scene described by its sizes alone.
+    pub fn check_sizes(&self, grid: &GridSpec, light_count: usize, particle_count: usize, width: u32, height: u32) -> Result<(), GpuError> {
         let limits = &self.ctx.limits;
         let adapter = self.ctx.adapter_info.name.clone();
         let edge = grid.resolution.max_element();
@@ -688,6 +692,7 @@ impl FogPipeline {
         if !targets.is_empty() {
             if self.jobs.propagate.is_none() {
                 self.plan_propagation(project, request.scheme, targets);
+                self.note_memory();
             }
             loop {
                 let t = Instant::now();
@@ -765,6 +770,7 @@ impl FogPipeline {
 
     /// Fills in what is on show.
     fn finish(&self, mut progress: Progress, project: &Project, request: &FrameRequest) -> Progress {
+        self.note_memory();
         if let Some((key, _)) = &self.baked.shown {
             progress.shown_size = self.shown_target().map_or([0, 0], |t| [t.width, t.height]);
             // A propagated light whose OPV on show differs from what the scene needs now.
@@ -852,6 +858,7 @@ impl FogPipeline {
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         let stamps = self.timer.as_ref().map(|t| t.writes(timer::INJECT));
         self.injector.encode_next(&self.ctx, &mut encoder, job, &inputs, count, stamps, counters);
+        self.note_memory();
         if let Some(t) = &self.timer {
             t.resolve(&mut encoder, timer::INJECT);
         }
@@ -1186,6 +1193,21 @@ impl FogPipeline {
         self.shown_target().map(|t| (&t.ldr_view, [t.width, t.height]))
     }
 
+    /// The most GPU memory [`memory_bytes`](Self::memory_bytes) has reported, sampled after
+    /// each injection chunk, when propagation is planned and when a call returns.
+    pub fn peak_memory_bytes(&self) -> u64 {
+        self.peak_memory.load(std::sync::atomic::Ordering::Relaxed).max(self.memory_bytes())
+    }
+
+    /// Starts a new [`peak_memory_bytes`](Self::peak_memory_bytes) window at the memory held now.
+    pub fn reset_peak_memory(&self) {
+        self.peak_memory.store(self.memory_bytes(), std::sync::atomic::Ordering::Relaxed);
+    }
+
+    fn note_memory(&self) {
+        self.peak_memory.fetch_max(self.memory_bytes(), std::sync::atomic::Ordering::Relaxed);
+    }
+
     /// Bytes of GPU memory the pipeline's live resources hold.
     pub fn memory_bytes(&self) -> u64 {
         let layer = self.base_layer.as_ref().map_or(0, |(_, b)| b.size());
@@ -1202,7 +1224,9 @@ impl FogPipeline {
 /// `bytes` in MiB or GiB, for messages.
 pub fn human_bytes(bytes: u64) -> String {
     let mib = bytes as f64 / (1u64 << 20) as f64;
-    if mib >= 1024.0 {
+    if mib < 1.0 {
+        format!("{:.1} KiB", bytes as f64 / 1024.0)
+    } else if mib >= 1024.0 {
         format!("{:.2} GiB", mib / 1024.0)
     } else {
         format!("{mib:.1} MiB")
