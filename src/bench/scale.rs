@@ -54,10 +54,11 @@ fn reset_peak_rss() -> bool {
     std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
-/// Bakes `p` from scratch and returns its record.
+/// Bakes `p` from scratch on a fresh pipeline (so buffers grown by earlier cases do not
+/// count) and returns its record.
 fn case(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32) -> Result<(FrameReport, Value), BenchError> {
+    ctx.gpu = crate::gpu::FogPipeline::new(ctx.gpu.context().clone());
     let rss_reset = reset_peak_rss();
-    ctx.gpu.reset_peak_memory();
     let t = std::time::Instant::now();
     let r = ctx.full(p, w, h)?;
     let wall = t.elapsed().as_secs_f64() * 1e3;
@@ -80,7 +81,7 @@ fn mib(v: &Value, key: &str) -> f64 {
 
 pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let quick = ctx.quick;
-    let (w, h) = (160, 90);
+    let (w, h) = (96, 54);
     let fit = |out: &mut Vec<Value>, log: &mut dyn FnMut(&str), case: &str, what: &str, points: &[(f64, f64)]| {
         let e = loglog_slope(points);
         log(&format!("scale fit: {what} ∝ x^{e:.2} ({case})"));
