@@ -61,7 +61,7 @@ struct Surface {
 @group(0) @binding(1) var<uniform> params: MarchParams;
 @group(0) @binding(2) var ev: texture_3d<f32>;
 @group(0) @binding(3) var<storage, read> lights: array<LightGpu>;
-@group(0) @binding(4) var<storage, read> opv: array<f32>;
+// binding 4: `opv`, declared with its helper opv_load by src/gpu/opv_store.rs.
 @group(0) @binding(5) var out_hdr: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var out_ldr: texture_storage_2d<rgba8unorm, write>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
@@ -139,7 +139,7 @@ fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
 
 // The optical depth stored for light `light` at cell p: every OPV read goes through here.
 fn opv_value(light: u32, p: vec3u) -> f32 {
-    return opv[light * cell_count() + linear_index(p)];
+    return opv_load(light * cell_count() + linear_index(p));
 }
 
 // A sun's optical depth from x in the grid box: the OPV holds G + B (propagate_directional.wgsl);

@@ -26,14 +26,14 @@ struct PlaneParams {
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> plane: PlaneParams;
-@group(0) @binding(4) var<storage, read_write> opv: array<f32>;
+// binding 4: `opv`, declared with its helpers by src/gpu/opv_store.rs.
 
 // Mean in-box extinction of cell c of the previous plane: (T − B)/exit.
 fn mean_extinction(c: vec3u, towards: vec3f, base: u32) -> f32 {
     let x = cell_center(c);
     let e = box_exit(x, towards);
     let b = sun_beyond(x, towards);
-    return max(opv[base + linear_index(c)] - b, 0.0) / max(e, 1e-30);
+    return max(opv_load(base + linear_index(c)) - b, 0.0) / max(e, 1e-30);
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -53,7 +53,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     let x = cell_center(id);
     let beyond = sun_beyond(x, towards);
     if beyond >= OPAQUE {
-        opv[base + linear_index(id)] = OPAQUE;
+        opv_store(base + linear_index(id), OPAQUE);
         return;
     }
     let e = box_exit(x, towards);
@@ -86,5 +86,5 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
         let m = mix(mix(m00, m10, w1), mix(m01, m11, w1), w2);
         g = m * box_exit(u, towards) + integrate_pieces(x, u);
     }
-    opv[base + linear_index(id)] = g + beyond;
+    opv_store(base + linear_index(id), g + beyond);
 }

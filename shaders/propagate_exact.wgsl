@@ -14,7 +14,7 @@ struct ExactParams {
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> exact: ExactParams;
-@group(0) @binding(4) var<storage, read_write> opv: array<f32>;
+// binding 4: `opv`, declared with its helpers by src/gpu/opv_store.rs.
 
 @compute @workgroup_size(4, 4, 4)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
@@ -32,5 +32,5 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     let tb = (grid.max - x) / dir;
     let inside = clamp(min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z)), 0.0, len);
     let t = integrate_segment(x, x + dir * inside, f32(exact.steps_per_cell)) + grid.base_extinction * (len - inside);
-    opv[exact.light * cell_count() + linear_index(id)] = t;
+    opv_store(exact.light * cell_count() + linear_index(id), t);
 }

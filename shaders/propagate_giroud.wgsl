@@ -13,8 +13,7 @@
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<storage, read> active_lights: array<u32>;
-@group(0) @binding(4) var<storage, read> src: array<f32>;
-@group(0) @binding(5) var<storage, read_write> dst: array<f32>;
+// bindings 4, 5: `src` and `dst`, declared with their helpers by src/gpu/opv_store.rs.
 
 fn sigma_at(c: vec3i) -> f32 {
     if any(c < vec3i(0)) || any(c >= vec3i(grid.dims)) {
@@ -54,7 +53,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: ve
         if any(n < vec3i(0)) || any(n >= vec3i(grid.dims)) {
             tn = grid.base_extinction * ndist;
         } else {
-            tn = src[base + linear_index(vec3u(n))];
+            tn = src_load(base + linear_index(vec3u(n)));
         }
         let w = abs(offs[a]) / dist;
         sum += w * (tn + 0.5 * (sigma + sigma_at(n)) * (dist - ndist));
@@ -64,5 +63,5 @@ fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: ve
     if wsum > 0.0 {
         t = sum / wsum;
     }
-    dst[base + linear_index(id)] = t;
+    dst_store(base + linear_index(id), t);
 }

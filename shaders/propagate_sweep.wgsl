@@ -51,8 +51,7 @@ struct SweepBox {
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> step: SweepStep;
-@group(0) @binding(4) var<storage, read_write> opv: array<f32>;
-@group(0) @binding(5) var<storage, read_write> mean_in: array<f32>;
+// bindings 4, 5: `opv` and `mean_in`, declared with their helpers by src/gpu/opv_store.rs.
 @group(0) @binding(6) var<storage, read> boxes: array<SweepBox>;
 
 struct Exit {
@@ -118,7 +117,7 @@ fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
         var row = 0.0;
         for (var i = first; i < last; i++) {
             cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            let m = mean_in[base + linear_index(vec3u(cell))];
+            let m = mean_in_load(base + linear_index(vec3u(cell)));
             row += wb[i] * m;
             if (i == 1 || i == 2) && (j == 1 || j == 2) {
                 lo = min(lo, m);
@@ -139,8 +138,8 @@ fn solve(c: vec3i, light: u32) {
     let len = length(v);
     let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
     if len < 1e-6 * h {
-        opv[idx] = 0.0;
-        mean_in[idx] = sigma_cell(c);
+        opv_store(idx, 0.0);
+        mean_in_store(idx, sigma_cell(c));
         return;
     }
     let dir = v / len;
@@ -175,8 +174,8 @@ fn solve(c: vec3i, light: u32) {
         let m = layer_mean(base, e, layer, u);
         t_in = m * (inside - to_plane) + integrate_pieces(p, x);
     }
-    opv[idx] = t_in + grid.base_extinction * (len - inside);
-    mean_in[idx] = select(sigma_cell(c), t_in / inside, inside > 1e-6 * h);
+    opv_store(idx, t_in + grid.base_extinction * (len - inside));
+    mean_in_store(idx, select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
 @compute @workgroup_size(64, 1, 1)

@@ -12,7 +12,7 @@ struct SliceParams {
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
-@group(0) @binding(2) var<storage, read> opv: array<f32>;
+// binding 2: `opv`, declared with its helper opv_load by src/gpu/opv_store.rs.
 @group(0) @binding(3) var<uniform> slice: SliceParams;
 @group(0) @binding(4) var<storage, read_write> plane: array<f32>;
 
@@ -37,7 +37,7 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     if slice.source == 0u {
         v = textureLoad(ev, vec3i(c), 0).r;
     } else {
-        v = opv[slice.light * cell_count() + linear_index(c)];
+        v = opv_load(slice.light * cell_count() + linear_index(c));
     }
     plane[id.x + id.y * dims.x] = v;
 }

@@ -9,11 +9,15 @@
 //! - `scaling`: update time vs resolution × lights and vs particle count, for a dynamic
 //!   scene (everything recomputed) and a static one (camera only), with the stage split;
 //!   plus binned vs brute-force injection and empty-space skipping on / off.
+//! - `scale`: time and peak memory (GPU resources, process RSS) against particles (10³ to
+//!   10⁶, small ones), grid resolution (32³ to 384³) and lights (1 to 16), with fitted
+//!   growth exponents; run on request only.
 //! - `interaction`: the editor under scripted input (see `interaction`): frame times, input
 //!   to preview latency and time to convergence; run on request only.
 
 mod interaction;
 mod plot;
+mod scale;
 mod suites;
 
 use serde_json::Value;

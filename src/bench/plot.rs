@@ -138,6 +138,34 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
                 &group(records, |r| Some(text(r, "scheme_or_policy")), |r| (num(r, "resolution"), num(r, "f_error_max"))),
             )
         }
+        Suite::Scale => {
+            let is = |r: &Value, case: &str| text(r, "suite") == "scale" && text(r, "case") == case;
+            let stage = |r: &Value, s: &str| r["stage_ms"][s].as_f64().unwrap_or(f64::NAN);
+            loglog(
+                &dir.join("scale_particles.png"),
+                "Injection time vs small particles (radius 0.02-0.06 m in a 4 m box)",
+                "particles",
+                "injection time (ms)",
+                &group(records, |r| is(r, "particles").then(|| format!("{}³", num(r, "resolution"))), |r| (num(r, "particles"), stage(r, "inject"))),
+            )?;
+            loglog(
+                &dir.join("scale_grid.png"),
+                "Bake time (inject + propagate) vs grid cells, 2 lights",
+                "cells",
+                "bake time (ms)",
+                &group(records, |r| is(r, "grid").then(|| "bake".to_string()), |r| (num(r, "cells"), stage(r, "inject") + stage(r, "propagate"))),
+            )?;
+            loglog(
+                &dir.join("scale_lights.png"),
+                "Propagation time vs lights",
+                "lights",
+                "propagation time (ms)",
+                &group(records, |r| is(r, "lights").then(|| format!("{}³", num(r, "resolution"))), |r| (num(r, "lights"), stage(r, "propagate"))),
+            )?;
+            let mut mem = group(records, |r| is(r, "grid").then(|| "GPU resources, peak".to_string()), |r| (num(r, "cells"), num(r, "gpu_peak_bytes") / 1048576.0));
+            mem.extend(group(records, |r| is(r, "grid").then(|| "process RSS, peak".to_string()), |r| (num(r, "cells"), num(r, "rss_peak_bytes") / 1048576.0)));
+            loglog(&dir.join("scale_memory.png"), "Peak memory vs grid cells, 2 lights", "cells", "MiB", &mem)
+        }
         Suite::Scaling => {
             let res_records: Vec<Value> = records
                 .iter()

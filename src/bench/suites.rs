@@ -20,14 +20,17 @@ pub enum Suite {
     March,
     Sun,
     Scaling,
+    /// Time and memory growth up to a million particles, 256³–384³ grids and 16 lights
+    /// (see `scale`; run on request only: it takes long on software adapters).
+    Scale,
     /// The editor under scripted input (not part of the default run: it needs the editor's
     /// frame loop and takes about a minute per quality mode).
     Interaction,
 }
 
 pub struct Context {
-    gpu: FogPipeline,
-    quick: bool,
+    pub(super) gpu: FogPipeline,
+    pub(super) quick: bool,
     resolutions: Vec<u32>,
 }
 
@@ -37,7 +40,7 @@ impl Context {
     }
 
     /// Bakes and renders `project` from scratch.
-    fn full(&mut self, project: &Project, width: u32, height: u32) -> Result<FrameReport, BenchError> {
+    pub(super) fn full(&mut self, project: &Project, width: u32, height: u32) -> Result<FrameReport, BenchError> {
         let request = FrameRequest { width, height, scheme: project.propagation.scheme, force: true };
         Ok(self.gpu.update(project, &request)?)
     }
@@ -58,6 +61,7 @@ pub fn run(suite: Suite, ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn 
             Ok(())
         }
         Suite::Scaling => scaling(ctx, out, log),
+        Suite::Scale => super::scale::run(ctx, out, log),
         Suite::Interaction => {
             use crate::editor::app::Quality;
             // Blocking (every frame renders to convergence) is the editor before the frame budget.
@@ -304,7 +308,7 @@ fn dynamic_and_static(ctx: &mut Context, p: &Project, w: u32, h: u32) -> Result<
 }
 
 /// Least-squares slope of log(y) against log(x).
-fn loglog_slope(points: &[(f64, f64)]) -> f64 {
+pub(super) fn loglog_slope(points: &[(f64, f64)]) -> f64 {
     let pts: Vec<(f64, f64)> = points.iter().filter(|(x, y)| *x > 0.0 && *y > 0.0).map(|(x, y)| (x.ln(), y.ln())).collect();
     let n = pts.len() as f64;
     if n < 2.0 {

@@ -108,8 +108,11 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
-    /// Print the GPU adapter Fogsmith would use and its limits.
+    /// Print the GPU adapter Fogsmith would use, its limits and memory, and with a project
+    /// the GPU memory its baked resources use.
     Info {
+        /// A project (.ron) to bake, reporting the GPU memory its live resources use.
+        project: Option<PathBuf>,
         #[arg(long)]
         json: bool,
     },
@@ -213,7 +216,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
             crate::editor::run(cli.project, options)?;
             Ok(())
         }
-        Some(Command::Info { json }) => info(json),
+        Some(Command::Info { project, json }) => info(project.as_deref(), json),
         Some(Command::Verify { project, scheme, width, cells, json, quiet }) => verify::run(&project, scheme, width, cells, json, quiet),
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
@@ -255,9 +258,25 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
     }
 }
 
-fn info(json: bool) -> Result<(), Box<dyn std::error::Error>> {
+fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Error>> {
     let ctx = GpuContext::new_headless()?;
-    let l = &ctx.limits;
+    let l = ctx.limits.clone();
+    let opv = crate::gpu::OpvLayout::for_limits(&l);
+    let device_memory = ctx.memory_bytes();
+    // The GPU memory of a freshly created pipeline, or of one that baked `project`.
+    let baked = match project {
+        Some(path) => {
+            let args = BakeArgs { project: path.to_path_buf(), width: None, height: None, scheme: None, quiet: true };
+            let b = bake(&args)?;
+            Some((b.pipeline.memory_bytes(), b.pipeline.peak_memory_bytes()))
+        }
+        None => None,
+    };
+    let live = match baked {
+        Some((live, _)) => live,
+        None => crate::gpu::FogPipeline::new(ctx.clone()).memory_bytes(),
+    };
+    let human = crate::gpu::human_bytes;
     if json {
         let v = serde_json::json!({
             "adapter": ctx.adapter_info.name,
@@ -271,7 +290,15 @@ fn info(json: bool) -> Result<(), Box<dyn std::error::Error>> {
                 "max_texture_dimension_2d": l.max_texture_dimension_2d,
                 "max_storage_buffer_binding_size": l.max_storage_buffer_binding_size,
                 "max_buffer_size": l.max_buffer_size,
-            }
+                "max_storage_buffers_per_shader_stage": l.max_storage_buffers_per_shader_stage,
+            },
+            "device_memory_bytes": device_memory,
+            "opv_segments": opv.segments,
+            "opv_segment_bytes": opv.segment as u64 * 4,
+            "opv_capacity_bytes": opv.capacity_bytes(),
+            "project": project,
+            "gpu_memory_bytes": live,
+            "gpu_memory_peak_bytes": baked.map(|b| b.1),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
@@ -282,6 +309,23 @@ fn info(json: bool) -> Result<(), Box<dyn std::error::Error>> {
         println!("max 2D texture edge: {}", l.max_texture_dimension_2d);
         println!("max storage buffer binding: {} bytes", l.max_storage_buffer_binding_size);
         println!("max buffer: {} bytes", l.max_buffer_size);
+        println!("max storage buffers per shader stage: {}", l.max_storage_buffers_per_shader_stage);
+        match device_memory {
+            Some(m) => println!("device memory: {} (host RAM of a CPU adapter)", human(m)),
+            None => println!("device memory: not reported by the driver"),
+        }
+        println!(
+            "optical-depth storage: {} segments of {} ({} for all lights' volumes)",
+            opv.segments,
+            human(opv.segment as u64 * 4),
+            human(opv.capacity_bytes())
+        );
+        match (project, baked) {
+            (Some(p), Some((live, peak))) => {
+                println!("GPU memory of {} baked: {} live, {} at peak", p.display(), human(live), human(peak))
+            }
+            _ => println!("GPU memory of the pipeline with no scene: {}", human(live)),
+        }
     }
     Ok(())
 }
@@ -304,6 +348,8 @@ fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std:
             "timing_source": if report.gpu_timestamps { "gpu_timestamps" } else { "wall_clock" },
             "counters": report.counters,
             "adapter": adapter,
+            "gpu_memory_bytes": pipeline.memory_bytes(),
+            "gpu_memory_peak_bytes": pipeline.peak_memory_bytes(),
         });
         println!("{}", serde_json::to_string(&v)?);
     } else {

@@ -424,13 +424,26 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 }
             }
             if let Some(t) = changed {
-                state.session.edit(t).grid.resolution = glam::UVec3::from_array(r);
+                // A resolution the device cannot hold is not applied: the warning below says why.
+                let new = crate::scene::GridSpec { resolution: glam::UVec3::from_array(r), ..g };
+                let refused = grid_fit_warning(state, &new, state.session.project().lights.len());
+                ui.data_mut(|d| d.insert_temp(egui::Id::new("grid-refused"), refused.clone()));
+                if refused.is_none() {
+                    state.session.edit(t).grid.resolution = new.resolution;
+                }
             }
         });
-        let lights = state.session.project().lights.len().max(1) as u64;
-        let bytes = g.cell_count() * 4 * (1 + 2 * lights);
-        ui.label(format!("≈ {:.1} MiB on the GPU ({} cells; EV + 2 OPV buffers × {lights} lights)", bytes as f64 / (1 << 20) as f64, g.cell_count()))
-            .on_hover_text("Extinction volume plus double-buffered optical-depth volumes, 4 bytes per cell");
+        let lights = state.session.project().lights.len();
+        let bytes = state.gpu.as_ref().map_or(0, |gpu| {
+            let req = crate::gpu::FrameRequest::for_project(state.session.project());
+            gpu.pipeline.memory_needed(&g, lights, state.session.project().particles.len(), req.width, req.height)
+        });
+        ui.label(format!("≈ {} on the GPU ({} cells, {lights} lights)", crate::gpu::human_bytes(bytes), g.cell_count()))
+            .on_hover_text("Extinction volume, optical-depth volumes and their scratch twins, injection lists and image targets");
+        let refused: Option<String> = ui.data(|d| d.get_temp(egui::Id::new("grid-refused"))).flatten();
+        if let Some(w) = refused.or_else(|| grid_fit_warning(state, &g, lights + 1).map(|w| format!("Adding a light: {w}"))) {
+            ui.colored_label(Color32::from_rgb(230, 160, 60), w);
+        }
     });
     egui::CollapsingHeader::new("Render").default_open(true).show(ui, |ui| {
         let r = state.session.project().render;
@@ -568,6 +581,22 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
     }
 }
 
+/// Why a scene of grid `grid` with `lights` lights would not fit the GPU, naming the
+/// largest resolution of the same proportions that would; None when it fits.
+fn grid_fit_warning(state: &EditorState, grid: &crate::scene::GridSpec, lights: usize) -> Option<String> {
+    let gpu = state.gpu.as_ref()?;
+    let project = state.session.project();
+    let req = crate::gpu::FrameRequest::for_project(project);
+    let particles = project.particles.len();
+    let err = gpu.pipeline.check_sizes(grid, lights, particles, req.width, req.height).err()?;
+    let r = grid.resolution;
+    let largest = gpu.pipeline.largest_fitting_grid(grid, lights, particles, req.width, req.height);
+    Some(match largest {
+        Some(m) => format!("{}×{}×{} with {lights} lights would not fit ({err}); the largest that fits is {}×{}×{}", r.x, r.y, r.z, m.x, m.y, m.z),
+        None => format!("{}×{}×{} with {lights} lights would not fit: {err}", r.x, r.y, r.z),
+    })
+}
+
 // ---------------------------------------------------------------- Stats
 
 pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
@@ -586,7 +615,12 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
         "Timestamp queries: {}",
         if ctx.supports_timestamps() { "available" } else { "not available (wall times)" }
     ));
-    ui.label(format!("GPU memory (scene): {:.1} MiB", gpu.pipeline.memory_bytes() as f64 / (1 << 20) as f64));
+    ui.label(format!(
+        "GPU memory (scene): {} live, {} at peak",
+        crate::gpu::human_bytes(gpu.pipeline.memory_bytes()),
+        crate::gpu::human_bytes(gpu.pipeline.peak_memory_bytes())
+    ))
+    .on_hover_text("GPU buffers and textures the pipeline holds now, and the most it has held");
     ui.separator();
     ui.label("Last update that ran a stage");
     let r = gpu.report;

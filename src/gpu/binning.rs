@@ -4,8 +4,9 @@
 //! injection shader evaluates only particle–cell pairs that can contribute: cost grows with
 //! overlaps, not particles × cells. The bin edge (2, 4 or 8 cells) is chosen per scene to
 //! minimise the evaluations Σ overlaps × bin volume: small bins for many small particles,
-//! large ones for few big ones. The lists are a CSR pair (offsets, items). Work is still
-//! dispatched, and edits tracked, in 8³ bricks.
+//! large ones for few big ones, and no smaller than memory allows. The lists are a CSR pair
+//! (offsets, items) built for one chunk of 8³ bricks at a time, so a chunk's lists fit a
+//! storage binding whatever the scene. Work is dispatched, and edits tracked, in bricks.
 
 use crate::scene::{GridSpec, Particle};
 use glam::{UVec3, Vec3};
@@ -64,62 +65,141 @@ pub fn for_each_brick(dims: UVec3, (lo, hi): (UVec3, UVec3), mut f: impl FnMut(u
     }
 }
 
-/// Particle–bin overlaps [`bin_particles`] would list, counted without allocating.
-pub fn overlap_count(grid: &GridSpec, particles: &[Particle]) -> u64 {
-    let bin = chosen_bin(grid, particles);
-    particles
-        .iter()
-        .filter_map(|p| bin_range(grid, p, bin))
-        .map(|(lo, hi)| (hi - lo + UVec3::ONE).as_u64vec3().element_product())
-        .sum()
-}
-
-/// An upper bound on [`overlap_count`] and on [`bin_all`]'s list: every particle in every
-/// bin of the smallest size.
-pub fn overlap_bound(grid: &GridSpec, particles: usize) -> u64 {
-    particles as u64 * bin_dims(grid, 2).as_u64vec3().element_product()
-}
-
-pub struct Bins {
+/// Particle counts per bin for one bin edge: the histogram the injection cuts its chunks
+/// from. The lists themselves are built one chunk of bricks at a time ([`BinCounts::fill`]),
+/// so memory is bounded by the chunk, not by the scene.
+pub struct BinCounts {
     /// Edge of a bin in cells.
     pub bin_size: u32,
-    pub offsets: Vec<u32>,
-    pub items: Vec<u32>,
+    dims: UVec3,
+    counts: Vec<u32>,
+    /// Every visible particle in every bin (the brute-force injection).
+    brute_force: bool,
 }
 
-impl Bins {
-    /// Particle–cell evaluations injection performs in the given 8³ bricks: each cell reads
-    /// the whole list of its bin.
-    pub fn evaluations(&self, grid: &GridSpec, bricks: &[u32]) -> u64 {
-        let bdims = brick_dims(grid);
-        let ndims = bin_dims(grid, self.bin_size);
-        let per_brick = BRICK / self.bin_size;
-        let mut total = 0u64;
+/// One chunk's lists, a CSR pair over all bins of the grid (bins outside the chunk are
+/// empty). `items` index `particles`, the chunk's particles by ascending scene index, so each
+/// cell sums its particles in scene order whatever the chunking.
+pub struct ChunkBins {
+    pub offsets: Vec<u32>,
+    pub items: Vec<u32>,
+    pub particles: Vec<u32>,
+}
+
+fn visible(p: &Particle) -> bool {
+    !p.hidden && p.density > 0.0
+}
+
+impl BinCounts {
+    /// Counts the bins of edge `bin`; with `brute_force` every visible particle is listed in
+    /// every bin (of edge [`BRICK`]).
+    pub fn new(grid: &GridSpec, particles: &[Particle], bin: u32, brute_force: bool) -> Self {
+        let bin = if brute_force { BRICK } else { bin };
+        let dims = bin_dims(grid, bin);
+        let n = dims.as_u64vec3().element_product() as usize;
+        let mut counts = vec![0u32; n];
+        if brute_force {
+            let v = particles.iter().filter(|p| visible(p)).count() as u32;
+            counts.iter_mut().for_each(|c| *c = v);
+        } else {
+            for range in particles.iter().filter_map(|p| bin_range(grid, p, bin)) {
+                for_each_brick(dims, range, |b| counts[b] += 1);
+            }
+        }
+        Self { bin_size: bin, dims, counts, brute_force }
+    }
+
+    fn range(&self, grid: &GridSpec, p: &Particle) -> Option<(UVec3, UVec3)> {
+        if self.brute_force {
+            visible(p).then_some((UVec3::ZERO, self.dims - 1))
+        } else {
+            bin_range(grid, p, self.bin_size)
+        }
+    }
+
+    fn coords(&self, n: usize) -> UVec3 {
+        let n = n as u32;
+        UVec3::new(n % self.dims.x, (n / self.dims.x) % self.dims.y, n / (self.dims.x * self.dims.y))
+    }
+
+    /// The 8³ brick holding bin `n`.
+    fn brick_of(&self, grid: &GridSpec, n: usize) -> usize {
+        let b = self.coords(n) * self.bin_size / BRICK;
+        let bd = brick_dims(grid);
+        (b.x + bd.x * (b.y + bd.y * b.z)) as usize
+    }
+
+    /// Per 8³ brick: list entries and particle–cell evaluations (each cell reads its bin's
+    /// whole list).
+    pub fn per_brick(&self, grid: &GridSpec) -> (Vec<u64>, Vec<u64>) {
+        let bricks = brick_dims(grid).as_u64vec3().element_product() as usize;
+        let (mut items, mut evals) = (vec![0u64; bricks], vec![0u64; bricks]);
+        for (n, &count) in self.counts.iter().enumerate() {
+            let b = self.brick_of(grid, n);
+            let start = self.coords(n) * self.bin_size;
+            let cells = ((start + self.bin_size).min(grid.resolution) - start).as_u64vec3().element_product();
+            items[b] += count as u64;
+            evals[b] += count as u64 * cells;
+        }
+        (items, evals)
+    }
+
+    /// The lists of the bins inside `bricks` (linear 8³-brick indices).
+    pub fn fill(&self, grid: &GridSpec, particles: &[Particle], bricks: &[u32]) -> ChunkBins {
+        let bd = brick_dims(grid);
+        let mut in_chunk = vec![false; bd.as_u64vec3().element_product() as usize];
+        let (mut lo, mut hi) = (UVec3::MAX, UVec3::ZERO);
         for &b in bricks {
-            let b = UVec3::new(b % bdims.x, (b / bdims.x) % bdims.y, b / (bdims.x * bdims.y));
-            let lo = b * per_brick;
-            let hi = (lo + per_brick).min(ndims) - 1;
-            for_each_brick(ndims, (lo, hi), |n| {
-                let cells = {
-                    let c = UVec3::new(n as u32 % ndims.x, (n as u32 / ndims.x) % ndims.y, n as u32 / (ndims.x * ndims.y));
-                    let start = c * self.bin_size;
-                    ((start + self.bin_size).min(grid.resolution) - start).as_u64vec3().element_product()
-                };
-                total += (self.offsets[n + 1] - self.offsets[n]) as u64 * cells;
+            in_chunk[b as usize] = true;
+            let c = UVec3::new(b % bd.x, (b / bd.x) % bd.y, b / (bd.x * bd.y));
+            lo = lo.min(c);
+            hi = hi.max(c);
+        }
+        let mut offsets = vec![0u32; self.counts.len() + 1];
+        let mut bin_in = vec![false; self.counts.len()];
+        for n in 0..self.counts.len() {
+            bin_in[n] = in_chunk[self.brick_of(grid, n)];
+            offsets[n + 1] = offsets[n] + if bin_in[n] { self.counts[n] } else { 0 };
+        }
+        let mut items = vec![0u32; *offsets.last().unwrap_or(&0) as usize];
+        let mut chunk_particles = Vec::new();
+        if bricks.is_empty() {
+            return ChunkBins { offsets, items, particles: chunk_particles };
+        }
+        // The chunk's bounding box in bins.
+        let per = BRICK / self.bin_size;
+        let (blo, bhi) = (lo * per, ((hi + 1) * per).min(self.dims) - 1);
+        let mut cursor = offsets.clone();
+        for (pi, p) in particles.iter().enumerate() {
+            let Some((plo, phi)) = self.range(grid, p) else { continue };
+            let (plo, phi) = (plo.max(blo), phi.min(bhi));
+            if plo.cmpgt(phi).any() {
+                continue;
+            }
+            let mut index = None;
+            for_each_brick(self.dims, (plo, phi), |n| {
+                if bin_in[n] {
+                    let k = *index.get_or_insert_with(|| {
+                        chunk_particles.push(pi as u32);
+                        chunk_particles.len() as u32 - 1
+                    });
+                    items[cursor[n] as usize] = k;
+                    cursor[n] += 1;
+                }
             });
         }
-        total
+        ChunkBins { offsets, items, particles: chunk_particles }
     }
 }
 
-/// Bins visible particles (indices into `particles`), with the bin edge that minimises the
-/// particle–cell evaluations.
-pub fn bin_particles(grid: &GridSpec, particles: &[Particle]) -> Bins {
-    bin_with(grid, particles, chosen_bin(grid, particles))
-}
-
-/// The bin edge [`bin_particles`] uses: the one of 2, 4, 8 cells with the fewest evaluations.
-pub fn chosen_bin(grid: &GridSpec, particles: &[Particle]) -> u32 {
+/// The bin edge for `particles` and its counts: of 2, 4 and 8 cells, the one with the fewest
+/// particle–cell evaluations whose fullest 8³ brick lists at most `max_brick_items` entries
+/// (a brick is the smallest chunk the injection uploads). Larger bins list each particle
+/// fewer times, so memory pushes the choice up and evaluations push it down.
+pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64, brute_force: bool) -> BinCounts {
+    if brute_force {
+        return BinCounts::new(grid, particles, BRICK, true);
+    }
     let cost = |bin: u32| -> u64 {
         particles
             .iter()
@@ -127,31 +207,18 @@ pub fn chosen_bin(grid: &GridSpec, particles: &[Particle]) -> u32 {
             .map(|(lo, hi)| ((hi - lo + 1).as_u64vec3().element_product()) * (bin as u64).pow(3))
             .sum()
     };
-    [2, 4, 8].into_iter().min_by_key(|&b| cost(b)).unwrap_or(BRICK)
-}
-
-fn bin_with(grid: &GridSpec, particles: &[Particle], bin: u32) -> Bins {
-    let dims = bin_dims(grid, bin);
-    let count = (dims.x * dims.y * dims.z) as usize;
-    let ranges: Vec<Option<(UVec3, UVec3)>> = particles.iter().map(|p| bin_range(grid, p, bin)).collect();
-    let mut offsets = vec![0u32; count + 1];
-    for range in ranges.iter().flatten() {
-        for_each_brick(dims, *range, |b| offsets[b + 1] += 1);
-    }
-    for i in 1..offsets.len() {
-        offsets[i] += offsets[i - 1];
-    }
-    let mut cursor = offsets.clone();
-    let mut items = vec![0u32; offsets[count] as usize];
-    for (pi, range) in ranges.iter().enumerate() {
-        if let Some(range) = range {
-            for_each_brick(dims, *range, |b| {
-                items[cursor[b] as usize] = pi as u32;
-                cursor[b] += 1;
-            });
+    let mut order = [2u32, 4, 8];
+    order.sort_by_key(|&b| cost(b));
+    let mut counts = None;
+    for bin in order {
+        let c = BinCounts::new(grid, particles, bin, false);
+        let fits = c.per_brick(grid).0.iter().all(|&n| n <= max_brick_items);
+        counts = Some(c);
+        if fits {
+            break;
         }
     }
-    Bins { bin_size: bin, offsets, items }
+    counts.expect("three candidate bin edges")
 }
 
 /// Bricks whose EV changes when the particle list goes from `old` to `new`: those overlapped
@@ -198,16 +265,4 @@ pub fn dirty_bricks(grid: &GridSpec, old: &[Particle], new: &[Particle]) -> Vec<
         }
     }
     dirty.iter().enumerate().filter(|(_, d)| **d).map(|(i, _)| i as u32).collect()
-}
-
-/// Every brick lists every visible particle: the brute-force injection the binning replaces,
-/// kept to measure what binning saves.
-pub fn bin_all(grid: &GridSpec, particles: &[Particle]) -> Bins {
-    let dims = brick_dims(grid);
-    let bricks = (dims.x * dims.y * dims.z) as usize;
-    let visible: Vec<u32> =
-        particles.iter().enumerate().filter(|(_, p)| !p.hidden && p.density > 0.0).map(|(i, _)| i as u32).collect();
-    let offsets = (0..=bricks).map(|b| (b * visible.len()) as u32).collect();
-    let items = (0..bricks).flat_map(|_| visible.iter().copied()).collect();
-    Bins { bin_size: BRICK, offsets, items }
 }

@@ -68,6 +68,19 @@ impl GpuContext {
         self.features.contains(wgpu::Features::TIMESTAMP_QUERY)
     }
 
+    /// The device's memory in bytes, where known: a CPU adapter (software rasteriser) uses
+    /// the host's RAM. wgpu does not report the memory of GPUs; there allocation failures
+    /// are the limit.
+    pub fn memory_bytes(&self) -> Option<u64> {
+        if self.adapter_info.device_type != wgpu::DeviceType::Cpu {
+            return None;
+        }
+        let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+        let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib * 1024)
+    }
+
     /// Largest grid edge the adapter can hold as a 3D texture.
     pub fn max_grid_edge(&self) -> u32 {
         self.limits.max_texture_dimension_3d

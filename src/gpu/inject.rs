@@ -1,11 +1,18 @@
 //! The injection stage: particles (binned on the CPU, see `binning`) and the base fog and
-//! layer into the extinction volume (`shaders/inject.wgsl`), in chunks of 8³ bricks, then the
-//! brick occupancy the march skips empty space with (`shaders/occupancy.wgsl`).
+//! layer into the extinction volume (`shaders/inject.wgsl`), then the brick occupancy the
+//! march skips empty space with (`shaders/occupancy.wgsl`).
+//!
+//! The dirty 8³ bricks are cut into memory chunks whose particle–bin lists fit the chunk
+//! limit (at most one storage binding); each chunk's lists and particles are built and
+//! uploaded when the injection reaches it. Every cell is written once, by the chunk holding
+//! its brick, summing its particles in scene order, so the EV is the same bit for bit
+//! whatever the chunking. Within a chunk, work is further sliced to fit a frame budget.
 //!
 //! [`Injector`] is long-lived: it owns both pipelines, their layouts and the particle and
-//! bin buffers, which it reuses across updates and grows only when a scene outgrows them.
+//! bin buffers, which it reuses across updates and grows only when a chunk outgrows them.
 
-use super::binning::{self, Bins};
+use super::binning::{self, BinCounts};
+use crate::scene::Particle;
 use super::gpu_types::ParticleGpu;
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
 use super::{Counters, GpuContext};
@@ -25,7 +32,17 @@ pub struct InjectInputs<'a> {
 pub struct InjectJob {
     pub bricks: Vec<u32>,
     pub next: usize,
-    bins: Bins,
+    particles: Vec<Particle>,
+    gpu_particles: Vec<ParticleGpu>,
+    counts: BinCounts,
+    /// Particle–cell evaluations of each entry of `bricks`.
+    evaluations: Vec<u64>,
+    /// End (into `bricks`) of each memory chunk, ascending; the last is `bricks.len()`.
+    chunk_ends: Vec<usize>,
+    /// The chunk whose lists are on the GPU.
+    uploaded: Option<usize>,
+    /// Largest list and particle buffers a chunk used, in bytes.
+    pub peak_chunk_bytes: u64,
     occupancy_done: bool,
 }
 
@@ -58,10 +75,13 @@ pub struct Injector {
     no_layer: wgpu::Buffer,
 }
 
-/// Writes `bytes` into `buf`, replacing it by a larger one (1.5× headroom) when it is too small.
+/// Writes `bytes` into `buf`, replacing it by a larger one when it is too small (1.5×
+/// headroom, within one storage binding).
 fn upload(ctx: &GpuContext, buf: &mut wgpu::Buffer, label: &str, bytes: &[u8]) {
     if bytes.len() as u64 > buf.size() {
-        let size = (bytes.len() as u64 * 3 / 2).next_multiple_of(256);
+        let binding = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+        let len = (bytes.len() as u64).next_multiple_of(4);
+        let size = (len * 3 / 2).next_multiple_of(256).min(binding / 4 * 4).max(len);
         *buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
@@ -107,13 +127,59 @@ impl Injector {
         }
     }
 
-    /// Uploads particles, bins and the dirty-brick list of one injection.
-    pub fn begin(&mut self, ctx: &GpuContext, particles: &[ParticleGpu], bins: Bins, bricks: Vec<u32>) -> InjectJob {
-        upload(ctx, &mut self.particles, "particles", bytemuck::cast_slice(particles));
-        upload(ctx, &mut self.offsets, "bin offsets", bytemuck::cast_slice(&bins.offsets));
-        upload(ctx, &mut self.items, "bin items", bytemuck::cast_slice(&bins.items));
-        upload(ctx, &mut self.bricks, "dirty bricks", bytemuck::cast_slice(&bricks));
-        InjectJob { bricks, next: 0, bins, occupancy_done: false }
+    /// Plans one injection of `bricks`: cuts them into chunks whose lists hold at most
+    /// `max_items` entries (a brick with more forms a chunk alone). Nothing is uploaded yet.
+    pub fn begin(
+        grid: &GridSpec,
+        particles: Vec<Particle>,
+        gpu_particles: Vec<ParticleGpu>,
+        counts: BinCounts,
+        bricks: Vec<u32>,
+        max_items: u64,
+    ) -> InjectJob {
+        let (items, evals) = counts.per_brick(grid);
+        let mut chunk_ends = Vec::new();
+        let mut acc = 0u64;
+        for (i, &b) in bricks.iter().enumerate() {
+            let n = items[b as usize];
+            if i > 0 && acc + n > max_items {
+                chunk_ends.push(i);
+                acc = 0;
+            }
+            acc += n;
+        }
+        chunk_ends.push(bricks.len());
+        let evaluations = bricks.iter().map(|&b| evals[b as usize]).collect();
+        InjectJob {
+            bricks,
+            next: 0,
+            particles,
+            gpu_particles,
+            counts,
+            evaluations,
+            chunk_ends,
+            uploaded: None,
+            peak_chunk_bytes: 0,
+            occupancy_done: false,
+        }
+    }
+
+    /// Builds and uploads the lists of chunk `c`, unless they are on the GPU already.
+    fn upload_chunk(&mut self, ctx: &GpuContext, grid: &GridSpec, job: &mut InjectJob, c: usize) {
+        if job.uploaded == Some(c) {
+            return;
+        }
+        let start = if c == 0 { 0 } else { job.chunk_ends[c - 1] };
+        let bricks = &job.bricks[start..job.chunk_ends[c]];
+        let lists = job.counts.fill(grid, &job.particles, bricks);
+        let particles: Vec<ParticleGpu> = lists.particles.iter().map(|&i| job.gpu_particles[i as usize]).collect();
+        upload(ctx, &mut self.particles, "particles", bytemuck::cast_slice(&particles));
+        upload(ctx, &mut self.offsets, "bin offsets", bytemuck::cast_slice(&lists.offsets));
+        upload(ctx, &mut self.items, "bin items", bytemuck::cast_slice(&lists.items));
+        upload(ctx, &mut self.bricks, "dirty bricks", bytemuck::cast_slice(bricks));
+        let bytes = (std::mem::size_of_val(&particles[..]) + lists.items.len() * 4 + lists.offsets.len() * 4) as u64;
+        job.peak_chunk_bytes = job.peak_chunk_bytes.max(bytes);
+        job.uploaded = Some(c);
     }
 
     /// Smallest chunk of bricks: a storage binding's offset alignment, in bricks.
@@ -122,16 +188,17 @@ impl Injector {
     }
 
     /// Particle evaluations plus cells of the next `count` bricks: the unit of their cost.
-    pub fn units(job: &InjectJob, grid: &GridSpec, count: usize) -> u64 {
+    pub fn units(job: &InjectJob, _grid: &GridSpec, count: usize) -> u64 {
         let end = (job.next + count).min(job.bricks.len());
-        let bricks = &job.bricks[job.next..end];
-        job.bins.evaluations(grid, bricks) + bricks.len() as u64 * (binning::BRICK as u64).pow(3)
+        job.evaluations[job.next..end].iter().sum::<u64>() + (end - job.next) as u64 * (binning::BRICK as u64).pow(3)
     }
 
-    /// Encodes the next `count` bricks (rounded up to the chunk alignment), or the occupancy
-    /// pass once every brick is in.
+    /// Encodes the next `count` bricks (rounded up to the binding alignment, and never past
+    /// the end of the current memory chunk, whose lists it uploads first), or the occupancy
+    /// pass once every brick is in. The caller submits before the next call, since a call
+    /// may overwrite the lists the previous one read.
     pub fn encode_next(
-        &self,
+        &mut self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         job: &mut InjectJob,
@@ -141,15 +208,21 @@ impl Injector {
         counters: &mut Counters,
     ) {
         let device = &ctx.device;
+        let chunk = job.chunk_ends.partition_point(|&e| e <= job.next);
+        if job.next < job.bricks.len() && job.uploaded != Some(chunk) {
+            self.upload_chunk(ctx, inputs.grid, job, chunk);
+            counters.inject_chunks += 1;
+        }
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: timestamps });
         if job.next < job.bricks.len() {
+            let start = if chunk == 0 { 0 } else { job.chunk_ends[chunk - 1] };
             let align = Self::chunk_align(ctx);
             let max = (ctx.limits.max_compute_workgroups_per_dimension as usize / align).max(1) * align;
             let count = count.max(1).next_multiple_of(align).min(max);
-            let end = (job.next + count).min(job.bricks.len());
+            let end = (job.next + count).min(job.chunk_ends[chunk]);
             let slice = wgpu::BufferBinding {
                 buffer: &self.bricks,
-                offset: (job.next * 4) as u64,
+                offset: ((job.next - start) * 4) as u64,
                 size: wgpu::BufferSize::new((end - job.next) as u64 * 4),
             };
             let bg = bind_group(
@@ -171,7 +244,7 @@ impl Injector {
             pass.dispatch_workgroups((end - job.next) as u32, 2, 1);
             counters.dispatches += 1;
             counters.cells_injected += job.bricks[job.next..end].iter().map(|&b| brick_cells(inputs.grid, b)).sum::<u64>();
-            counters.particle_evaluations += job.bins.evaluations(inputs.grid, &job.bricks[job.next..end]);
+            counters.particle_evaluations += job.evaluations[job.next..end].iter().sum::<u64>();
             job.next = end;
         }
         if job.next >= job.bricks.len() {

@@ -18,7 +18,17 @@ pub enum Slot {
 }
 
 pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> wgpu::BindGroupLayout {
-    let entries: Vec<BindGroupLayoutEntry> = slots
+    bind_group_layout_with(device, label, slots, Vec::new())
+}
+
+/// [`bind_group_layout`] plus `extra` entries at their own binding numbers.
+pub fn bind_group_layout_with(
+    device: &wgpu::Device,
+    label: &str,
+    slots: &[Slot],
+    extra: Vec<BindGroupLayoutEntry>,
+) -> wgpu::BindGroupLayout {
+    let mut entries: Vec<BindGroupLayoutEntry> = slots
         .iter()
         .enumerate()
         .map(|(i, slot)| BindGroupLayoutEntry {
@@ -64,6 +74,7 @@ pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> 
             count: None,
         })
         .collect();
+    entries.extend(extra);
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
 }
 
@@ -139,10 +150,22 @@ pub fn bind_group(
     layout: &wgpu::BindGroupLayout,
     resources: &[wgpu::BindingResource<'_>],
 ) -> wgpu::BindGroup {
-    let entries: Vec<wgpu::BindGroupEntry> = resources
+    bind_group_with(device, label, layout, resources, Vec::new())
+}
+
+/// [`bind_group`] plus `extra` entries at their own binding numbers.
+pub fn bind_group_with(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: &[wgpu::BindingResource<'_>],
+    extra: Vec<wgpu::BindGroupEntry<'_>>,
+) -> wgpu::BindGroup {
+    let mut entries: Vec<wgpu::BindGroupEntry> = resources
         .iter()
         .enumerate()
         .map(|(i, r)| wgpu::BindGroupEntry { binding: i as u32, resource: r.clone() })
         .collect();
+    entries.extend(extra);
     device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
 }

@@ -5,7 +5,8 @@
 //! counters; the per-march inputs (grid, EV, lights, OPVs, occupancy) are passed explicitly.
 
 use super::gpu_types::{MarchParams, SurfaceGpu};
-use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
+use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
+use super::opv_store::{OpvBuffers, OpvLayout, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
 use crate::sun_table::{FTable, GPU_TABLE_SIZE};
@@ -59,7 +60,7 @@ pub struct MarchInputs<'a> {
     pub grid_buf: &'a wgpu::Buffer,
     pub ev_view: &'a wgpu::TextureView,
     pub lights_buf: &'a wgpu::Buffer,
-    pub opv: &'a wgpu::Buffer,
+    pub opv: &'a OpvBuffers,
     pub brick_max: &'a wgpu::Buffer,
     pub surfaces: &'a [SurfaceGpu],
     pub params: MarchParams,
@@ -91,8 +92,8 @@ pub struct Marcher {
 }
 
 impl Marcher {
-    pub fn new(device: &wgpu::Device) -> Self {
-        let layout = bind_group_layout(
+    pub fn new(device: &wgpu::Device, opv: OpvLayout) -> Self {
+        let layout = bind_group_layout_with(
             device,
             "march",
             &[
@@ -108,11 +109,13 @@ impl Marcher {
                 Slot::StorageRead,
                 Slot::StorageRead,
             ],
+            opv.layout_entries(EXTRA_BINDING, true),
         );
+        let opv_read = opv.wgsl("opv", 4, EXTRA_BINDING, false);
         let pipeline = compute_pipeline(
             device,
             "march",
-            &[include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
+            &[&opv_read, include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
             &layout,
         );
         let sun = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
@@ -132,7 +135,7 @@ impl Marcher {
             ctx.queue.write_buffer(&self.surfaces_buf, 0, bytes);
         }
         ctx.queue.write_buffer(&self.counters_buf, 0, &[0u8; 16]);
-        let bind_group = bind_group(
+        let bind_group = bind_group_with(
             device,
             "march",
             &self.layout,
@@ -141,7 +144,7 @@ impl Marcher {
                 target.params_buf.as_entire_binding(),
                 wgpu::BindingResource::TextureView(inputs.ev_view),
                 inputs.lights_buf.as_entire_binding(),
-                inputs.opv.as_entire_binding(),
+                inputs.opv.first(),
                 wgpu::BindingResource::TextureView(&target.hdr_view),
                 wgpu::BindingResource::TextureView(&target.ldr_view),
                 self.counters_buf.as_entire_binding(),
@@ -149,6 +152,7 @@ impl Marcher {
                 self.surfaces_buf.as_entire_binding(),
                 self.sun_table.as_entire_binding(),
             ],
+            inputs.opv.extra_entries(EXTRA_BINDING),
         );
         MarchJob { bind_group, params: inputs.params, next_row: 0 }
     }

@@ -9,12 +9,13 @@
 //! catch up over the following calls, and the full image replaces the quick one only once it
 //! is complete. [`update`](FogPipeline::update) runs the same items to completion.
 
-use super::binning::{self, bin_particles};
+use super::binning;
 use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
+use super::opv_store::{OpvBuffers, OpvLayout};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::propagate::{PropagationInputs, PropagationJob, Propagator};
-use super::readback::{read_buffer, read_texture};
+use super::readback::read_texture;
 use super::slice::{Plane, SliceInputs, SliceParams, SliceSource, Slicer};
 use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
@@ -60,6 +61,8 @@ pub struct Counters {
     pub cells_injected: u64,
     /// Particle–cell pairs injection evaluated (list lengths × cells of the bins it read).
     pub particle_evaluations: u64,
+    /// Memory chunks whose particle–bin lists injection built and uploaded.
+    pub inject_chunks: u32,
     pub cells_propagated: u64,
     pub lights_propagated: u32,
     /// Lights whose OPV was up to date, or that are hidden, dark or culled.
@@ -135,14 +138,15 @@ struct GridResources {
     ev: wgpu::Texture,
     ev_view: wgpu::TextureView,
     lights_buf: wgpu::Buffer,
-    opv: [wgpu::Buffer; 2],
+    /// The OPVs and the schemes' scratch array of the same size (see `opv_store`).
+    opv: [OpvBuffers; 2],
     /// Largest σ_t seen by samples in each 8³ brick (see `shaders/occupancy.wgsl`).
     brick_max: wgpu::Buffer,
 }
 
 impl GridResources {
     fn bytes(&self) -> u64 {
-        self.spec.cell_count() * 4 + self.grid_buf.size() + self.lights_buf.size() + self.opv.iter().map(|b| b.size()).sum::<u64>() + self.brick_max.size()
+        self.spec.cell_count() * 4 + self.grid_buf.size() + self.lights_buf.size() + self.opv.iter().map(OpvBuffers::bytes).sum::<u64>() + self.brick_max.size()
     }
 }
 
@@ -289,6 +293,11 @@ pub struct FogPipeline {
     base_layer: Option<(Volume, wgpu::Buffer)>,
     base_layer_generation: u64,
     brute_force_injection: bool,
+    /// See [`FogPipeline::set_inject_chunk_bytes`].
+    inject_chunk_limit: Option<u64>,
+    opv_layout: OpvLayout,
+    /// See [`FogPipeline::peak_memory_bytes`].
+    peak_memory: std::sync::atomic::AtomicU64,
     /// Bin edge of the last injection's particle lists (see `binning`).
     bin_size: u32,
     volumes_generation: u64,
@@ -316,11 +325,18 @@ const QUICK_SHARE: f64 = 0.4;
 
 impl FogPipeline {
     pub fn new(ctx: GpuContext) -> Self {
+        let layout = OpvLayout::for_limits(&ctx.limits);
+        Self::with_opv_layout(ctx, layout)
+    }
+
+    /// A pipeline whose optical-depth arrays are segmented as `opv_layout` says; [`new`](Self::new)
+    /// uses the device's largest segments. Smaller ones let tests cross segment boundaries.
+    pub fn with_opv_layout(ctx: GpuContext, opv_layout: OpvLayout) -> Self {
         let device = &ctx.device;
         let injector = Injector::new(device);
-        let propagator = Propagator::new(device);
-        let marcher = Marcher::new(device);
-        let slicer = Slicer::new(device);
+        let propagator = Propagator::new(device, opv_layout);
+        let marcher = Marcher::new(device, opv_layout);
+        let slicer = Slicer::new(device, opv_layout);
         let timer = StageTimer::new(&ctx);
         Self {
             ctx,
@@ -340,6 +356,9 @@ impl FogPipeline {
             base_layer: None,
             base_layer_generation: 0,
             brute_force_injection: false,
+            inject_chunk_limit: None,
+            peak_memory: Default::default(),
+            opv_layout,
             bin_size: binning::BRICK,
             volumes_generation: 0,
         }
@@ -361,12 +380,59 @@ impl FogPipeline {
     }
 
     /// Refuses, before allocating anything, a scene larger than the adapter allows: grid edge
-    /// (3D texture), OPVs, particles, particle–bin lists and lights (one storage binding
-    /// each) and the image (2D texture and its readback buffer).
+    /// (3D texture), OPVs (segmented storage, see `opv_store`), particles and lights (one
+    /// storage binding each), the image (2D texture and its readback buffer), and the GPU
+    /// memory all of it needs together where the device's memory is known.
     pub fn check_limits(&self, project: &Project, width: u32, height: u32) -> Result<(), GpuError> {
+        self.check_sizes(&project.grid, project.lights.len(), project.particles.len(), width, height)
+    }
+
+    /// Peak GPU memory, in bytes, of the resources a scene of this size needs: EV, brick
+    /// maxima, the OPV array and its scratch twin, injection lists of one chunk and the
+    /// particles, both image targets and the image readback.
+    pub fn memory_needed(&self, grid: &GridSpec, lights: usize, particles: usize, width: u32, height: u32) -> u64 {
+        let cells = grid.cell_count();
+        let bricks = binning::brick_dims(grid).as_u64vec3().element_product();
+        let bins = (grid.resolution / 2 + 1).as_u64vec3().element_product();
+        let particle_bytes = particles as u64 * std::mem::size_of::<ParticleGpu>() as u64;
+        let lists = if particles == 0 { 0 } else { self.inject_chunk_bytes() + bins * 4 + particle_bytes };
+        let pixels = width as u64 * height as u64;
+        cells * 4 + bricks * 4 + 2 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
+    }
+
+    /// The largest grid, of the same proportions as `grid`, whose scene passes
+    /// [`check_limits`](Self::check_limits); None when even a 1-cell edge does not.
+    pub fn largest_fitting_grid(&self, grid: &GridSpec, lights: usize, particles: usize, width: u32, height: u32) -> Option<glam::UVec3> {
+        let edge = grid.resolution.max_element().max(1);
+        let scaled = |k: u32| {
+            let r = (grid.resolution.as_dvec3() * k as f64 / edge as f64).round().as_uvec3().max(glam::UVec3::ONE);
+            GridSpec { resolution: r, ..*grid }
+        };
+        let fits = |k: u32| self.check_sizes(&scaled(k), lights, particles, width, height).is_ok();
+        let (mut lo, mut hi) = (0u32, self.ctx.limits.max_texture_dimension_3d.max(edge));
+        if !fits(1) {
+            return None;
+        }
+        lo = lo.max(1);
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if fits(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        if fits(hi) {
+            lo = hi;
+        }
+        Some(scaled(lo).resolution)
+    }
+
+    /// [`check_limits`](Self::check_limits) for a scene described by its sizes alone.
+    pub fn check_sizes(&self, grid: &GridSpec, light_count: usize, particle_count: usize, width: u32, height: u32) -> Result<(), GpuError> {
         let limits = &self.ctx.limits;
         let adapter = self.ctx.adapter_info.name.clone();
-        let edge = project.grid.resolution.max_element();
+        let edge = grid.resolution.max_element();
         if edge > limits.max_texture_dimension_3d {
             return Err(GpuError::Limit {
                 what: format!("a {}³-edge grid", edge),
@@ -376,32 +442,47 @@ impl FogPipeline {
                 suggestion: "lower grid.resolution".into(),
             });
         }
-        let opv_bytes = project.grid.cell_count() * project.lights.len().max(1) as u64 * 4;
-        let opv_limit = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        let r = grid.resolution;
+        let opv_bytes = grid.cell_count() * light_count.max(1) as u64 * 4;
+        let opv_limit = self.opv_layout.capacity_bytes();
         if opv_bytes > opv_limit {
-            let per_light = project.grid.cell_count() * 4;
+            let per_light = grid.cell_count() * 4;
             return Err(GpuError::Limit {
-                what: format!(
-                    "the optical-depth volumes of {} lights on a {}×{}×{} grid",
-                    project.lights.len(),
-                    project.grid.resolution.x,
-                    project.grid.resolution.y,
-                    project.grid.resolution.z
-                ),
+                what: format!("the optical-depth volumes of {light_count} lights on a {}×{}×{} grid", r.x, r.y, r.z),
                 needed: opv_bytes,
                 limit: opv_limit,
-                adapter,
+                adapter: adapter.clone(),
                 suggestion: format!(
-                    "use at most {} lights at this resolution or lower grid.resolution",
+                    "the adapter gives a shader {} storage bindings of {} for them; use at most {} lights at this resolution or lower grid.resolution",
+                    self.opv_layout.segments,
+                    human_bytes(self.opv_layout.segment as u64 * 4),
                     opv_limit / per_light
                 ),
             });
         }
+        let needed = self.memory_needed(grid, light_count, particle_count, width, height);
+        if let Some(memory) = self.ctx.memory_bytes() {
+            if needed > memory {
+                return Err(GpuError::Limit {
+                    what: format!(
+                        "a {}×{}×{} grid with {light_count} lights, {particle_count} particles and a {width}×{height} image ({} of GPU memory)",
+                        r.x,
+                        r.y,
+                        r.z,
+                        human_bytes(needed)
+                    ),
+                    needed,
+                    limit: memory,
+                    adapter,
+                    suggestion: format!("the device has {}; lower grid.resolution or use fewer lights", human_bytes(memory)),
+                });
+            }
+        }
         let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
-        let particle_bytes = project.particles.len() as u64 * std::mem::size_of::<ParticleGpu>() as u64;
+        let particle_bytes = particle_count as u64 * std::mem::size_of::<ParticleGpu>() as u64;
         if particle_bytes > binding {
             return Err(GpuError::Limit {
-                what: format!("{} particles", project.particles.len()),
+                what: format!("{particle_count} particles"),
                 needed: particle_bytes,
                 limit: binding,
                 adapter,
@@ -411,29 +492,10 @@ impl FogPipeline {
                 ),
             });
         }
-        // Each particle is listed once per bin its cut-off sphere overlaps; the count is only
-        // summed when its bound (every particle in every bin) could exceed the binding.
-        if binning::overlap_bound(&project.grid, project.particles.len()) * 4 > binding {
-            let overlaps = if self.brute_force_injection {
-                let visible = project.particles.iter().filter(|p| !p.hidden && p.density > 0.0).count() as u64;
-                visible * binning::brick_dims(&project.grid).as_u64vec3().element_product()
-            } else {
-                binning::overlap_count(&project.grid, &project.particles)
-            };
-            if overlaps * 4 > binding {
-                return Err(GpuError::Limit {
-                    what: format!("the particle–bin lists of {} particles", project.particles.len()),
-                    needed: overlaps * 4,
-                    limit: binding,
-                    adapter,
-                    suggestion: "use fewer or smaller particles (each is listed in every injection bin it reaches), or lower grid.resolution".into(),
-                });
-            }
-        }
-        let light_bytes = project.lights.len() as u64 * std::mem::size_of::<LightGpu>() as u64;
+        let light_bytes = light_count as u64 * std::mem::size_of::<LightGpu>() as u64;
         if light_bytes > binding {
             return Err(GpuError::Limit {
-                what: format!("{} lights", project.lights.len()),
+                what: format!("{light_count} lights"),
                 needed: light_bytes,
                 limit: binding,
                 adapter,
@@ -499,6 +561,7 @@ impl FogPipeline {
                     c.dispatches += d.dispatches;
                     c.cells_injected += d.cells_injected;
                     c.particle_evaluations += d.particle_evaluations;
+                    c.inject_chunks += d.inject_chunks;
                     c.cells_propagated += d.cells_propagated;
                     c.lights_propagated += d.lights_propagated;
                     c.propagation_iterations = c.propagation_iterations.max(d.propagation_iterations);
@@ -633,6 +696,7 @@ impl FogPipeline {
         if !targets.is_empty() {
             if self.jobs.propagate.is_none() {
                 self.plan_propagation(project, request.scheme, targets);
+                self.note_memory();
             }
             loop {
                 let t = Instant::now();
@@ -710,6 +774,7 @@ impl FogPipeline {
 
     /// Fills in what is on show.
     fn finish(&self, mut progress: Progress, project: &Project, request: &FrameRequest) -> Progress {
+        self.note_memory();
         if let Some((key, _)) = &self.baked.shown {
             progress.shown_size = self.shown_target().map_or([0, 0], |t| [t.width, t.height]);
             // A propagated light whose OPV on show differs from what the scene needs now.
@@ -765,17 +830,15 @@ impl FogPipeline {
             bricks.sort_unstable();
             bricks.dedup();
         }
-        let bins = if self.brute_force_injection {
-            binning::bin_all(&project.grid, &project.particles)
-        } else {
-            bin_particles(&project.grid, &project.particles)
-        };
-        if bins.bin_size != self.bin_size {
-            self.bin_size = bins.bin_size;
+        let max_items = self.inject_chunk_bytes() / 4;
+        let counts = binning::choose_bins(&project.grid, &project.particles, max_items, self.brute_force_injection);
+        if counts.bin_size != self.bin_size {
+            self.bin_size = counts.bin_size;
             self.write_scene_uniforms(project);
         }
         let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
-        self.jobs.inject = Some((self.injector.begin(&self.ctx, &particles, bins, bricks), region));
+        let job = Injector::begin(&project.grid, project.particles.clone(), particles, counts, bricks, max_items);
+        self.jobs.inject = Some((job, region));
         self.baked.ev = Some((key, project.particles.clone()));
     }
 
@@ -800,6 +863,7 @@ impl FogPipeline {
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         let stamps = self.timer.as_ref().map(|t| t.writes(timer::INJECT));
         self.injector.encode_next(&self.ctx, &mut encoder, job, &inputs, count, stamps, counters);
+        self.note_memory();
         if let Some(t) = &self.timer {
             t.resolve(&mut encoder, timer::INJECT);
         }
@@ -994,7 +1058,7 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let (lights_buf, opv) = light_buffers(device, &spec, light_count);
+        let (lights_buf, opv) = light_buffers(device, self.opv_layout, &spec, light_count);
         self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
         self.jobs = Jobs::default();
@@ -1005,13 +1069,13 @@ impl FogPipeline {
     fn resize_lights(&mut self, light_count: usize) {
         let Some(g) = &mut self.grid else { return };
         let device = &self.ctx.device;
-        let (lights_buf, opv) = light_buffers(device, &g.spec, light_count);
+        let (lights_buf, opv) = light_buffers(device, self.opv_layout, &g.spec, light_count);
         let kept = g.spec.cell_count() * 4 * g.light_count.min(light_count) as u64;
         if kept > 0 {
             let mut encoder = device.create_command_encoder(&Default::default());
             // Both: the sweep keeps each cell's mean in-box extinction in the second one.
-            encoder.copy_buffer_to_buffer(&g.opv[0], 0, &opv[0], 0, kept);
-            encoder.copy_buffer_to_buffer(&g.opv[1], 0, &opv[1], 0, kept);
+            g.opv[0].copy_to(&mut encoder, 0, &opv[0], 0, kept / 4);
+            g.opv[1].copy_to(&mut encoder, 0, &opv[1], 0, kept / 4);
             self.ctx.queue.submit([encoder.finish()]);
         }
         g.lights_buf = lights_buf;
@@ -1052,6 +1116,19 @@ impl FogPipeline {
         self.ctx.queue.write_buffer(&g.grid_buf, 0, bytemuck::bytes_of(&params));
     }
 
+    /// Caps the particle–bin lists of one injection chunk at `bytes` (None: one storage
+    /// binding, the most a chunk can use). Smaller chunks bound memory more tightly at the
+    /// cost of more passes; the EV is the same bit for bit.
+    pub fn set_inject_chunk_bytes(&mut self, bytes: Option<u64>) {
+        self.inject_chunk_limit = bytes;
+    }
+
+    /// The particle–bin list bytes one injection chunk may use.
+    pub fn inject_chunk_bytes(&self) -> u64 {
+        let binding = (self.ctx.limits.max_storage_buffer_binding_size as u64).min(self.ctx.limits.max_buffer_size);
+        self.inject_chunk_limit.map_or(binding, |b| b.clamp(4, binding))
+    }
+
     /// Makes every cell evaluate every particle instead of only those binned into its brick:
     /// the brute-force injection, for measuring what binning saves. Off by default.
     pub fn set_brute_force_injection(&mut self, on: bool) {
@@ -1088,7 +1165,7 @@ impl FogPipeline {
             return Err(GpuError::Invalid(format!("light {light} does not exist (the scene has {})", g.light_count)));
         }
         let n = g.spec.cell_count();
-        let data = read_buffer(&self.ctx, &g.opv[0], light as u64 * n * 4, n as usize)?;
+        let data = g.opv[0].read(&self.ctx, light as u64 * n, n)?;
         Ok(Volume::new(g.spec, data))
     }
 
@@ -1131,6 +1208,21 @@ impl FogPipeline {
         self.shown_target().map(|t| (&t.ldr_view, [t.width, t.height]))
     }
 
+    /// The most GPU memory [`memory_bytes`](Self::memory_bytes) has reported, sampled after
+    /// each injection chunk, when propagation is planned and when a call returns.
+    pub fn peak_memory_bytes(&self) -> u64 {
+        self.peak_memory.load(std::sync::atomic::Ordering::Relaxed).max(self.memory_bytes())
+    }
+
+    /// Starts a new [`peak_memory_bytes`](Self::peak_memory_bytes) window at the memory held now.
+    pub fn reset_peak_memory(&self) {
+        self.peak_memory.store(self.memory_bytes(), std::sync::atomic::Ordering::Relaxed);
+    }
+
+    fn note_memory(&self) {
+        self.peak_memory.fetch_max(self.memory_bytes(), std::sync::atomic::Ordering::Relaxed);
+    }
+
     /// Bytes of GPU memory the pipeline's live resources hold.
     pub fn memory_bytes(&self) -> u64 {
         let layer = self.base_layer.as_ref().map_or(0, |(_, b)| b.size());
@@ -1141,6 +1233,18 @@ impl FogPipeline {
             + self.marcher.bytes()
             + self.slicer.bytes()
             + layer
+    }
+}
+
+/// `bytes` in MiB or GiB, for messages.
+pub fn human_bytes(bytes: u64) -> String {
+    let mib = bytes as f64 / (1u64 << 20) as f64;
+    if mib < 1.0 {
+        format!("{:.1} KiB", bytes as f64 / 1024.0)
+    } else if mib >= 1024.0 {
+        format!("{:.2} GiB", mib / 1024.0)
+    } else {
+        format!("{mib:.1} MiB")
     }
 }
 
@@ -1168,16 +1272,9 @@ fn light_gpu(l: &Light, culled: bool) -> LightGpu {
 }
 
 /// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
-fn light_buffers(device: &wgpu::Device, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [wgpu::Buffer; 2]) {
-    let opv_size = spec.cell_count() * light_count.max(1) as u64 * 4;
-    let opv = ["optical depth A", "optical depth B"].map(|label| {
-        device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: opv_size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    });
+fn light_buffers(device: &wgpu::Device, layout: OpvLayout, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [OpvBuffers; 2]) {
+    let floats = spec.cell_count() * light_count.max(1) as u64;
+    let opv = ["optical depth A", "optical depth B"].map(|label| OpvBuffers::new(device, layout, floats, label));
     let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("lights"),
         size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,

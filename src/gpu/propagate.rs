@@ -1,8 +1,10 @@
 //! Opacity propagation: EV → one optical-depth volume (OPV) per light, by one of three
-//! schemes (see [`Scheme`]). All OPVs live in one storage buffer, light-major.
+//! schemes (see [`Scheme`]). All OPVs form one light-major array, segmented over buffers
+//! that each fit a storage binding (see `opv_store`).
 
 use super::gpu_types::{ExactParams, PlaneParams, SweepBox, SweepStep};
-use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot, VOLUME_LOOKUP};
+use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, VOLUME_LOOKUP};
+use super::opv_store::{OpvBuffers, OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
 use super::Counters;
 use crate::scene::{GridSpec, Scheme};
 use bytemuck::Zeroable;
@@ -15,7 +17,7 @@ pub struct PropagationInputs<'a> {
     pub ev_view: &'a wgpu::TextureView,
     pub lights_buf: &'a wgpu::Buffer,
     /// Result buffer (all lights) and a scratch buffer of the same size.
-    pub opv: &'a [wgpu::Buffer; 2],
+    pub opv: &'a [OpvBuffers; 2],
     /// Light positions, indexed like the OPVs.
     pub positions: &'a [Vec3],
     /// The unit direction of travel of each directional light (None for point and spot
@@ -41,19 +43,22 @@ pub struct Propagator {
 pub const EXACT_STEPS_PER_CELL: u32 = 4;
 
 impl Propagator {
-    pub fn new(device: &wgpu::Device) -> Self {
-        let giroud_layout = bind_group_layout(
+    pub fn new(device: &wgpu::Device, opv: OpvLayout) -> Self {
+        let two = |a: bool, b: bool| [opv.layout_entries(EXTRA_BINDING, a), opv.layout_entries(EXTRA_BINDING_2, b)].concat();
+        let giroud_layout = bind_group_layout_with(
             device,
             "propagate_giroud",
             &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::StorageRead, Slot::StorageRead, Slot::StorageWrite],
+            two(true, false),
         );
+        let src_dst = opv.wgsl("src", 4, EXTRA_BINDING, false) + &opv.wgsl("dst", 5, EXTRA_BINDING_2, true);
         let giroud = compute_pipeline(
             device,
             "propagate_giroud",
-            &[include_str!("../../shaders/propagate_giroud.wgsl")],
+            &[&src_dst, include_str!("../../shaders/propagate_giroud.wgsl")],
             &giroud_layout,
         );
-        let sweep_layout = bind_group_layout(
+        let sweep_layout = bind_group_layout_with(
             device,
             "propagate_sweep",
             &[
@@ -65,30 +70,34 @@ impl Propagator {
                 Slot::StorageWrite,
                 Slot::StorageRead,
             ],
+            two(false, false),
         );
+        let opv_mean = opv.wgsl("opv", 4, EXTRA_BINDING, true) + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
         let sweep = compute_pipeline(
             device,
             "propagate_sweep",
-            &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")],
+            &[&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")],
             &sweep_layout,
         );
         // The exact scheme's layout: grid, EV, lights, per-dispatch parameters, OPV.
-        let exact_layout = bind_group_layout(
+        let exact_layout = bind_group_layout_with(
             device,
             "propagate_exact",
             &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::UniformDynamic, Slot::StorageWrite],
+            opv.layout_entries(EXTRA_BINDING, false),
         );
+        let opv_rw = opv.wgsl("opv", 4, EXTRA_BINDING, true);
         let exact = compute_pipeline(
             device,
             "propagate_exact",
-            &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")],
+            &[&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")],
             &exact_layout,
         );
         // Same bindings as the exact scheme, one plane of one sun per dispatch.
         let directional = compute_pipeline(
             device,
             "propagate_directional",
-            &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_directional.wgsl")],
+            &[&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_directional.wgsl")],
             &exact_layout,
         );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
@@ -165,8 +174,8 @@ impl Propagator {
                 // An even count leaves the result in buffer A, where every other light's OPV is.
                 let iterations = iterations + iterations % 2;
                 let active_buf = super::pipeline::storage_buffer(device, "active lights", bytemuck::cast_slice(active));
-                let make = |src: &wgpu::Buffer, dst: &wgpu::Buffer| {
-                    bind_group(
+                let make = |src: &OpvBuffers, dst: &OpvBuffers| {
+                    bind_group_with(
                         device,
                         "propagate_giroud",
                         &self.giroud_layout,
@@ -175,9 +184,10 @@ impl Propagator {
                             wgpu::BindingResource::TextureView(inputs.ev_view),
                             inputs.lights_buf.as_entire_binding(),
                             active_buf.as_entire_binding(),
-                            src.as_entire_binding(),
-                            dst.as_entire_binding(),
+                            src.first(),
+                            dst.first(),
                         ],
+                        [src.extra_entries(EXTRA_BINDING), dst.extra_entries(EXTRA_BINDING_2)].concat(),
                     )
                 };
                 let [a, b] = inputs.opv;
@@ -214,7 +224,7 @@ impl Propagator {
                     bytemuck::cast_slice(if plan.boxes.is_empty() { &placeholder[..] } else { &plan.boxes }),
                 );
                 // The second OPV buffer holds each cell's mean in-box extinction.
-                let extra = [inputs.opv[1].as_entire_binding(), boxes.as_entire_binding()];
+                let extra = [inputs.opv[1].first(), boxes.as_entire_binding()];
                 let work = self.per_dispatch(device, inputs, &plan.steps, Which::Sweep, &extra, Some(boxes.clone()));
                 let iterations = plan.steps.len() as u32;
                 (work, plan.groups, units, iterations)
@@ -261,7 +271,7 @@ impl Propagator {
         let (all, range) = (range.clone(), range.start.min(sun_start)..range.end.min(sun_start));
         if let (Work::Giroud { a, b, .. }, 0) = (&job.work, job.next) {
             // Lights not being updated must survive in B too, since B feeds back into A.
-            encoder.copy_buffer_to_buffer(a, 0, b, 0, None);
+            a.copy_to(encoder, 0, b, 0, a.floats());
         }
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: timestamps });
@@ -342,14 +352,17 @@ impl Propagator {
                 offset: 0,
                 size: wgpu::BufferSize::new(std::mem::size_of::<T>() as u64),
             }),
-            inputs.opv[0].as_entire_binding(),
+            inputs.opv[0].first(),
         ];
         resources.extend(extra.iter().cloned());
-        let layout = match which {
-            Which::Sweep => &self.sweep_layout,
-            Which::Exact | Which::Directional => &self.exact_layout,
+        let (layout, segments) = match which {
+            Which::Sweep => (
+                &self.sweep_layout,
+                [inputs.opv[0].extra_entries(EXTRA_BINDING), inputs.opv[1].extra_entries(EXTRA_BINDING_2)].concat(),
+            ),
+            Which::Exact | Which::Directional => (&self.exact_layout, inputs.opv[0].extra_entries(EXTRA_BINDING)),
         };
-        let bind_group = bind_group(device, "propagate", layout, &resources);
+        let bind_group = bind_group_with(device, "propagate", layout, &resources, segments);
         Work::PerDispatch { which, bind_group, stride, _buf: buf, _keep: keep }
     }
 }
@@ -363,7 +376,7 @@ enum Which {
 
 enum Work {
     /// Jacobi iterations ping-ponging between the two OPV buffers.
-    Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: wgpu::Buffer, b: wgpu::Buffer, _active: wgpu::Buffer },
+    Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: OpvBuffers, b: OpvBuffers, _active: wgpu::Buffer },
     /// One dispatch per uniform entry, each seeing its entry through a dynamic offset.
     PerDispatch { which: Which, bind_group: wgpu::BindGroup, stride: u64, _buf: wgpu::Buffer, _keep: Option<wgpu::Buffer> },
     /// Nothing but directional lights to propagate.

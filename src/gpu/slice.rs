@@ -1,7 +1,8 @@
 //! Reading back one plane of a volume (`shaders/slice.wgsl`): what the slice view shows,
 //! without copying the whole EV or OPV to the CPU.
 
-use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
+use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
+use super::opv_store::{OpvBuffers, OpvLayout, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
@@ -36,7 +37,7 @@ pub struct SliceParams {
 pub struct SliceInputs<'a> {
     pub grid_buf: &'a wgpu::Buffer,
     pub ev_view: &'a wgpu::TextureView,
-    pub opv: &'a wgpu::Buffer,
+    pub opv: &'a OpvBuffers,
 }
 
 pub struct Slicer {
@@ -47,13 +48,15 @@ pub struct Slicer {
 }
 
 impl Slicer {
-    pub fn new(device: &wgpu::Device) -> Self {
-        let layout = bind_group_layout(
+    pub fn new(device: &wgpu::Device, opv: OpvLayout) -> Self {
+        let layout = bind_group_layout_with(
             device,
             "slice",
             &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::Uniform, Slot::StorageWrite],
+            opv.layout_entries(EXTRA_BINDING, true),
         );
-        let pipeline = compute_pipeline(device, "slice", &[include_str!("../../shaders/slice.wgsl")], &layout);
+        let opv_read = opv.wgsl("opv", 2, EXTRA_BINDING, false);
+        let pipeline = compute_pipeline(device, "slice", &[&opv_read, include_str!("../../shaders/slice.wgsl")], &layout);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("slice params"),
             size: std::mem::size_of::<SliceParams>() as u64,
@@ -83,17 +86,18 @@ impl Slicer {
             });
         }
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let bg = bind_group(
+        let bg = bind_group_with(
             &ctx.device,
             "slice",
             &self.layout,
             &[
                 inputs.grid_buf.as_entire_binding(),
                 wgpu::BindingResource::TextureView(inputs.ev_view),
-                inputs.opv.as_entire_binding(),
+                inputs.opv.first(),
                 self.params.as_entire_binding(),
                 self.plane.as_entire_binding(),
             ],
+            inputs.opv.extra_entries(EXTRA_BINDING),
         );
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         {

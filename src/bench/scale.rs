@@ -1,0 +1,163 @@
+//! The `scale` suite: how time and memory grow with particles, grid resolution and lights,
+//! up to the sizes one storage binding used to refuse (a million small particles, 256³
+//! grids with many lights). Each case bakes from scratch and records the stage times, the
+//! GPU memory the pipeline's resources reached and the process's peak resident memory, then
+//! fits the growth exponents by least squares on log–log axes.
+
+use super::suites::{loglog_slope, Context};
+use super::BenchError;
+use crate::gpu::FrameReport;
+use crate::scene::{Light, Particle, Project};
+use glam::{UVec3, Vec3};
+use serde_json::{json, Value};
+
+/// `count` small particles (radius 0.02–0.06 m, the dabs of detailed painting) spread
+/// uniformly through a 4 m box, `lights` lights around it, on a `res`³ grid.
+pub fn small_particle_scene(count: usize, lights: usize, res: u32) -> Project {
+    let mut p = Project::default();
+    p.grid.min = Vec3::splat(-2.0);
+    p.grid.max = Vec3::splat(2.0);
+    p.grid.resolution = UVec3::splat(res);
+    p.medium.base_extinction = 0.01;
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut rnd = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    p.particles = (0..count)
+        .map(|_| {
+            let c = Vec3::new(rnd(), rnd(), rnd()) * 4.0 - 2.0;
+            Particle::new(c, 0.02 + 0.04 * rnd(), 0.5 + 3.0 * rnd())
+        })
+        .collect();
+    p.lights = (0..lights)
+        .map(|l| {
+            let a = l as f32 / lights.max(1) as f32 * std::f32::consts::TAU;
+            Light::new(Vec3::new(1.6 * a.cos(), 1.7, 1.6 * a.sin()), 4.0, Vec3::ONE)
+        })
+        .collect();
+    p.camera.position = Vec3::new(0.8, 1.2, 7.0);
+    p.camera.target = Vec3::ZERO;
+    p
+}
+
+/// Peak resident memory of this process in bytes (VmHWM), where the OS reports it.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
+}
+
+/// Resets the peak resident memory to the current one (Linux), so the next reading is the
+/// peak of one case. Returns whether it could.
+fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+/// Bakes `p` from scratch on a fresh pipeline (so buffers grown by earlier cases do not
+/// count) and returns its record.
+fn case(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32) -> Result<(FrameReport, Value), BenchError> {
+    ctx.gpu = crate::gpu::FogPipeline::new(ctx.gpu.context().clone());
+    let rss_reset = reset_peak_rss();
+    let t = std::time::Instant::now();
+    let r = ctx.full(p, w, h)?;
+    let wall = t.elapsed().as_secs_f64() * 1e3;
+    let v = json!({
+        "suite": "scale", "case": kind, "resolution": p.grid.resolution.x, "lights": p.lights.len(),
+        "particles": p.particles.len(), "cells": p.grid.cell_count(),
+        "time_ms": r.timings_ms.inject + r.timings_ms.propagate + r.timings_ms.march, "wall_ms": wall,
+        "stage_ms": {"inject": r.timings_ms.inject, "propagate": r.timings_ms.propagate, "march": r.timings_ms.march},
+        "particle_evaluations": r.counters.particle_evaluations, "inject_chunks": r.counters.inject_chunks,
+        "gpu_peak_bytes": ctx.gpu.peak_memory_bytes(),
+        "rss_peak_bytes": if rss_reset { peak_rss_bytes() } else { None },
+        "rss_peak_is_process_lifetime": !rss_reset,
+    });
+    Ok((r, v))
+}
+
+fn mib(v: &Value, key: &str) -> f64 {
+    v[key].as_f64().unwrap_or(f64::NAN) / (1u64 << 20) as f64
+}
+
+pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+    let quick = ctx.quick;
+    let (w, h) = (96, 54);
+    let fit = |out: &mut Vec<Value>, log: &mut dyn FnMut(&str), case: &str, what: &str, points: &[(f64, f64)]| {
+        let e = loglog_slope(points);
+        log(&format!("scale fit: {what} ∝ x^{e:.2} ({case})"));
+        out.push(json!({"suite": "scale_fit", "case": case, "exponent": e, "points": points.len()}));
+    };
+
+    // Particles: injection time should follow the particle–cell overlaps.
+    let particle_res: &[u32] = if quick { &[64] } else { &[64, 128] };
+    let counts: &[usize] = if quick { &[1_000, 10_000, 100_000] } else { &[1_000, 10_000, 100_000, 1_000_000] };
+    for &res in particle_res {
+        let (mut by_count, mut by_evals) = (Vec::new(), Vec::new());
+        for &n in counts {
+            let p = small_particle_scene(n, 1, res);
+            let (r, v) = case(ctx, "particles", &p, w, h)?;
+            log(&format!(
+                "scale {res}³ {n:>8} particles  inject {:9.1} ms  ({} evaluations, {} chunks)  GPU peak {:.0} MiB  RSS peak {:.0} MiB",
+                r.timings_ms.inject, r.counters.particle_evaluations, r.counters.inject_chunks, mib(&v, "gpu_peak_bytes"), mib(&v, "rss_peak_bytes")
+            ));
+            by_count.push((n as f64, r.timings_ms.inject));
+            by_evals.push((r.counters.particle_evaluations as f64, r.timings_ms.inject));
+            out.push(v);
+        }
+        fit(out, log, &format!("inject_vs_particles_{res}"), "injection time vs particles", &by_count);
+        fit(out, log, &format!("inject_vs_evaluations_{res}"), "injection time vs particle–cell evaluations", &by_evals);
+    }
+
+    // Grids, 2 lights: the sweep is O(N³) per light, so time ∝ cells^1 is the ideal.
+    let grids: &[u32] = if quick { &[32, 64, 96] } else { &[32, 64, 128, 192, 256, 384] };
+    let mut by_cells = Vec::new();
+    let mut mem_by_cells = Vec::new();
+    for &res in grids {
+        let p = small_particle_scene(2_000, 2, res);
+        if let Err(e) = ctx.gpu.check_limits(&p, w, h) {
+            log(&format!("scale {res}³ skipped: {e}"));
+            out.push(json!({"suite": "scale", "case": "grid_refused", "resolution": res, "error": e.to_string()}));
+            continue;
+        }
+        let (r, v) = case(ctx, "grid", &p, w, h)?;
+        log(&format!(
+            "scale {res:>3}³ 2 lights  bake {:9.1} ms (inject {:.1}, propagate {:.1}, march {:.1})  GPU peak {:.0} MiB  RSS peak {:.0} MiB",
+            r.timings_ms.inject + r.timings_ms.propagate, r.timings_ms.inject, r.timings_ms.propagate, r.timings_ms.march,
+            mib(&v, "gpu_peak_bytes"), mib(&v, "rss_peak_bytes")
+        ));
+        by_cells.push((p.grid.cell_count() as f64, r.timings_ms.inject + r.timings_ms.propagate));
+        mem_by_cells.push((p.grid.cell_count() as f64, v["gpu_peak_bytes"].as_f64().unwrap_or(0.0)));
+        out.push(v);
+    }
+    fit(out, log, "bake_vs_cells", "bake time vs cells", &by_cells);
+    fit(out, log, "gpu_memory_vs_cells", "GPU peak memory vs cells", &mem_by_cells);
+
+    // Lights: propagation should be linear in lights.
+    let res = if quick { 64 } else { 128 };
+    let lights: &[usize] = if quick { &[1, 2, 4] } else { &[1, 2, 4, 8, 16] };
+    let mut by_lights = Vec::new();
+    for &l in lights {
+        let p = small_particle_scene(2_000, l, res);
+        let (r, v) = case(ctx, "lights", &p, w, h)?;
+        log(&format!(
+            "scale {res}³ {l:>2} lights  propagate {:9.1} ms  march {:.1} ms  GPU peak {:.0} MiB",
+            r.timings_ms.propagate, r.timings_ms.march, mib(&v, "gpu_peak_bytes")
+        ));
+        by_lights.push((l as f64, r.timings_ms.propagate));
+        out.push(v);
+    }
+    fit(out, log, &format!("propagate_vs_lights_{res}"), "propagation time vs lights", &by_lights);
+
+    // The target: 256³ with 8 lights (several storage bindings of optical depth).
+    if !quick {
+        let p = small_particle_scene(2_000, 8, 256);
+        let (r, v) = case(ctx, "target_256_8_lights", &p, w, h)?;
+        log(&format!(
+            "scale 256³ 8 lights  bake {:.1} ms (propagate {:.1}), march {:.1} ms  GPU peak {:.0} MiB  RSS peak {:.0} MiB",
+            r.timings_ms.inject + r.timings_ms.propagate, r.timings_ms.propagate, r.timings_ms.march,
+            mib(&v, "gpu_peak_bytes"), mib(&v, "rss_peak_bytes")
+        ));
+        out.push(v);
+    }
+    Ok(())
+}
