@@ -19,9 +19,12 @@
 // units, around the light, or around a far light's anchor on the same line) closer to the
 // light than X. Shells are processed in batches of stride − 3 (1 for stride 3, which
 // interpolates bilinearly), one dispatch per batch covering all lights: each dispatch lists
-// boxes (a slab per face of the batch's shell cube, one cell wider on every side than needed),
-// and a thread solves its cell only if the cell's own batch and face are the box's, so each
-// cell is solved exactly once per light.
+// boxes (one per layer of each face of the batch's shells, spanning that layer's part of the
+// shell plus one cell), and a thread solves its cell only if the cell's own batch and face are
+// the box's, so each cell is solved exactly once per light.
+//
+// σ_t comes from `sigma_pair`, defined by sweep_sigma_filtered.wgsl (hardware trilinear
+// filtering) or sweep_sigma_loads.wgsl (eight texel loads) depending on the adapter.
 
 struct SweepStep {
     first_box: u32,
@@ -216,4 +219,43 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     if face == bx.face && batch == i32(bx.batch) {
         solve(c, bx.light);
     }
+}
+
+// ∫σ_t over the segment [a, b], both in the grid box, exact for the trilinear medium up to
+// rounding: σ_t is a cubic between the points where the segment crosses cell-centre planes,
+// and 2-point Gauss–Legendre integrates each such piece exactly.
+fn integrate_pieces(a: vec3f, b: vec3f) -> f32 {
+    let len = length(b - a);
+    let ua = (a - grid.min) / grid.cell - 0.5;
+    let du = (b - a) / grid.cell;
+    var next = vec3f(2.0);
+    var step = vec3f(0.0);
+    for (var i = 0u; i < 3u; i++) {
+        if du[i] > 1e-6 {
+            next[i] = (floor(ua[i]) + 1.0 - ua[i]) / du[i];
+            step[i] = 1.0 / du[i];
+        } else if du[i] < -1e-6 {
+            next[i] = (ceil(ua[i]) - 1.0 - ua[i]) / du[i];
+            step[i] = -1.0 / du[i];
+        }
+    }
+    let g0 = 0.21132487;
+    let g1 = 0.78867513;
+    var acc = 0.0;
+    var t0 = 0.0;
+    let pieces = u32(abs(du.x) + abs(du.y) + abs(du.z)) + 4u;
+    for (var n = 0u; n < pieces; n++) {
+        let t1 = min(min(next.x, next.y), min(next.z, 1.0));
+        let h = t1 - t0;
+        if h > 0.0 {
+            let s = sigma_pair(ua + du * (t0 + 0.5 * h), ua + du * (t0 + g0 * h), ua + du * (t0 + g1 * h));
+            acc += 0.5 * h * (s.x + s.y);
+        }
+        if t1 >= 1.0 {
+            break;
+        }
+        t0 = t1;
+        next = select(next, next + step, next <= vec3f(t1));
+    }
+    return acc * len;
 }

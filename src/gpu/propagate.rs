@@ -27,6 +27,7 @@ pub struct Propagator {
     giroud: wgpu::ComputePipeline,
     sweep_layout: wgpu::BindGroupLayout,
     sweep: wgpu::ComputePipeline,
+    sweep_sampler: wgpu::Sampler,
     exact_layout: wgpu::BindGroupLayout,
     exact: wgpu::ComputePipeline,
     uniform_align: u64,
@@ -48,25 +49,42 @@ impl Propagator {
             &[include_str!("../../shaders/propagate_giroud.wgsl")],
             &giroud_layout,
         );
+        // The sweep samples σ_t with hardware trilinear filtering where r32float is filterable.
+        let filtered = device.features().contains(wgpu::Features::FLOAT32_FILTERABLE);
         let sweep_layout = bind_group_layout(
             device,
             "propagate_sweep",
             &[
                 Slot::Uniform,
-                Slot::Texture3d,
+                if filtered { Slot::Texture3dFiltered } else { Slot::Texture3d },
                 Slot::StorageRead,
                 Slot::UniformDynamic,
                 Slot::StorageWrite,
                 Slot::StorageWrite,
                 Slot::StorageRead,
+                Slot::Sampler { filtering: filtered },
             ],
         );
+        let sigma = if filtered {
+            include_str!("../../shaders/sweep_sigma_filtered.wgsl")
+        } else {
+            include_str!("../../shaders/sweep_sigma_loads.wgsl")
+        };
         let sweep = compute_pipeline(
             device,
             "propagate_sweep",
-            &[VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")],
+            &[VOLUME_LOOKUP, sigma, include_str!("../../shaders/propagate_sweep.wgsl")],
             &sweep_layout,
         );
+        let sweep_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("propagate_sweep"),
+            address_mode_u: wgpu::AddressMode::ClampToEdge,
+            address_mode_v: wgpu::AddressMode::ClampToEdge,
+            address_mode_w: wgpu::AddressMode::ClampToEdge,
+            mag_filter: if filtered { wgpu::FilterMode::Linear } else { wgpu::FilterMode::Nearest },
+            min_filter: if filtered { wgpu::FilterMode::Linear } else { wgpu::FilterMode::Nearest },
+            ..Default::default()
+        });
         // The exact scheme's layout: grid, EV, lights, per-dispatch parameters, OPV.
         let exact_layout = bind_group_layout(
             device,
@@ -80,7 +98,7 @@ impl Propagator {
             &exact_layout,
         );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
-        Self { giroud_layout, giroud, sweep_layout, sweep, exact_layout, exact, uniform_align }
+        Self { giroud_layout, giroud, sweep_layout, sweep, sweep_sampler, exact_layout, exact, uniform_align }
     }
 
     /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
@@ -158,7 +176,7 @@ impl Propagator {
                     bytemuck::cast_slice(if plan.boxes.is_empty() { &placeholder[..] } else { &plan.boxes }),
                 );
                 // The second OPV buffer holds each cell's mean in-box extinction.
-                let extra = [inputs.opv[1].as_entire_binding(), boxes.as_entire_binding()];
+                let extra = [inputs.opv[1].as_entire_binding(), boxes.as_entire_binding(), wgpu::BindingResource::Sampler(&self.sweep_sampler)];
                 let work = self.per_dispatch(device, inputs, &plan.steps, Which::Sweep, &extra, Some(boxes.clone()));
                 let iterations = plan.steps.len() as u32;
                 (work, plan.groups, units, iterations)
@@ -418,33 +436,55 @@ impl ShellFrame {
         (batch, face)
     }
 
-    /// The box of cells (lo, size) that holds every cell of `batch` on `face`, one cell
-    /// wider than needed on every side; None when it misses the grid.
-    fn face_box(&self, grid: &GridSpec, batch: u32, face: u32) -> Option<([i32; 3], [u32; 3])> {
+    /// Boxes of cells (lo, size), one per layer of the face's axis, that together hold every
+    /// cell of `batch` on `face`: a layer is listed where the shader's own batch arithmetic
+    /// (f32, as in [`claim`](Self::claim)) can place it in `batch`, and its box spans the
+    /// cells whose offset from the anchor along the other axes is at most the layer's, plus
+    /// one cell. Cells of a layer all share the face axis' offset, so few threads are idle.
+    fn face_boxes(&self, grid: &GridSpec, batch: u32, face: u32) -> Vec<([i32; 3], [u32; 3])> {
         let n = grid.resolution.as_ivec3();
+        let axis = (face / 2) as usize;
+        let negative = face % 2 == 1;
         let lo_level = self.level0 as f64 + batch as f64 * self.width as f64;
         let hi_level = lo_level + self.width as f64;
-        let axis = (face / 2) as usize;
-        let (mut lo, mut hi) = ([0i64; 3], [0i64; 3]);
-        for i in 0..3 {
-            let a = self.anchor[i] as f64;
-            let (from, to) = if i != axis {
-                (a - hi_level, a + hi_level)
-            } else if face.is_multiple_of(2) {
-                (a + lo_level, a + hi_level)
-            } else {
-                (a - hi_level, a - lo_level)
-            };
-            lo[i] = (from.floor() as i64 - 1).max(0);
-            hi[i] = (to.ceil() as i64 + 1).min(n[i] as i64 - 1);
-            if lo[i] > hi[i] {
-                return None;
+        let a = self.anchor[axis] as f64;
+        let (from, to) = if negative { (a - hi_level, a - lo_level) } else { (a + lo_level, a + hi_level) };
+        let first = (from.floor() as i64 - 1).max(0);
+        let last = (to.ceil() as i64 + 1).min(n[axis] as i64 - 1);
+        let mut out = Vec::new();
+        for layer in first..=last {
+            let r = layer as f32 - self.anchor[axis];
+            if (r < 0.0) != negative {
+                continue;
+            }
+            // The shader divides within a few ulp: a layer next to a batch boundary is listed
+            // in both batches, and each cell is still solved once (the shader checks its claim).
+            let q = (r.abs() - self.level0) / self.width;
+            let eps = 1e-5 * q.abs().max(1.0);
+            let (b0, b1) = ((q - eps).floor().max(0.0) as u32, (q + eps).floor().max(0.0) as u32);
+            if batch != b0 && batch != b1 {
+                continue;
+            }
+            let reach = r.abs() as f64;
+            let (mut lo, mut size) = ([0i32; 3], [1u32; 3]);
+            lo[axis] = layer as i32;
+            let mut empty = false;
+            for i in (0..3).filter(|&i| i != axis) {
+                let c = self.anchor[i] as f64;
+                let from = ((c - reach).floor() as i64 - 1).max(0);
+                let to = ((c + reach).ceil() as i64 + 1).min(n[i] as i64 - 1);
+                if from > to {
+                    empty = true;
+                    break;
+                }
+                lo[i] = from as i32;
+                size[i] = (to - from + 1) as u32;
+            }
+            if !empty {
+                out.push((lo, size));
             }
         }
-        Some((
-            [lo[0] as i32, lo[1] as i32, lo[2] as i32],
-            [(hi[0] - lo[0] + 1) as u32, (hi[1] - lo[1] + 1) as u32, (hi[2] - lo[2] + 1) as u32],
-        ))
+        out
     }
 }
 
@@ -489,8 +529,7 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
     for batch in 0..batches {
         let (mut first_box, mut threads) = (plan.boxes.len(), 0u64);
         for &(light, frame, _) in frames.iter().filter(|(_, f, first)| batch < f.batches && batch >= *first) {
-            for face in 0..6 {
-                let Some((lo, size)) = frame.face_box(grid, batch, face) else { continue };
+            for (face, (lo, size)) in (0..6).flat_map(|face| frame.face_boxes(grid, batch, face).into_iter().map(move |b| (face, b))) {
                 let cells = size.iter().map(|&s| s as u64).product::<u64>();
                 if threads + cells > max_threads && threads > 0 {
                     flush(&mut plan, first_box, threads);
