@@ -82,6 +82,9 @@ pub struct SweepStep {
     /// Threads per row of workgroups.
     pub row: u32,
     pub stride: u32,
+    /// Index of the step's first thread among its batch's.
+    pub offset: u32,
+    pub _pad: [u32; 3],
 }
 
 /// One slab of cells a sweep dispatch may solve for one light (see `propagate_sweep.wgsl`).

@@ -117,6 +117,7 @@ impl Propagator {
         changed: &[Option<(glam::UVec3, glam::UVec3)>],
     ) -> PropagationJob {
         let cells = inputs.grid.cell_count();
+        let mut whole = Vec::new();
         let (work, groups, units, iterations) = match scheme {
             Scheme::Giroud => {
                 let iterations = active
@@ -177,8 +178,15 @@ impl Propagator {
                 );
                 // The second OPV buffer holds each cell's mean in-box extinction.
                 let extra = [inputs.opv[1].as_entire_binding(), boxes.as_entire_binding(), wgpu::BindingResource::Sampler(&self.sweep_sampler)];
-                let work = self.per_dispatch(device, inputs, &plan.steps, Which::Sweep, &extra, Some(boxes.clone()));
-                let iterations = plan.steps.len() as u32;
+                // Entries: the steps, then each split batch as one step.
+                let mut entries = plan.steps.clone();
+                for (steps, step, groups) in &plan.whole {
+                    whole.push((steps.clone(), entries.len(), *groups));
+                    entries.push(*step);
+                }
+                let work = self.per_dispatch(device, inputs, &entries, Which::Sweep, &extra, Some(boxes.clone()));
+                // Dispatches when the whole job is encoded at once.
+                let iterations = (plan.steps.len() - plan.whole.iter().map(|(r, _, _)| r.len() - 1).sum::<usize>()) as u32;
                 (work, plan.groups, units, iterations)
             }
             Scheme::Exact => {
@@ -206,7 +214,7 @@ impl Propagator {
             Scheme::Giroud => cells * active.len() as u64 * iterations as u64,
             Scheme::Exact => cells * active.len() as u64,
         };
-        PropagationJob { lights: active.to_vec(), work, groups, units, next: 0, iterations, cells }
+        PropagationJob { lights: active.to_vec(), work, groups, whole, units, next: 0, iterations, cells }
     }
 
     /// Encodes up to `count` further dispatches of `job` into `encoder` and counts them.
@@ -223,10 +231,12 @@ impl Propagator {
             // Lights not being updated must survive in B too, since B feeds back into A.
             encoder.copy_buffer_to_buffer(a, 0, b, 0, None);
         }
+        let mut dispatches = 0u32;
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: timestamps });
             match &job.work {
                 Work::Giroud { ab, ba, .. } => {
+                    dispatches = range.len() as u32;
                     pass.set_pipeline(&self.giroud);
                     for it in range.clone() {
                         pass.set_bind_group(0, if it % 2 == 0 { ab } else { ba }, &[]);
@@ -239,15 +249,23 @@ impl Propagator {
                         Which::Sweep => &self.sweep,
                         Which::Exact => &self.exact,
                     });
-                    for i in range.clone() {
-                        pass.set_bind_group(0, bind_group, &[(i as u64 * stride) as u32]);
-                        let g = job.groups[i];
+                    let mut i = range.start;
+                    while i < range.end {
+                        // A batch split over several steps, all encoded here: one dispatch.
+                        let joined = job.whole.iter().find(|(steps, _, _)| steps.start == i && steps.end <= range.end);
+                        let (entry, g, next) = match joined {
+                            Some((steps, entry, g)) => (*entry, *g, steps.end),
+                            None => (i, job.groups[i], i + 1),
+                        };
+                        pass.set_bind_group(0, bind_group, &[(entry as u64 * stride) as u32]);
                         pass.dispatch_workgroups(g[0], g[1], g[2]);
+                        dispatches += 1;
+                        i = next;
                     }
                 }
             }
         }
-        counters.dispatches += range.len() as u32;
+        counters.dispatches += dispatches;
         job.next = range.end;
         if job.done() {
             counters.propagation_iterations = counters.propagation_iterations.max(job.iterations);
@@ -320,6 +338,8 @@ pub struct PropagationJob {
     pub lights: Vec<u32>,
     work: Work,
     groups: Vec<[u32; 3]>,
+    /// Runs of steps that form one batch, with the entry and workgroups that run them as one.
+    whole: Vec<(std::ops::Range<usize>, usize, [u32; 3])>,
     /// Cells each dispatch computes: the unit of its cost.
     units: Vec<u64>,
     next: usize,
@@ -496,6 +516,9 @@ pub struct SweepPlan {
     /// Workgroups of each step.
     pub groups: Vec<[u32; 3]>,
     pub boxes: Vec<SweepBox>,
+    /// Batches split over several steps, each as one dispatch: (its steps, the step that
+    /// covers them all, its workgroups), used when all those steps are encoded together.
+    pub whole: Vec<(std::ops::Range<usize>, SweepStep, [u32; 3])>,
 }
 
 /// Plans the sweep of `lights` (OPV index, position) with interpolation stride `stride`:
@@ -512,29 +535,37 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
     let frames: Vec<(u32, ShellFrame, u32)> = lights.iter().map(|&(l, p, first)| (l, ShellFrame::new(grid, p, stride), first)).collect();
     let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
-    let flush = |plan: &mut SweepPlan, first_box: usize, threads: u64| {
+    let workgroups = |threads: u64| {
+        let groups = threads.div_ceil(64).max(1);
+        let x = groups.min(65_535);
+        ([x as u32, groups.div_ceil(x) as u32, 1], x as u32 * 64)
+    };
+    // Box `first` fields count threads from the start of the batch; a step starts at `offset`.
+    let flush = |plan: &mut SweepPlan, first_box: usize, offset: u64, threads: u64| {
         if plan.boxes.len() == first_box {
             return;
         }
-        let groups = threads.div_ceil(64).max(1);
-        let x = groups.min(65_535);
-        plan.groups.push([x as u32, groups.div_ceil(x) as u32, 1]);
+        let (groups, row) = workgroups(threads - offset);
+        plan.groups.push(groups);
         plan.steps.push(SweepStep {
             first_box: first_box as u32,
             box_count: (plan.boxes.len() - first_box) as u32,
-            row: x as u32 * 64,
+            row,
             stride,
+            offset: offset as u32,
+            _pad: [0; 3],
         });
     };
     for batch in 0..batches {
-        let (mut first_box, mut threads) = (plan.boxes.len(), 0u64);
+        let (batch_box, batch_step) = (plan.boxes.len(), plan.steps.len());
+        let (mut first_box, mut offset, mut threads) = (plan.boxes.len(), 0u64, 0u64);
         for &(light, frame, _) in frames.iter().filter(|(_, f, first)| batch < f.batches && batch >= *first) {
             for (face, (lo, size)) in (0..6).flat_map(|face| frame.face_boxes(grid, batch, face).into_iter().map(move |b| (face, b))) {
                 let cells = size.iter().map(|&s| s as u64).product::<u64>();
-                if threads + cells > max_threads && threads > 0 {
-                    flush(&mut plan, first_box, threads);
+                if threads - offset + cells > max_threads && threads > offset {
+                    flush(&mut plan, first_box, offset, threads);
                     first_box = plan.boxes.len();
-                    threads = 0;
+                    offset = threads;
                 }
                 plan.boxes.push(SweepBox {
                     lo,
@@ -551,7 +582,19 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
                 threads += cells;
             }
         }
-        flush(&mut plan, first_box, threads);
+        flush(&mut plan, first_box, offset, threads);
+        if plan.steps.len() > batch_step + 1 && threads <= MAX_THREADS_PER_DISPATCH {
+            let (groups, row) = workgroups(threads);
+            let step = SweepStep {
+                first_box: batch_box as u32,
+                box_count: (plan.boxes.len() - batch_box) as u32,
+                row,
+                stride,
+                offset: 0,
+                _pad: [0; 3],
+            };
+            plan.whole.push((batch_step..plan.steps.len(), step, groups));
+        }
     }
     plan
 }
