@@ -173,16 +173,17 @@ fn solve(c: vec3i, light: u32) {
         layers = max(ceil(stride * mag[e] / mag[a]), 1.0);
     }
     let to_plane = len * layers / mag[e];
-    var t_in: f32;
-    if mag[a] < stride + 0.5 || inside <= to_plane {
-        t_in = integrate_pieces(x, x + dir * inside);
-    } else {
-        let p = x + dir * to_plane;
-        let u = (p - grid.min) / grid.cell - 0.5;
+    // Either the whole in-box path is integrated, or the part up to P plus the interpolated
+    // rest: one call either way, so that threads taking different branches share it.
+    var far_end = x + dir * inside;
+    var t_rest = 0.0;
+    if mag[a] >= stride + 0.5 && inside > to_plane {
+        far_end = x + dir * to_plane;
+        let u = (far_end - grid.min) / grid.cell - 0.5;
         let layer = clamp(c[e] + i32(layers) * i32(sign(v[e])), 0, i32(grid.dims[e]) - 1);
-        let m = layer_mean(base, e, layer, u);
-        t_in = m * (inside - to_plane) + integrate_pieces(p, x);
+        t_rest = layer_mean(base, e, layer, u) * (inside - to_plane);
     }
+    let t_in = t_rest + integrate_pieces(far_end, x);
     opv[idx] = t_in + grid.base_extinction * (len - inside);
     mean_in[idx] = select(sigma_cell(c), t_in / inside, inside > 1e-6 * h);
 }
