@@ -63,6 +63,22 @@ struct SweepBox {
 @group(0) @binding(5) var<storage, read_write> mean_in: array<f32>;
 @group(0) @binding(6) var<storage, read> boxes: array<SweepBox>;
 
+// Where light `light`'s values of cell `c` live: every access to the OPV and mean buffers
+// goes through these three functions.
+fn value_index(light: u32, c: vec3i) -> u32 {
+    return light * cell_count() + linear_index(vec3u(c));
+}
+
+fn load_mean(light: u32, c: vec3i) -> f32 {
+    return mean_in[value_index(light, c)];
+}
+
+fn store(light: u32, c: vec3i, t: f32, mean: f32) {
+    let i = value_index(light, c);
+    opv[i] = t;
+    mean_in[i] = mean;
+}
+
 struct Exit {
     // Distance from the start to where the ray leaves the box, at most the light's distance.
     t: f32,
@@ -97,7 +113,7 @@ fn catmull_rom(t: f32) -> vec4f {
 // Catmull-Rom over the 4×4 cells around P (less numerical diffusion than bilinear), limited to
 // the range of the 2×2 nearest so that it cannot overshoot. Within the outer half-cell P takes
 // the edge cells' values.
-fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
+fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> f32 {
     let b = (a + 1u) % 3u;
     let d = (a + 2u) % 3u;
     let nb = i32(grid.dims[b]);
@@ -126,7 +142,7 @@ fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
         var row = 0.0;
         for (var i = first; i < last; i++) {
             cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            let m = mean_in[base + linear_index(vec3u(cell))];
+            let m = load_mean(light, cell);
             row += wb[i] * m;
             if (i == 1 || i == 2) && (j == 1 || j == 2) {
                 lo = min(lo, m);
@@ -140,15 +156,12 @@ fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
 
 fn solve(c: vec3i, light: u32) {
     let s = lights[light].position;
-    let base = light * cell_count();
-    let idx = base + linear_index(vec3u(c));
     let x = grid.min + (vec3f(c) + 0.5) * grid.cell;
     let v = s - x;
     let len = length(v);
     let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
     if len < 1e-6 * h {
-        opv[idx] = 0.0;
-        mean_in[idx] = sigma_cell(c);
+        store(light, c, 0.0, sigma_cell(c));
         return;
     }
     let dir = v / len;
@@ -181,11 +194,10 @@ fn solve(c: vec3i, light: u32) {
         far_end = x + dir * to_plane;
         let u = (far_end - grid.min) / grid.cell - 0.5;
         let layer = clamp(c[e] + i32(layers) * i32(sign(v[e])), 0, i32(grid.dims[e]) - 1);
-        t_rest = layer_mean(base, e, layer, u) * (inside - to_plane);
+        t_rest = layer_mean(light, e, layer, u) * (inside - to_plane);
     }
     let t_in = t_rest + integrate_pieces(far_end, x);
-    opv[idx] = t_in + grid.base_extinction * (len - inside);
-    mean_in[idx] = select(sigma_cell(c), t_in / inside, inside > 1e-6 * h);
+    store(light, c, t_in + grid.base_extinction * (len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
 @compute @workgroup_size(64, 1, 1)
