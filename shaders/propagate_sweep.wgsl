@@ -19,9 +19,12 @@
 // units, around the light, or around a far light's anchor on the same line) closer to the
 // light than X. Shells are processed in batches of stride − 3 (1 for stride 3, which
 // interpolates bilinearly), one dispatch per batch covering all lights: each dispatch lists
-// boxes (a slab per face of the batch's shell cube, one cell wider on every side than needed),
-// and a thread solves its cell only if the cell's own batch and face are the box's, so each
-// cell is solved exactly once per light.
+// boxes (one per layer of each face of the batch's shells, spanning that layer's part of the
+// shell plus one cell), and a thread solves its cell only if the cell's own batch and face are
+// the box's, so each cell is solved exactly once per light.
+//
+// σ_t comes from `sigma_pair`, defined by sweep_sigma_filtered.wgsl (hardware trilinear
+// filtering) or sweep_sigma_loads.wgsl (eight texel loads) depending on the adapter.
 
 struct SweepStep {
     first_box: u32,
@@ -29,13 +32,18 @@ struct SweepStep {
     // Threads per row of workgroups (the dispatch is 2D when one row is not enough).
     row: u32,
     stride: u32,
+    // Index of this dispatch's first thread among its batch's (box `first` counts from there).
+    offset: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 struct SweepBox {
     lo: vec3i,
     light: u32,
     size: vec3u,
-    // Index, within the dispatch, of this box's first thread.
+    // Index, within the batch, of this box's first thread.
     first: u32,
     // Where Chebyshev shells are measured from, in cell-centre coordinates.
     anchor: vec3f,
@@ -53,6 +61,22 @@ struct SweepBox {
 @group(0) @binding(3) var<uniform> step: SweepStep;
 // bindings 4, 5: `opv` and `mean_in`, declared with their helpers by src/gpu/opv_store.rs.
 @group(0) @binding(6) var<storage, read> boxes: array<SweepBox>;
+
+// Where light `light`'s values of cell `c` live: every access to the OPV and mean buffers
+// goes through these three functions.
+fn value_index(light: u32, c: vec3i) -> u32 {
+    return light * cell_count() + linear_index(vec3u(c));
+}
+
+fn load_mean(light: u32, c: vec3i) -> f32 {
+    return mean_in_load(value_index(light, c));
+}
+
+fn store(light: u32, c: vec3i, t: f32, mean: f32) {
+    let i = value_index(light, c);
+    opv_store(i, t);
+    mean_in_store(i, mean);
+}
 
 struct Exit {
     // Distance from the start to where the ray leaves the box, at most the light's distance.
@@ -88,7 +112,7 @@ fn catmull_rom(t: f32) -> vec4f {
 // Catmull-Rom over the 4×4 cells around P (less numerical diffusion than bilinear), limited to
 // the range of the 2×2 nearest so that it cannot overshoot. Within the outer half-cell P takes
 // the edge cells' values.
-fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
+fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> f32 {
     let b = (a + 1u) % 3u;
     let d = (a + 2u) % 3u;
     let nb = i32(grid.dims[b]);
@@ -117,7 +141,7 @@ fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
         var row = 0.0;
         for (var i = first; i < last; i++) {
             cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            let m = mean_in_load(base + linear_index(vec3u(cell)));
+            let m = load_mean(light, cell);
             row += wb[i] * m;
             if (i == 1 || i == 2) && (j == 1 || j == 2) {
                 lo = min(lo, m);
@@ -131,15 +155,12 @@ fn layer_mean(base: u32, a: u32, layer: i32, u: vec3f) -> f32 {
 
 fn solve(c: vec3i, light: u32) {
     let s = lights[light].position;
-    let base = light * cell_count();
-    let idx = base + linear_index(vec3u(c));
     let x = grid.min + (vec3f(c) + 0.5) * grid.cell;
     let v = s - x;
     let len = length(v);
     let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
     if len < 1e-6 * h {
-        opv_store(idx, 0.0);
-        mean_in_store(idx, sigma_cell(c));
+        store(light, c, 0.0, sigma_cell(c));
         return;
     }
     let dir = v / len;
@@ -164,23 +185,23 @@ fn solve(c: vec3i, light: u32) {
         layers = max(ceil(stride * mag[e] / mag[a]), 1.0);
     }
     let to_plane = len * layers / mag[e];
-    var t_in: f32;
-    if mag[a] < stride + 0.5 || inside <= to_plane {
-        t_in = integrate_pieces(x, x + dir * inside);
-    } else {
-        let p = x + dir * to_plane;
-        let u = (p - grid.min) / grid.cell - 0.5;
+    // Either the whole in-box path is integrated, or the part up to P plus the interpolated
+    // rest: one call either way, so that threads taking different branches share it.
+    var far_end = x + dir * inside;
+    var t_rest = 0.0;
+    if mag[a] >= stride + 0.5 && inside > to_plane {
+        far_end = x + dir * to_plane;
+        let u = (far_end - grid.min) / grid.cell - 0.5;
         let layer = clamp(c[e] + i32(layers) * i32(sign(v[e])), 0, i32(grid.dims[e]) - 1);
-        let m = layer_mean(base, e, layer, u);
-        t_in = m * (inside - to_plane) + integrate_pieces(p, x);
+        t_rest = layer_mean(light, e, layer, u) * (inside - to_plane);
     }
-    opv_store(idx, t_in + grid.base_extinction * (len - inside));
-    mean_in_store(idx, select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
+    let t_in = t_rest + integrate_pieces(far_end, x);
+    store(light, c, t_in + grid.base_extinction * (len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
-    let t = gid.x + gid.y * step.row;
+    let t = gid.x + gid.y * step.row + step.offset;
     // The last box starting at or before thread t.
     var lo = step.first_box;
     var hi = step.first_box + step.box_count;
@@ -215,4 +236,53 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     if face == bx.face && batch == i32(bx.batch) {
         solve(c, bx.light);
     }
+}
+
+// ∫σ_t over the segment [a, b], both in the grid box, by 2-point Gauss–Legendre on each piece
+// between the points where the segment crosses cell-centre planes of its dominant axis. σ_t is
+// a cubic between crossings of any axis' planes, so a piece that crosses no other plane is
+// integrated exactly; one that does has a kink there, whose error is second order in the
+// lateral step. Splitting at every axis' crossings as well would make it exact at about
+// twice the samples, for a gain far below the error of the sweep's interpolations.
+fn integrate_pieces(a: vec3f, b: vec3f) -> f32 {
+    let len = length(b - a);
+    let ua = (a - grid.min) / grid.cell - 0.5;
+    let du = (b - a) / grid.cell;
+    let adu = abs(du);
+    var dominant = 0u;
+    if adu.y > adu[dominant] {
+        dominant = 1u;
+    }
+    if adu.z > adu[dominant] {
+        dominant = 2u;
+    }
+    var next = vec3f(2.0);
+    var step = vec3f(0.0);
+    let i = dominant;
+    if du[i] > 1e-6 {
+        next[i] = (floor(ua[i]) + 1.0 - ua[i]) / du[i];
+        step[i] = 1.0 / du[i];
+    } else if du[i] < -1e-6 {
+        next[i] = (ceil(ua[i]) - 1.0 - ua[i]) / du[i];
+        step[i] = -1.0 / du[i];
+    }
+    let g0 = 0.21132487;
+    let g1 = 0.78867513;
+    var acc = 0.0;
+    var t0 = 0.0;
+    let pieces = u32(adu[dominant]) + 4u;
+    for (var n = 0u; n < pieces; n++) {
+        let t1 = min(min(next.x, next.y), min(next.z, 1.0));
+        let h = t1 - t0;
+        if h > 0.0 {
+            let s = sigma_pair(ua + du * (t0 + 0.5 * h), ua + du * (t0 + g0 * h), ua + du * (t0 + g1 * h));
+            acc += 0.5 * h * (s.x + s.y);
+        }
+        if t1 >= 1.0 {
+            break;
+        }
+        t0 = t1;
+        next = select(next, next + step, next <= vec3f(t1));
+    }
+    return acc * len;
 }

@@ -13,11 +13,13 @@ use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project, Scheme
 use glam::{UVec3, Vec3};
 
 /// The `sweep` scheme's largest transmittance error against the grid's own medium, at stride
-/// 8, on any placement. Its segments are integrated exactly, so this is the numerical
-/// diffusion of its interpolations: they cannot resolve the shadow of a particle of 1 cell
-/// radius (peak optical depth up to 2) and it accumulates over paths up to 128 cells long.
-/// Measured worst case 4.4e-2 (inside lights 1.0e-2 on shorter paths).
-const SWEEP_SCHEME_BOUND: f64 = 5e-2;
+/// 8, per placement class (in `CLASSES` order). It is the numerical diffusion of its
+/// interpolations (its segment integrals are exact but for second-order kinks): they cannot
+/// resolve the shadow of a particle of 1 cell radius (peak optical depth up to 2), and along
+/// the long oblique paths of lights outside elongated grids they accumulate even for particles
+/// of several cells. Lights inside or on a face have the shortest such paths. Each bound is
+/// the class's worst case on these scenes with a margin of 10–50 %.
+const SWEEP_SCHEME_BOUNDS: [f64; 8] = [1.5e-2, 1.5e-2, 5e-2, 3e-2, 4.5e-2, 3e-2, 3e-2, 5e-2];
 
 const CLASSES: [&str; 8] =
     ["inside", "on a face", "on an edge", "on a corner", "beyond a face", "beyond an edge", "beyond a corner", "far away"];
@@ -156,8 +158,8 @@ fn sweep_is_accurate_for_every_light_placement() {
     let strides: Vec<u32> = std::env::var("SWEEP_STRIDES").map_or(vec![8], |s| s.split(',').map(|v| v.parse().unwrap()).collect());
     let all: Vec<_> = strides.iter().map(|&stride| (stride, worst_by_class(Scheme::Sweep, stride))).collect();
     for (stride, worst) in all {
-        for (class, (s, _)) in CLASSES.iter().zip(&worst) {
-            assert!(*s <= SWEEP_SCHEME_BOUND, "sweep stride {stride}, light {class}: scheme error {s:.3e} > {SWEEP_SCHEME_BOUND:e}");
+        for ((class, (s, _)), bound) in CLASSES.iter().zip(&worst).zip(SWEEP_SCHEME_BOUNDS) {
+            assert!(*s <= bound, "sweep stride {stride}, light {class}: scheme error {s:.3e} > {bound:e}");
         }
     }
 }

@@ -195,7 +195,7 @@ fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
     state.slice.error = None;
     match settings.field {
         Field::Transmittance => slice.values.iter_mut().for_each(|v| *v = (-*v).exp()),
-        Field::Error => {
+        Field::Error | Field::ResolutionError => {
             let ek = ExactKey {
                 epoch: state.epoch,
                 generation: state.session.content_generation(),
@@ -204,7 +204,7 @@ fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
                 index: slice.index,
             };
             match &state.slice.exact {
-                Some((k, Ok(exact))) if *k == ek => slice = slices::error_slice(&slice, exact),
+                Some((k, Ok(exact))) if *k == ek => slice = slices::error_slice(&slice, exact, settings.field),
                 Some((k, Err(e))) if *k == ek => {
                     state.slice.error = Some(format!("Error view unavailable: {e}"));
                     state.slice.slice = None;

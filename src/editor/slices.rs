@@ -1,5 +1,5 @@
 //! Slice views of the baked volumes: which field, axis and index to show, extracting the
-//! 2D slice from a [`Volume`], colour maps and the exact optical depth used by the error view.
+//! 2D slice from a [`Volume`], colour maps and the exact optical depths used by the error views.
 
 use crate::scene::{GridSpec, Project, Volume};
 use egui::Color32;
@@ -14,25 +14,30 @@ pub enum Field {
     OpticalDepth,
     /// exp(−T) towards the chosen light.
     Transmittance,
-    /// |T − T_exact| against the CPU reference, on this slice only.
+    /// Scheme error |T − T_grid|: against the line integral through the grid's own trilinear
+    /// medium (CPU reference, this slice only). What the propagation scheme adds.
     Error,
+    /// Resolution error |T_grid − T_clipped|: the grid's medium against the analytic gaussians
+    /// clipped to the box. What a finer grid would remove; no scheme can.
+    ResolutionError,
 }
 
 impl Field {
-    pub const ALL: [Field; 4] = [Field::Extinction, Field::OpticalDepth, Field::Transmittance, Field::Error];
+    pub const ALL: [Field; 5] = [Field::Extinction, Field::OpticalDepth, Field::Transmittance, Field::Error, Field::ResolutionError];
     pub fn label(self) -> &'static str {
         match self {
             Field::Extinction => "EV σt",
             Field::OpticalDepth => "OPV T",
             Field::Transmittance => "exp(−T)",
-            Field::Error => "|T − T exact|",
+            Field::Error => "scheme error |T − T grid|",
+            Field::ResolutionError => "resolution error |T grid − T exact|",
         }
     }
     pub fn unit(self) -> &'static str {
         match self {
             Field::Extinction => "1/m",
             Field::Transmittance => "",
-            Field::OpticalDepth | Field::Error => "(optical depth)",
+            Field::OpticalDepth | Field::Error | Field::ResolutionError => "(optical depth)",
         }
     }
     pub fn needs_light(self) -> bool {
@@ -292,20 +297,32 @@ pub fn colorize(slice: &Slice, colormap: Colormap, scale: &Scale) -> egui::Color
     egui::ColorImage::new([slice.width, slice.height], pixels)
 }
 
-/// Exact optical depth T(cell, light) on `cells`, from the CPU reference: the particles
-/// clipped to the grid box and base fog beyond it, which is the most any grid can hold, so the
-/// error view shows the scheme's and the resolution's error but not the particles' tails
-/// outside the box.
+/// Exact optical depths T(cell, light) on `cells`, from the CPU reference, both error views'
+/// references in one: the first `cells.len()` values through the grid's own trilinear medium
+/// (the analytic medium sampled at the cell centres, as the EV holds it), then as many through
+/// the analytic medium clipped to the grid box (base fog beyond it), the most any grid can
+/// hold, so neither view shows the particles' tails outside the box.
 pub fn exact_optical_depth(project: &Project, light: usize, cells: &[[u32; 3]]) -> Result<Vec<f64>, String> {
     if light >= project.lights.len() {
         return Err(format!("light {light} does not exist"));
     }
-    Ok(crate::reference::clipped_optical_depth_cells(project, light, cells))
+    let medium = crate::reference::GridMedium64::sampled(&project.grid, &crate::reference::Medium64::from_project(project));
+    let source = project.lights[light].position.as_dvec3();
+    let mut out = crate::reference::grid_optical_depth_cells(&project.grid, &medium, source, cells);
+    out.extend(crate::reference::clipped_optical_depth_cells(project, light, cells));
+    Ok(out)
 }
 
-/// |T − T_exact| per value of an optical-depth slice.
-pub fn error_slice(opv: &Slice, exact: &[f64]) -> Slice {
-    let values = opv.values.iter().zip(exact).map(|(&t, &e)| (t as f64 - e).abs() as f32).collect();
+/// The error view `field` per value of an optical-depth slice, from the references of
+/// [`exact_optical_depth`]: the scheme error |T − T_grid|, or the resolution error
+/// |T_grid − T_clipped| (which does not depend on the slice's values).
+pub fn error_slice(opv: &Slice, exact: &[f64], field: Field) -> Slice {
+    let n = opv.values.len();
+    let (grid, clipped) = exact.split_at(n.min(exact.len()));
+    let values = match field {
+        Field::ResolutionError => grid.iter().zip(clipped).map(|(&g, &c)| (g - c).abs() as f32).collect(),
+        _ => opv.values.iter().zip(grid).map(|(&t, &g)| (t as f64 - g).abs() as f32).collect(),
+    };
     Slice { values, ..opv.clone() }
 }
 
@@ -331,6 +348,32 @@ mod tests {
         let s = extract(&vol, Axis::Z, 9);
         assert_eq!((s.index, s.width, s.height), (4, 3, 4));
         assert_eq!(s.cell(0, 0), [0, 3, 4], "row 0 is the top (largest y)");
+    }
+
+    /// The scheme view compares the OPV with the grid-medium reference, the resolution view
+    /// that reference with the clipped analytic one, on a scene where both are known.
+    #[test]
+    fn error_views_pick_their_references() {
+        let mut p = Project::default();
+        p.grid = GridSpec { min: glam::Vec3::ZERO, max: glam::Vec3::ONE, resolution: glam::UVec3::new(4, 4, 1) };
+        p.medium.base_extinction = 0.5;
+        p.particles.clear();
+        p.lights = vec![crate::scene::Light::new(glam::Vec3::new(3.0, 0.5, 0.5), 1.0, glam::Vec3::ONE)];
+        let vol = Volume::new(p.grid, vec![0.0; 16]);
+        let slice = extract(&vol, Axis::Z, 0);
+        let cells = slice.cells();
+        let exact = exact_optical_depth(&p, 0, &cells).unwrap();
+        assert_eq!(exact.len(), 2 * cells.len());
+        // Homogeneous fog: both references are β·distance, the OPV here is 0.
+        let scheme = error_slice(&slice, &exact, Field::Error);
+        let resolution = error_slice(&slice, &exact, Field::ResolutionError);
+        for (n, c) in cells.iter().enumerate() {
+            let x = crate::reference::cell_center64(&p.grid, c[0], c[1], c[2]);
+            let d = 0.5 * (p.lights[0].position.as_dvec3() - x).length();
+            assert!((scheme.values[n] as f64 - d).abs() < 1e-5, "{c:?}: {} vs {d}", scheme.values[n]);
+            assert!(resolution.values[n].abs() < 1e-6, "{c:?}: {}", resolution.values[n]);
+        }
+        assert!(exact_optical_depth(&p, 1, &cells).is_err());
     }
 
     #[test]

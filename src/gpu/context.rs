@@ -14,7 +14,7 @@ pub struct GpuContext {
 }
 
 /// Features used when the adapter has them; none is required.
-const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY;
+const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::FLOAT32_FILTERABLE);
 
 impl GpuContext {
     /// Opens the best adapter without a window. Vulkan is preferred: on machines with only

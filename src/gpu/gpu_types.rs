@@ -90,6 +90,9 @@ pub struct SweepStep {
     /// Threads per row of workgroups.
     pub row: u32,
     pub stride: u32,
+    /// Index of the step's first thread among its batch's.
+    pub offset: u32,
+    pub _pad: [u32; 3],
 }
 
 /// One slab of cells a sweep dispatch may solve for one light (see `propagate_sweep.wgsl`).
@@ -160,7 +163,7 @@ mod tests {
         let opv_mean = opv_rw.clone() + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
         let inject = [include_str!("../../shaders/inject.wgsl")];
         let march = [&opv_read, include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")];
-        let sweep = [&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")];
+        let sweep = [&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/sweep_sigma_filtered.wgsl"), include_str!("../../shaders/propagate_sweep.wgsl")];
         let exact = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
         let slice = [&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")];
         let directional = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_directional.wgsl")];

@@ -13,6 +13,10 @@ pub enum Slot {
     /// A 3D f32 texture read with `textureLoad` only (no sampler, so r32float needs no
     /// filtering feature).
     Texture3d,
+    /// A 3D f32 texture read through a filtering sampler (r32float needs FLOAT32_FILTERABLE).
+    Texture3dFiltered,
+    /// A sampler, filtering or not.
+    Sampler { filtering: bool },
     StorageTexture3d(wgpu::TextureFormat),
     StorageTexture2d(wgpu::TextureFormat),
 }
@@ -60,6 +64,16 @@ pub fn bind_group_layout_with(
                     view_dimension: wgpu::TextureViewDimension::D3,
                     multisampled: false,
                 },
+                Slot::Texture3dFiltered => BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: wgpu::TextureViewDimension::D3,
+                    multisampled: false,
+                },
+                Slot::Sampler { filtering } => BindingType::Sampler(if filtering {
+                    wgpu::SamplerBindingType::Filtering
+                } else {
+                    wgpu::SamplerBindingType::NonFiltering
+                }),
                 Slot::StorageTexture3d(format) => BindingType::StorageTexture {
                     access: wgpu::StorageTextureAccess::WriteOnly,
                     format,

@@ -33,6 +33,7 @@ pub struct Propagator {
     giroud: wgpu::ComputePipeline,
     sweep_layout: wgpu::BindGroupLayout,
     sweep: wgpu::ComputePipeline,
+    sweep_sampler: wgpu::Sampler,
     exact_layout: wgpu::BindGroupLayout,
     exact: wgpu::ComputePipeline,
     directional: wgpu::ComputePipeline,
@@ -58,27 +59,44 @@ impl Propagator {
             &[&src_dst, include_str!("../../shaders/propagate_giroud.wgsl")],
             &giroud_layout,
         );
+        // The sweep samples σ_t with hardware trilinear filtering where r32float is filterable.
+        let filtered = device.features().contains(wgpu::Features::FLOAT32_FILTERABLE);
         let sweep_layout = bind_group_layout_with(
             device,
             "propagate_sweep",
             &[
                 Slot::Uniform,
-                Slot::Texture3d,
+                if filtered { Slot::Texture3dFiltered } else { Slot::Texture3d },
                 Slot::StorageRead,
                 Slot::UniformDynamic,
                 Slot::StorageWrite,
                 Slot::StorageWrite,
                 Slot::StorageRead,
+                Slot::Sampler { filtering: filtered },
             ],
             two(false, false),
         );
         let opv_mean = opv.wgsl("opv", 4, EXTRA_BINDING, true) + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
+        let sigma = if filtered {
+            include_str!("../../shaders/sweep_sigma_filtered.wgsl")
+        } else {
+            include_str!("../../shaders/sweep_sigma_loads.wgsl")
+        };
         let sweep = compute_pipeline(
             device,
             "propagate_sweep",
-            &[&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/propagate_sweep.wgsl")],
+            &[&opv_mean, VOLUME_LOOKUP, sigma, include_str!("../../shaders/propagate_sweep.wgsl")],
             &sweep_layout,
         );
+        let sweep_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("propagate_sweep"),
+            address_mode_u: wgpu::AddressMode::ClampToEdge,
+            address_mode_v: wgpu::AddressMode::ClampToEdge,
+            address_mode_w: wgpu::AddressMode::ClampToEdge,
+            mag_filter: if filtered { wgpu::FilterMode::Linear } else { wgpu::FilterMode::Nearest },
+            min_filter: if filtered { wgpu::FilterMode::Linear } else { wgpu::FilterMode::Nearest },
+            ..Default::default()
+        });
         // The exact scheme's layout: grid, EV, lights, per-dispatch parameters, OPV.
         let exact_layout = bind_group_layout_with(
             device,
@@ -101,7 +119,7 @@ impl Propagator {
             &exact_layout,
         );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
-        Self { giroud_layout, giroud, sweep_layout, sweep, exact_layout, exact, directional, uniform_align }
+        Self { giroud_layout, giroud, sweep_layout, sweep, sweep_sampler, exact_layout, exact, directional, uniform_align }
     }
 
     /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
@@ -134,7 +152,7 @@ impl Propagator {
             }
         }
         let mut job = if points.is_empty() {
-            PropagationJob { lights: Vec::new(), work: Work::Empty, groups: Vec::new(), units: Vec::new(), next: 0, iterations: 0, cells: 0, suns: None }
+            PropagationJob { lights: Vec::new(), work: Work::Empty, groups: Vec::new(), whole: Vec::new(), units: Vec::new(), next: 0, iterations: 0, cells: 0, suns: None }
         } else {
             self.plan_points(device, inputs, scheme, &points, &points_changed)
         };
@@ -164,6 +182,7 @@ impl Propagator {
         changed: &[Option<(glam::UVec3, glam::UVec3)>],
     ) -> PropagationJob {
         let cells = inputs.grid.cell_count();
+        let mut whole = Vec::new();
         let (work, groups, units, iterations) = match scheme {
             Scheme::Giroud => {
                 let iterations = active
@@ -224,9 +243,16 @@ impl Propagator {
                     bytemuck::cast_slice(if plan.boxes.is_empty() { &placeholder[..] } else { &plan.boxes }),
                 );
                 // The second OPV buffer holds each cell's mean in-box extinction.
-                let extra = [inputs.opv[1].first(), boxes.as_entire_binding()];
-                let work = self.per_dispatch(device, inputs, &plan.steps, Which::Sweep, &extra, Some(boxes.clone()));
-                let iterations = plan.steps.len() as u32;
+                let extra = [inputs.opv[1].first(), boxes.as_entire_binding(), wgpu::BindingResource::Sampler(&self.sweep_sampler)];
+                // Entries: the steps, then each split batch as one step.
+                let mut entries = plan.steps.clone();
+                for (steps, step, groups) in &plan.whole {
+                    whole.push((steps.clone(), entries.len(), *groups));
+                    entries.push(*step);
+                }
+                let work = self.per_dispatch(device, inputs, &entries, Which::Sweep, &extra, Some(boxes.clone()));
+                // Dispatches when the whole job is encoded at once.
+                let iterations = (plan.steps.len() - plan.whole.iter().map(|(r, _, _)| r.len() - 1).sum::<usize>()) as u32;
                 (work, plan.groups, units, iterations)
             }
             Scheme::Exact => {
@@ -254,7 +280,7 @@ impl Propagator {
             Scheme::Giroud => cells * active.len() as u64 * iterations as u64,
             Scheme::Exact => cells * active.len() as u64,
         };
-        PropagationJob { lights: active.to_vec(), work, groups, units, next: 0, iterations, cells, suns: None }
+        PropagationJob { lights: active.to_vec(), work, groups, whole, units, next: 0, iterations, cells, suns: None }
     }
 
     /// Encodes up to `count` further dispatches of `job` into `encoder` and counts them.
@@ -273,10 +299,12 @@ impl Propagator {
             // Lights not being updated must survive in B too, since B feeds back into A.
             a.copy_to(encoder, 0, b, 0, a.floats());
         }
+        let mut dispatches = 0u32;
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: timestamps });
             match &job.work {
                 Work::Giroud { ab, ba, .. } => {
+                    dispatches = range.len() as u32;
                     pass.set_pipeline(&self.giroud);
                     for it in range.clone() {
                         pass.set_bind_group(0, if it % 2 == 0 { ab } else { ba }, &[]);
@@ -290,10 +318,18 @@ impl Propagator {
                         Which::Exact => &self.exact,
                         Which::Directional => &self.directional,
                     });
-                    for i in range.clone() {
-                        pass.set_bind_group(0, bind_group, &[(i as u64 * stride) as u32]);
-                        let g = job.groups[i];
+                    let mut i = range.start;
+                    while i < range.end {
+                        // A batch split over several steps, all encoded here: one dispatch.
+                        let joined = job.whole.iter().find(|(steps, _, _)| steps.start == i && steps.end <= range.end);
+                        let (entry, g, next) = match joined {
+                            Some((steps, entry, g)) => (*entry, *g, steps.end),
+                            None => (i, job.groups[i], i + 1),
+                        };
+                        pass.set_bind_group(0, bind_group, &[(entry as u64 * stride) as u32]);
                         pass.dispatch_workgroups(g[0], g[1], g[2]);
+                        dispatches += 1;
+                        i = next;
                     }
                 }
                 Work::Empty => {}
@@ -307,11 +343,12 @@ impl Propagator {
                     pass.set_bind_group(0, bind_group, &[((i - start) as u64 * stride) as u32]);
                     let g = job.groups[i];
                     pass.dispatch_workgroups(g[0], g[1], g[2]);
+                    dispatches += 1;
                 }
             }
         }
         let range = all;
-        counters.dispatches += range.len() as u32;
+        counters.dispatches += dispatches;
         job.next = range.end;
         if job.done() {
             counters.propagation_iterations = counters.propagation_iterations.max(job.iterations);
@@ -413,6 +450,8 @@ pub struct PropagationJob {
     pub lights: Vec<u32>,
     work: Work,
     groups: Vec<[u32; 3]>,
+    /// Runs of steps that form one batch, with the entry and workgroups that run them as one.
+    whole: Vec<(std::ops::Range<usize>, usize, [u32; 3])>,
     /// Cells each dispatch computes: the unit of its cost.
     units: Vec<u64>,
     next: usize,
@@ -531,33 +570,55 @@ impl ShellFrame {
         (batch, face)
     }
 
-    /// The box of cells (lo, size) that holds every cell of `batch` on `face`, one cell
-    /// wider than needed on every side; None when it misses the grid.
-    fn face_box(&self, grid: &GridSpec, batch: u32, face: u32) -> Option<([i32; 3], [u32; 3])> {
+    /// Boxes of cells (lo, size), one per layer of the face's axis, that together hold every
+    /// cell of `batch` on `face`: a layer is listed where the shader's own batch arithmetic
+    /// (f32, as in [`claim`](Self::claim)) can place it in `batch`, and its box spans the
+    /// cells whose offset from the anchor along the other axes is at most the layer's, plus
+    /// one cell. Cells of a layer all share the face axis' offset, so few threads are idle.
+    fn face_boxes(&self, grid: &GridSpec, batch: u32, face: u32) -> Vec<([i32; 3], [u32; 3])> {
         let n = grid.resolution.as_ivec3();
+        let axis = (face / 2) as usize;
+        let negative = face % 2 == 1;
         let lo_level = self.level0 as f64 + batch as f64 * self.width as f64;
         let hi_level = lo_level + self.width as f64;
-        let axis = (face / 2) as usize;
-        let (mut lo, mut hi) = ([0i64; 3], [0i64; 3]);
-        for i in 0..3 {
-            let a = self.anchor[i] as f64;
-            let (from, to) = if i != axis {
-                (a - hi_level, a + hi_level)
-            } else if face.is_multiple_of(2) {
-                (a + lo_level, a + hi_level)
-            } else {
-                (a - hi_level, a - lo_level)
-            };
-            lo[i] = (from.floor() as i64 - 1).max(0);
-            hi[i] = (to.ceil() as i64 + 1).min(n[i] as i64 - 1);
-            if lo[i] > hi[i] {
-                return None;
+        let a = self.anchor[axis] as f64;
+        let (from, to) = if negative { (a - hi_level, a - lo_level) } else { (a + lo_level, a + hi_level) };
+        let first = (from.floor() as i64 - 1).max(0);
+        let last = (to.ceil() as i64 + 1).min(n[axis] as i64 - 1);
+        let mut out = Vec::new();
+        for layer in first..=last {
+            let r = layer as f32 - self.anchor[axis];
+            if (r < 0.0) != negative {
+                continue;
+            }
+            // The shader divides within a few ulp: a layer next to a batch boundary is listed
+            // in both batches, and each cell is still solved once (the shader checks its claim).
+            let q = (r.abs() - self.level0) / self.width;
+            let eps = 1e-5 * q.abs().max(1.0);
+            let (b0, b1) = ((q - eps).floor().max(0.0) as u32, (q + eps).floor().max(0.0) as u32);
+            if batch != b0 && batch != b1 {
+                continue;
+            }
+            let reach = r.abs() as f64;
+            let (mut lo, mut size) = ([0i32; 3], [1u32; 3]);
+            lo[axis] = layer as i32;
+            let mut empty = false;
+            for i in (0..3).filter(|&i| i != axis) {
+                let c = self.anchor[i] as f64;
+                let from = ((c - reach).floor() as i64 - 1).max(0);
+                let to = ((c + reach).ceil() as i64 + 1).min(n[i] as i64 - 1);
+                if from > to {
+                    empty = true;
+                    break;
+                }
+                lo[i] = from as i32;
+                size[i] = (to - from + 1) as u32;
+            }
+            if !empty {
+                out.push((lo, size));
             }
         }
-        Some((
-            [lo[0] as i32, lo[1] as i32, lo[2] as i32],
-            [(hi[0] - lo[0] + 1) as u32, (hi[1] - lo[1] + 1) as u32, (hi[2] - lo[2] + 1) as u32],
-        ))
+        out
     }
 }
 
@@ -569,6 +630,9 @@ pub struct SweepPlan {
     /// Workgroups of each step.
     pub groups: Vec<[u32; 3]>,
     pub boxes: Vec<SweepBox>,
+    /// Batches split over several steps, each as one dispatch: (its steps, the step that
+    /// covers them all, its workgroups), used when all those steps are encoded together.
+    pub whole: Vec<(std::ops::Range<usize>, SweepStep, [u32; 3])>,
 }
 
 /// Plans the sweep of `lights` (OPV index, position) with interpolation stride `stride`:
@@ -585,30 +649,37 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
     let frames: Vec<(u32, ShellFrame, u32)> = lights.iter().map(|&(l, p, first)| (l, ShellFrame::new(grid, p, stride), first)).collect();
     let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
-    let flush = |plan: &mut SweepPlan, first_box: usize, threads: u64| {
+    let workgroups = |threads: u64| {
+        let groups = threads.div_ceil(64).max(1);
+        let x = groups.min(65_535);
+        ([x as u32, groups.div_ceil(x) as u32, 1], x as u32 * 64)
+    };
+    // Box `first` fields count threads from the start of the batch; a step starts at `offset`.
+    let flush = |plan: &mut SweepPlan, first_box: usize, offset: u64, threads: u64| {
         if plan.boxes.len() == first_box {
             return;
         }
-        let groups = threads.div_ceil(64).max(1);
-        let x = groups.min(65_535);
-        plan.groups.push([x as u32, groups.div_ceil(x) as u32, 1]);
+        let (groups, row) = workgroups(threads - offset);
+        plan.groups.push(groups);
         plan.steps.push(SweepStep {
             first_box: first_box as u32,
             box_count: (plan.boxes.len() - first_box) as u32,
-            row: x as u32 * 64,
+            row,
             stride,
+            offset: offset as u32,
+            _pad: [0; 3],
         });
     };
     for batch in 0..batches {
-        let (mut first_box, mut threads) = (plan.boxes.len(), 0u64);
+        let (batch_box, batch_step) = (plan.boxes.len(), plan.steps.len());
+        let (mut first_box, mut offset, mut threads) = (plan.boxes.len(), 0u64, 0u64);
         for &(light, frame, _) in frames.iter().filter(|(_, f, first)| batch < f.batches && batch >= *first) {
-            for face in 0..6 {
-                let Some((lo, size)) = frame.face_box(grid, batch, face) else { continue };
+            for (face, (lo, size)) in (0..6).flat_map(|face| frame.face_boxes(grid, batch, face).into_iter().map(move |b| (face, b))) {
                 let cells = size.iter().map(|&s| s as u64).product::<u64>();
-                if threads + cells > max_threads && threads > 0 {
-                    flush(&mut plan, first_box, threads);
+                if threads - offset + cells > max_threads && threads > offset {
+                    flush(&mut plan, first_box, offset, threads);
                     first_box = plan.boxes.len();
-                    threads = 0;
+                    offset = threads;
                 }
                 plan.boxes.push(SweepBox {
                     lo,
@@ -625,7 +696,19 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
                 threads += cells;
             }
         }
-        flush(&mut plan, first_box, threads);
+        flush(&mut plan, first_box, offset, threads);
+        if plan.steps.len() > batch_step + 1 && threads <= MAX_THREADS_PER_DISPATCH {
+            let (groups, row) = workgroups(threads);
+            let step = SweepStep {
+                first_box: batch_box as u32,
+                box_count: (plan.boxes.len() - batch_box) as u32,
+                row,
+                stride,
+                offset: 0,
+                _pad: [0; 3],
+            };
+            plan.whole.push((batch_step..plan.steps.len(), step, groups));
+        }
     }
     plan
 }
