@@ -1,7 +1,8 @@
 //! The scene model: what an artist authors, independent of GPUs and of the editor.
 //!
-//! A [`Project`] holds the medium (a homogeneous base fog plus gaussian particles),
-//! point lights, the grid the medium is baked on, the camera and render settings.
+//! A [`Project`] holds the medium (a base fog, homogeneous or exponential in height, plus
+//! gaussian particles), point, spot and directional lights, the grid the medium is baked on,
+//! the camera and render settings.
 //! Units follow `physics.md`: metres, extinction in 1/m, radiant intensity in W/sr.
 //! Every optional field has a default documented on its type, so a project file only
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
