@@ -231,8 +231,8 @@ impl Noise {
     }
 }
 
-/// The integer hash behind [`Noise`] (a PCG output permutation applied to a lattice point
-/// and seed); the GPU's `noise_hash` in `shaders/noise.wgsl` is the same function.
+/// The integer hash behind [`Noise`]: a PCG output permutation applied in turn to the seed
+/// and the lattice point's coordinates, so any implementation can reproduce it bit for bit.
 pub fn noise_hash(i: i32, j: i32, k: i32, seed: u32) -> u32 {
     let mut h = seed.wrapping_mul(0x9E37_79B9) ^ (i as u32).wrapping_mul(0x85EB_CA6B);
     h = pcg(h) ^ (j as u32).wrapping_mul(0xC2B2_AE35);
