@@ -86,6 +86,9 @@ fn base_fog_depth(o: vec3f, d: vec3f, len: f32) -> f32 {
         return 0.0;
     }
     let k = grid.height_falloff;
+    if k == 0.0 && len >= 0.0 {
+        return min(beta * len, OPAQUE);
+    }
     let c = k * d.y;
     let a = min(-k * (o.y - grid.height_origin), MAX_HEIGHT_EXPONENT);
     // ∫_0^L e^{−c t} dt = L·φ(cL), φ(x) = (1 − e^{−x})/x; for x < 0 it grows like e^{|x|}/|x|.

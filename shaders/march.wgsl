@@ -7,8 +7,10 @@
 // OPVs; outside it σ_t is the base fog, and light paths that cross the grid still pick up
 // its optical depth from the OPV where they leave it.
 //
-// Base fog outside the grid uses Sun et al.'s closed form (shaders/sun.wgsl) for every point
-// light whose light paths cannot meet the grid, and is marched otherwise. A spot light is a
+// Homogeneous base fog outside the grid uses Sun et al.'s closed form (shaders/sun.wgsl) for
+// every point light whose light paths cannot meet the grid, and is marched otherwise; height
+// fog (physics.md §9) is always marched there, each step's optical thickness and every light
+// path's optical depth outside the grid taken from its closed form. A spot light is a
 // point light times its cone factor (common.wgsl); samples outside its cone skip it entirely.
 // A directional light (sun) adds σ_s·p·E·exp(−T_sun) with no falloff, T_sun from its OPV
 // where its path crosses the grid and the base fog's closed form elsewhere (physics.md §9).
@@ -194,10 +196,10 @@ fn light_depth(x: vec3f, l: u32, d: f32) -> f32 {
     let t_in = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), max(min(ta.z, tb.z), 0.0));
     let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), min(max(ta.z, tb.z), d));
     if t_out <= t_in {
-        return grid.base_extinction * d;
+        return base_fog_depth(s, u, d);
     }
     let p = s + u * t_out;
-    return opv_at(trilinear_at(p), l, p) + grid.base_extinction * (d - t_out);
+    return opv_at(trilinear_at(p), l, p) + base_fog_depth(p, u, d - t_out);
 }
 
 fn phase(cos_theta: f32) -> f32 {
@@ -236,11 +238,18 @@ fn mean_inverse_square(x: vec3f, dir: vec3f, dt: f32, s: vec3f) -> f32 {
 
 // One step of length `dt` centred at `x`.
 fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
-    var sigma = grid.base_extinction;
+    // The step's optical thickness: trilinear σ_t inside the grid, the base (height) fog's
+    // exact integral over the step outside it.
+    var tau: f32;
+    var sigma: f32;
     var tri: Trilinear;
     if inside {
         tri = trilinear_at(x);
         sigma = ev_at(tri);
+        tau = sigma * dt;
+    } else {
+        tau = base_fog_depth(x - dir * (0.5 * dt), dir, dt);
+        sigma = tau / max(dt, 1e-30);
     }
     samples += 1u;
     if sigma <= 0.0 {
@@ -277,8 +286,8 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
         let cos_theta = dot(to_x / d, -dir);
         inscatter += light.rgb * (cone * phase(cos_theta) * exp(-depth) * mean_inverse_square(x, dir, dt, light.position));
     }
-    radiance += transmittance * params.albedo * inscatter * one_minus_exp_neg(sigma * dt);
-    transmittance *= exp(-sigma * dt);
+    radiance += transmittance * params.albedo * inscatter * one_minus_exp_neg(tau);
+    transmittance *= exp(-tau);
 }
 
 // Uniform steps of about `step` over [t0, t1], outside the grid.
@@ -392,7 +401,7 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
         let lo = min(min(start, end), light.position);
         let hi = max(max(start, end), light.position);
         let misses_grid = any(lo > grid.max) || any(hi < grid.min);
-        if params.anisotropy == 0.0 && l < 32u && misses_grid && light.kind == LIGHT_POINT {
+        if params.anisotropy == 0.0 && l < 32u && misses_grid && light.kind == LIGHT_POINT && grid.height_falloff == 0.0 {
             let to_light = light.position - start;
             let d_sv = length(to_light);
             let gamma = acos(clamp(dot(dir, to_light / max(d_sv, 1e-30)), -1.0, 1.0));
@@ -405,7 +414,7 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
     if marched {
         march_fog(o, dir, t0, t1);
     } else {
-        transmittance *= exp(-beta * (t1 - t0));
+        transmittance *= exp(-base_fog_depth(start, dir, t1 - t0));
     }
     sun_mask = 0u;
 }

@@ -31,7 +31,7 @@ fn files_without_the_new_fields_load_as_before() {
 #[test]
 fn new_fields_round_trip_in_the_documented_syntax() {
     let text = "Project(version: 1,
-        medium: (base_extinction: 0.1, height_falloff: 0.5, height_origin: -1, noise: Some((0.8, 1.5, 4, 7))),
+        medium: (base_extinction: 0.1, height_falloff: 0.5, height_origin: -1),
         lights: [
             (position: (0, 3, 0), intensity: 30, kind: Spot(direction: (0, -1, 0), angle_deg: 25, blend: 0.2)),
             (position: (0, 0, 0), intensity: 2, kind: Directional(direction: (1, -1, 0))),
@@ -41,7 +41,11 @@ fn new_fields_round_trip_in_the_documented_syntax() {
     assert_eq!(p.lights[0].kind, LightKind::Spot { direction: Vec3::new(0.0, -1.0, 0.0), angle_deg: 25.0, blend: 0.2 });
     assert_eq!(p.lights[1].kind, LightKind::Directional { direction: Vec3::new(1.0, -1.0, 0.0) });
     assert_eq!(p.lights[2].kind, LightKind::Point);
-    assert_eq!(p.medium.noise, Some(Noise { amplitude: 0.8, frequency: 1.5, octaves: 4, seed: 7 }));
+    // Noise parses in the documented syntax but is refused, by name, until it is rendered.
+    let e = parse("Project(version: 1, medium: (noise: Some((0.8, 1.5, 4, 7))))").unwrap_err();
+    assert!(e.contains("medium.noise") && e.contains("not rendered"), "{e}");
+    let n: Noise = ron::from_str("(0.8, 1.5, 4, 7)").unwrap();
+    assert_eq!(n, Noise { amplitude: 0.8, frequency: 1.5, octaves: 4, seed: 7 });
     assert_eq!(p.medium.height_falloff, 0.5);
     let again = parse(&to_ron_string(&p).unwrap()).unwrap();
     assert_eq!(again, p);

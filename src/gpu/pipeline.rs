@@ -1359,7 +1359,13 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
     let step = r.step_factor * project.grid.cell_size().min_element();
     let base = project.medium.base_extinction;
     // Beyond the grid only base fog remains; follow it until its transmittance is 1e-8.
-    let far_distance = if base > 0.0 { (18.42 / base).min(20.0 * project.grid.size().length()) } else { 0.0 };
+    // Height fog thins upwards, so no density bounds the distance: the cap alone applies.
+    let far_distance = if base > 0.0 {
+        let reach = if project.medium.height_falloff > 0.0 { f32::INFINITY } else { 18.42 / base };
+        reach.min(20.0 * project.grid.size().length())
+    } else {
+        0.0
+    };
     MarchParams {
         origin: cam.position.to_array(),
         step,

@@ -14,13 +14,16 @@ use glam::DVec3;
 /// [`Medium::base_at`] does at the start point. Infinite when the path never thins out (k = 0
 /// or not rising, over an infinite length); never NaN.
 pub fn height_fog_depth(medium: &Medium, o: DVec3, d: DVec3, len: f64) -> f64 {
-    let beta = medium.base_extinction as f64;
+    height_fog_depth_raw(medium.base_extinction as f64, medium.height_falloff as f64, medium.height_origin as f64, o, d, len)
+}
+
+/// [`height_fog_depth`] with β₀, k and y₀ given.
+pub fn height_fog_depth_raw(beta: f64, k: f64, y0: f64, o: DVec3, d: DVec3, len: f64) -> f64 {
     if beta <= 0.0 || len <= 0.0 {
         return 0.0;
     }
-    let k = medium.height_falloff as f64;
     let c = k * d.y;
-    let a = (-k * (o.y - medium.height_origin as f64)).min(MAX_HEIGHT_EXPONENT);
+    let a = (-k * (o.y - y0)).min(MAX_HEIGHT_EXPONENT);
     // ∫_0^L e^{−c t} dt, in log space.
     let log_f = if len.is_infinite() {
         if c <= 0.0 {

@@ -47,6 +47,8 @@ pub struct Gaussian64 {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Medium64 {
     base: f64,
+    /// Height fog falloff k and origin y₀: the base fog is base·exp(−k(y − y₀)) (physics.md §9).
+    height: (f64, f64),
     gaussians: Vec<Gaussian64>,
     /// Per gaussian, the d²/r² beyond which it adds less than [`NEGLIGIBLE_DEPTH`].
     cull: Vec<f64>,
@@ -55,7 +57,7 @@ pub struct Medium64 {
 impl Medium64 {
     pub fn new(base: f64, gaussians: Vec<Gaussian64>) -> Self {
         let cull = gaussians.iter().map(|g| (g.density * g.radius * SQRT_PI / NEGLIGIBLE_DEPTH).ln()).collect();
-        Self { base, gaussians, cull }
+        Self { base, height: (0.0, 0.0), gaussians, cull }
     }
 
     /// Visible particles with positive radius and density; hidden ones contribute nothing.
@@ -65,7 +67,28 @@ impl Medium64 {
             .filter(|p| p.radius > 0.0 && p.density > 0.0)
             .map(|p| Gaussian64 { center: p.center.as_dvec3(), radius: p.radius as f64, density: p.density as f64 })
             .collect();
-        Self::new(project.medium.base_extinction.max(0.0) as f64, gaussians)
+        let mut m = Self::new(project.medium.base_extinction.max(0.0) as f64, gaussians);
+        m.height = (project.medium.height_falloff as f64, project.medium.height_origin as f64);
+        m
+    }
+
+    /// Base-fog extinction at height `y` (the height fog's exponent clamped as on the GPU).
+    pub fn base_at(&self, y: f64) -> f64 {
+        if self.height.0 == 0.0 {
+            return self.base;
+        }
+        self.base * (-self.height.0 * (y - self.height.1)).min(crate::scene::MAX_HEIGHT_EXPONENT).exp()
+    }
+
+    /// The base fog's optical depth along `o + t·d` (unit `d`), t in [0, len], in closed form.
+    pub fn base_depth(&self, o: DVec3, d: DVec3, len: f64) -> f64 {
+        if self.base <= 0.0 || len <= 0.0 {
+            return 0.0;
+        }
+        if self.height.0 == 0.0 {
+            return self.base * len;
+        }
+        lights::height_fog_depth_raw(self.base, self.height.0, self.height.1, o, d, len)
     }
 
     /// Homogeneous base extinction, 1/m.
@@ -79,7 +102,7 @@ impl Medium64 {
 
     /// σ_t at `x`.
     pub fn extinction(&self, x: DVec3) -> f64 {
-        self.base
+        self.base_at(x.y)
             + self
                 .gaussians
                 .iter()
@@ -95,13 +118,13 @@ impl Medium64 {
             return 0.0;
         }
         let dir = (b - a) / len;
-        self.base * len
+        self.base_depth(a, dir, len)
             + self.gaussians.iter().zip(&self.cull).map(|(g, &cull)| g.segment_depth(cull, a, dir, len)).sum::<f64>()
     }
 
     /// The gaussians that can contribute anywhere along the line `origin + t·dir` (unit `dir`).
     pub fn along_line(&self, origin: DVec3, dir: DVec3) -> Self {
-        let mut kept = Self { base: self.base, gaussians: Vec::new(), cull: Vec::new() };
+        let mut kept = Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new() };
         for (g, &cull) in self.gaussians.iter().zip(&self.cull) {
             let ob = g.center - origin;
             let perp = ob - dir * dir.dot(ob);

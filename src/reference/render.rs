@@ -198,7 +198,9 @@ pub fn radiance_along_ray(
         }
         let x = origin + dir * t;
         let inside = t >= b0 && t < b1;
-        let mut h = if inside || medium.base() <= 0.0 { step } else { opts.rel_step / medium.base() };
+        // Outside the box a step spans about rel_step of base fog optical depth (at most a
+        // million steps' worth of the grid's own step, where height fog has all but vanished).
+        let mut h = if inside || medium.base() <= 0.0 { step } else { (opts.rel_step / medium.base_at(x.y)).min(1e6 * step) };
         let near = lights.iter().filter(|l| l.sun.is_none()).map(|l| (x - l.position).length()).fold(f64::INFINITY, f64::min);
         h = h.min((opts.rel_step * near).max(min_step));
         if t < b0 {
@@ -218,8 +220,22 @@ pub fn radiance_along_ray(
         tau += seg;
         t = t_next;
         let tv = (-tau).exp();
-        let rest: f64 =
-            lights.iter().map(|l| l.rgb.element_sum() / if l.sun.is_some() { 1.0 } else { nearest_ahead(origin, dir, t, l.position).powi(2) }).sum();
+        // A sun has no falloff: what it can still add is bounded by the opacity of the fog
+        // left ahead, once the grid box is behind (∫σ e^{−τ} ≤ 1 − e^{−τ_rest}).
+        let fog_ahead = if t >= b1 || b0.is_infinite() {
+            -(-medium.base_depth(origin + dir * t, dir, f64::INFINITY)).exp_m1()
+        } else {
+            1.0
+        };
+        let rest: f64 = lights
+            .iter()
+            .map(|l| match l.sun {
+                // In homogeneous base fog no sunlight gets through at all.
+                Some(_) if project.medium.height_falloff == 0.0 && medium.base() > 0.0 => 0.0,
+                Some(_) => l.rgb.element_sum() * fog_ahead,
+                None => l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2),
+            })
+            .sum();
         if tv == 0.0 || tv * bound_scale * rest <= opts.tolerance * radiance.element_sum() {
             break;
         }

@@ -1,7 +1,8 @@
 //! The scene model: what an artist authors, independent of GPUs and of the editor.
 //!
-//! A [`Project`] holds the medium (a homogeneous base fog plus gaussian particles),
-//! point lights, the grid the medium is baked on, the camera and render settings.
+//! A [`Project`] holds the medium (a base fog, homogeneous or exponential in height, plus
+//! gaussian particles), point, spot and directional lights, the grid the medium is baked on,
+//! the camera and render settings.
 //! Units follow `physics.md`: metres, extinction in 1/m, radiant intensity in W/sr.
 //! Every optional field has a default documented on its type, so a project file only
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
@@ -239,8 +240,8 @@ impl Noise {
     }
 }
 
-/// The integer hash behind [`Noise`] (a PCG output permutation applied to a lattice point
-/// and seed); the GPU's `noise_hash` in `shaders/noise.wgsl` is the same function.
+/// The integer hash behind [`Noise`]: a PCG output permutation applied in turn to the seed
+/// and the lattice point's coordinates, so any implementation can reproduce it bit for bit.
 pub fn noise_hash(i: i32, j: i32, k: i32, seed: u32) -> u32 {
     let mut h = seed.wrapping_mul(0x9E37_79B9) ^ (i as u32).wrapping_mul(0x85EB_CA6B);
     h = pcg(h) ^ (j as u32).wrapping_mul(0xC2B2_AE35);
