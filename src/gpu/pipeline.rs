@@ -391,7 +391,8 @@ impl FogPipeline {
         let bricks = binning::brick_dims(grid).as_u64vec3().element_product();
         let bins = (grid.resolution / 2 + 1).as_u64vec3().element_product();
         let particle_bytes = particles as u64 * std::mem::size_of::<ParticleGpu>() as u64;
-        let lists = if particles == 0 { 0 } else { self.inject_chunk_bytes() + bins * 4 + particle_bytes };
+        // A chunk's lists: at most the chunk limit, and at most every particle in every bin.
+        let lists = if particles == 0 { 0 } else { self.inject_chunk_bytes().min(particles as u64 * bins * 4) + bins * 4 + particle_bytes };
         let pixels = width as u64 * height as u64;
         cells * 4 + bricks * 4 + 2 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
     }
