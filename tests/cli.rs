@@ -171,3 +171,26 @@ fn json_is_the_same_with_a_progress_bar_on_a_terminal() {
         assert_eq!(terminal.contains('%'), !quiet, "the bar is drawn on the terminal unless --quiet: {terminal:?}");
     }
 }
+
+/// `render --json` reports the GPU memory the baked scene holds and its peak; `info` with a
+/// project reports the live memory of its baked resources, at least its EV and two
+/// optical-depth arrays per light.
+#[test]
+fn render_and_info_report_gpu_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("c.png");
+    let cloud = demo("cloud.ron");
+    let out = fogsmith().args(["render", cloud.to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "48", "--height", "27", "--json"]).output().unwrap();
+    let v = json_of(&out);
+    let cells: u64 = v["grid"].as_array().unwrap().iter().map(|n| n.as_u64().unwrap()).product();
+    let lights = v["lights"].as_u64().unwrap();
+    let floor = cells * 4 * (1 + 2 * lights);
+    let (live, peak) = (v["gpu_memory_bytes"].as_u64().unwrap(), v["gpu_memory_peak_bytes"].as_u64().unwrap());
+    assert!(live >= floor && peak >= live, "live {live}, peak {peak}, EV + OPVs alone {floor}: {v}");
+    let info = json_of(&fogsmith().args(["info", cloud.to_str().unwrap(), "--json"]).output().unwrap());
+    assert!(info["gpu_memory_bytes"].as_u64().unwrap() >= floor, "{info}");
+    assert!(info["opv_capacity_bytes"].as_u64().unwrap() >= info["limits"]["max_storage_buffer_binding_size"].as_u64().unwrap(), "{info}");
+    let plain = fogsmith().arg("info").output().unwrap();
+    let text = String::from_utf8_lossy(&plain.stdout);
+    assert!(plain.status.success() && text.contains("optical-depth storage:") && text.contains("GPU memory"), "{text}");
+}

@@ -6,7 +6,7 @@
 
 use super::suites::{loglog_slope, Context};
 use super::BenchError;
-use crate::gpu::FrameReport;
+use crate::gpu::{FrameReport, OpvLayout};
 use crate::scene::{Light, Particle, Project};
 use glam::{UVec3, Vec3};
 use serde_json::{json, Value};
@@ -57,7 +57,17 @@ fn reset_peak_rss() -> bool {
 /// Bakes `p` from scratch on a fresh pipeline (so buffers grown by earlier cases do not
 /// count) and returns its record.
 fn case(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32) -> Result<(FrameReport, Value), BenchError> {
-    ctx.gpu = crate::gpu::FogPipeline::new(ctx.gpu.context().clone());
+    case_with(ctx, kind, p, w, h, None)
+}
+
+/// [`case`] with optical-depth segments of `segment_bytes` instead of one storage binding.
+fn case_with(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32, segment_bytes: Option<u64>) -> Result<(FrameReport, Value), BenchError> {
+    let gpu = ctx.gpu.context().clone();
+    let layout = match segment_bytes {
+        Some(b) => OpvLayout::with_segment_bytes(&gpu.limits, b),
+        None => OpvLayout::for_limits(&gpu.limits),
+    };
+    ctx.gpu = crate::gpu::FogPipeline::with_opv_layout(gpu, layout);
     let rss_reset = reset_peak_rss();
     let t = std::time::Instant::now();
     let r = ctx.full(p, w, h)?;
@@ -147,6 +157,18 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
         out.push(v);
     }
     fit(out, log, &format!("propagate_vs_lights_{res}"), "propagation time vs lights", &by_lights);
+
+    // The cost of segmented optical-depth storage: the same scene with every light's volume
+    // in one binding, and with each light split over two segments (every load and store
+    // picks its segment).
+    let p = small_particle_scene(2_000, 4, res);
+    let light_bytes = p.grid.cell_count() * 4;
+    for (name, seg) in [("one_binding", None), ("one_light_per_segment", Some(light_bytes)), ("two_segments_per_light", Some(light_bytes / 2))] {
+        let (r, mut v) = case_with(ctx, "opv_segments", &p, w, h, seg)?;
+        v["scheme_or_policy"] = json!(name);
+        log(&format!("scale {res}³ 4 lights, OPV {name:24} propagate {:9.1} ms  march {:.1} ms", r.timings_ms.propagate, r.timings_ms.march));
+        out.push(v);
+    }
 
     // The target: 256³ with 8 lights (several storage bindings of optical depth).
     if !quick {

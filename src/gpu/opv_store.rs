@@ -9,6 +9,12 @@
 //! change without touching their numerics. Segment 0 keeps the binding number the shader's
 //! array always had; segment `k ≥ 1` is bound at `extra_base + k − 1`. The segment count is
 //! fixed per device when the pipelines are built; unused segments bind a placeholder.
+//!
+//! Every segment but the last holds the same number of floats, the length of segment 0,
+//! which the helpers read with `arrayLength`. Where a light's volume fits a binding, that
+//! length is a whole number of lights, so no light straddles two segments and all lanes
+//! working on one light pick the same segment: on SIMD hardware a segment choice that
+//! differs between lanes costs every case of the switch.
 
 use wgpu::{BindGroupEntry, BindGroupLayoutEntry, BindingType, ShaderStages};
 
@@ -51,11 +57,26 @@ impl OpvLayout {
         (self.segment as u64 * self.segments as u64).min(u32::MAX as u64) * 4
     }
 
+    /// Floats per segment for volumes of `cells` cells: whole lights where one fits.
+    pub fn segment_for(&self, cells: u64) -> u64 {
+        let seg = self.segment as u64;
+        if cells == 0 || cells > seg {
+            seg
+        } else {
+            seg / cells * cells
+        }
+    }
+
+    /// Bytes of the lights' volumes one array can hold on a grid of `cells` cells.
+    pub fn capacity_bytes_for(&self, cells: u64) -> u64 {
+        (self.segment_for(cells) * self.segments as u64).min(u32::MAX as u64) * 4
+    }
+
     /// WGSL declaring array `name` (segment 0 at `binding`, the rest from `extra_base`) and
     /// its helpers `name_load(i: u32) -> f32` and, when `read_write`, `name_store(i: u32, v: f32)`.
     pub fn wgsl(&self, name: &str, binding: u32, extra_base: u32, read_write: bool) -> String {
         let access = if read_write { "read_write" } else { "read" };
-        let mut s = format!("// `{name}`: one light-major f32 array in {} segments of {} floats (src/gpu/opv_store.rs).\n", self.segments, self.segment);
+        let mut s = format!("// `{name}`: one light-major f32 array in up to {} segments (src/gpu/opv_store.rs).\n", self.segments);
         for k in 0..self.segments {
             let b = if k == 0 { binding } else { extra_base + k - 1 };
             s += &format!("@group(0) @binding({b}) var<storage, {access}> {name}_{k}: array<f32>;\n");
@@ -64,7 +85,7 @@ impl OpvLayout {
             if self.segments == 1 {
                 return format!("    {}\n", body(0));
             }
-            let mut c = format!("    let j = i % {}u;\n    switch i / {}u {{\n", self.segment, self.segment);
+            let mut c = format!("    let n = arrayLength(&{name}_0);\n    let k = i / n;\n    let j = i - k * n;\n    switch k {{\n");
             for k in 1..self.segments {
                 c += &format!("        case {k}u: {{ {} }}\n", body(k));
             }
@@ -99,19 +120,21 @@ impl OpvLayout {
 /// One segmented array on the GPU.
 #[derive(Clone)]
 pub struct OpvBuffers {
-    pub layout: OpvLayout,
     /// `layout.segments` buffers; those past the data are 4-byte placeholders.
     segments: Vec<wgpu::Buffer>,
+    /// Floats per segment (see [`OpvLayout::segment_for`]).
+    segment: u64,
     floats: u64,
 }
 
 impl OpvBuffers {
-    /// An array of `floats` floats (at least one), zeroed.
-    pub fn new(device: &wgpu::Device, layout: OpvLayout, floats: u64, label: &str) -> Self {
-        let floats = floats.max(1);
+    /// An array of `lights` volumes of `cells` floats (at least one float), zeroed.
+    pub fn new(device: &wgpu::Device, layout: OpvLayout, cells: u64, lights: u64, label: &str) -> Self {
+        let floats = (cells * lights).max(1);
+        let segment = layout.segment_for(cells);
         let segments = (0..layout.segments as u64)
             .map(|k| {
-                let len = floats.saturating_sub(k * layout.segment as u64).min(layout.segment as u64).max(1);
+                let len = floats.saturating_sub(k * segment).min(segment).max(1);
                 device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some(label),
                     size: len * 4,
@@ -120,7 +143,7 @@ impl OpvBuffers {
                 })
             })
             .collect();
-        Self { layout, segments, floats }
+        Self { segments, segment, floats }
     }
 
     /// Segment 0, for the stage's own binding list.
@@ -148,7 +171,7 @@ impl OpvBuffers {
 
     /// The pieces `(segment, offset, floats)` of floats `start..start + count`.
     fn pieces(&self, start: u64, count: u64) -> Vec<(usize, u64, u64)> {
-        let seg = self.layout.segment as u64;
+        let seg = self.segment;
         let mut out = Vec::new();
         let (mut at, end) = (start, (start + count).min(self.floats));
         while at < end {
@@ -162,7 +185,7 @@ impl OpvBuffers {
 
     /// Copies floats `start..start + count` of `self` to `dst` (segmented alike) at `dst_start`.
     pub fn copy_to(&self, encoder: &mut wgpu::CommandEncoder, start: u64, dst: &OpvBuffers, dst_start: u64, count: u64) {
-        let seg = dst.layout.segment as u64;
+        let seg = dst.segment;
         let mut done = 0;
         for (k, off, n) in self.pieces(start, count) {
             // Split again where the destination's segments end.

@@ -395,7 +395,8 @@ impl FogPipeline {
         let bricks = binning::brick_dims(grid).as_u64vec3().element_product();
         let bins = (grid.resolution / 2 + 1).as_u64vec3().element_product();
         let particle_bytes = particles as u64 * std::mem::size_of::<ParticleGpu>() as u64;
-        let lists = if particles == 0 { 0 } else { self.inject_chunk_bytes() + bins * 4 + particle_bytes };
+        // A chunk's lists: at most the chunk limit, and at most every particle in every bin.
+        let lists = if particles == 0 { 0 } else { self.inject_chunk_bytes().min(particles as u64 * bins * 4) + bins * 4 + particle_bytes };
         let pixels = width as u64 * height as u64;
         cells * 4 + bricks * 4 + 2 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
     }
@@ -444,7 +445,7 @@ impl FogPipeline {
         }
         let r = grid.resolution;
         let opv_bytes = grid.cell_count() * light_count.max(1) as u64 * 4;
-        let opv_limit = self.opv_layout.capacity_bytes();
+        let opv_limit = self.opv_layout.capacity_bytes_for(grid.cell_count());
         if opv_bytes > opv_limit {
             let per_light = grid.cell_count() * 4;
             return Err(GpuError::Limit {
@@ -455,7 +456,7 @@ impl FogPipeline {
                 suggestion: format!(
                     "the adapter gives a shader {} storage bindings of {} for them; use at most {} lights at this resolution or lower grid.resolution",
                     self.opv_layout.segments,
-                    human_bytes(self.opv_layout.segment as u64 * 4),
+                    human_bytes(self.opv_layout.segment_for(grid.cell_count()) * 4),
                     opv_limit / per_light
                 ),
             });
@@ -1273,8 +1274,8 @@ fn light_gpu(l: &Light, culled: bool) -> LightGpu {
 
 /// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
 fn light_buffers(device: &wgpu::Device, layout: OpvLayout, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [OpvBuffers; 2]) {
-    let floats = spec.cell_count() * light_count.max(1) as u64;
-    let opv = ["optical depth A", "optical depth B"].map(|label| OpvBuffers::new(device, layout, floats, label));
+    let lights = light_count.max(1) as u64;
+    let opv = ["optical depth A", "optical depth B"].map(|label| OpvBuffers::new(device, layout, spec.cell_count(), lights, label));
     let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("lights"),
         size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
