@@ -791,8 +791,8 @@ fn the_slice_plane_shows_in_the_viewport_and_the_slice_names_its_axes() {
     assert!(with != without, "the quad tints the viewport: {without:?} → {with:?}");
     assert!(towards(2, c.b()) > 0 && towards(0, c.r()) >= 0, "tinted towards the z colour {c:?}: {without:?} → {with:?}");
 
-    h.get_by_label("x → -1.00 … 1.00 m");
-    h.get_by_label("y ↑ 0.00 … 2.00 m");
+    h.get_by_label("x -1.00 … 1.00 m");
+    h.get_by_label("y 0.00 … 2.00 m");
     h.get_by_label("z = 0.016 m");
     h.key_press(egui::Key::CloseBracket);
     h.run_steps(3);

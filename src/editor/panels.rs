@@ -99,12 +99,16 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
     });
     // World axes and units on the image, in the plane's axis colour.
     let [across, up, plane] = super::slices::slice_axis_labels(&grid, slice.axis, slice.index);
-    let small = |t: String, c: Color32| egui::Label::new(egui::RichText::new(t).small().color(c).background_color(Color32::from_black_alpha(160)));
+    let small = |t: String, c: Color32| egui::Label::new(egui::RichText::new(t).small().color(c).background_color(Color32::from_black_alpha(170)));
     let (ua, va) = slice.axis.image_axes();
     let colour = |a: usize| [Axis::X, Axis::Y, Axis::Z][a].colour();
-    ui.put(Rect::from_min_size(img_rect.left_bottom() - egui::vec2(0.0, 16.0), egui::vec2(w.min(200.0), 16.0)), small(across, colour(ua)));
-    ui.put(Rect::from_min_size(img_rect.left_top(), egui::vec2(w.min(200.0), 16.0)), small(up, colour(va)));
-    ui.put(Rect::from_min_size(img_rect.right_top() - egui::vec2(w.min(130.0), 0.0), egui::vec2(w.min(130.0), 16.0)), small(plane, slice.axis.colour()));
+    let mut corner_label = |at: Pos2, label: egui::Label| {
+        let r = Rect::from_min_size(at, egui::vec2(w, 16.0));
+        ui.scope_builder(egui::UiBuilder::new().max_rect(r).layout(egui::Layout::left_to_right(egui::Align::Min)), |ui| ui.add(label));
+    };
+    corner_label(img_rect.left_bottom() - egui::vec2(-2.0, 16.0), small(across, colour(ua)));
+    corner_label(img_rect.left_top() + egui::vec2(2.0, 2.0), small(up, colour(va)));
+    corner_label(img_rect.left_top() + egui::vec2(2.0, 18.0), small(plane, slice.axis.colour()));
     let probe = state.view.slice.hover.clone().unwrap_or_else(|| format!("range {lo:.4} … {hi:.4} {unit}"));
     painter.text(Pos2::new(avail.min.x, img_rect.max.y + 4.0), egui::Align2::LEFT_TOP, probe, egui::FontId::monospace(12.0), ui.visuals().text_color());
 

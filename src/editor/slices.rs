@@ -93,14 +93,15 @@ pub fn slice_plane_corners(grid: &GridSpec, axis: Axis, index: u32) -> [glam::Ve
     [corner(lo[ua], lo[va]), corner(hi[ua], lo[va]), corner(hi[ua], hi[va]), corner(lo[ua], hi[va])]
 }
 
-/// Labels of a slice image: along its columns, along its rows (both with their world range)
-/// and the plane itself, e.g. ("x → −1.00 … 1.00 m", "y ↑ 0.00 … 2.00 m", "z = 0.016 m").
+/// Labels of a slice image: along its columns (left to right), along its rows (bottom to
+/// top), both with their world range, and the plane itself, e.g. ("x -1.00 … 1.00 m",
+/// "y 0.00 … 2.00 m", "z = 0.016 m").
 pub fn slice_axis_labels(grid: &GridSpec, axis: Axis, index: u32) -> [String; 3] {
     let (ua, va) = axis.image_axes();
     let name = |a: usize| ["x", "y", "z"][a];
     [
-        format!("{} → {:.2} … {:.2} m", name(ua), grid.min[ua], grid.max[ua]),
-        format!("{} ↑ {:.2} … {:.2} m", name(va), grid.min[va], grid.max[va]),
+        format!("{} {:.2} … {:.2} m", name(ua), grid.min[ua], grid.max[ua]),
+        format!("{} {:.2} … {:.2} m", name(va), grid.min[va], grid.max[va]),
         format!("{} = {:.3} m", name(axis.index()), slice_position(grid, axis, index)),
     ]
 }
