@@ -198,3 +198,12 @@ fn demos_particles_crossing_the_grid() {
         }
     }
 }
+
+/// A file without a version (hand-written, minimal) reads as version 1: no ids needed.
+#[test]
+fn files_without_a_version_need_no_ids() {
+    let text = "Project(particles: [(center: (0, 1, 0), radius: 0.5, density: 1), (center: (0.5, 1, 0), radius: 0.5, density: 1)])";
+    let p = parse(text).unwrap();
+    assert_eq!(p.version, fogsmith::scene::PROJECT_VERSION);
+    assert_eq!(p.particles.iter().map(|q| q.id).collect::<Vec<_>>(), [0, 1]);
+}
