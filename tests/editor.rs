@@ -352,7 +352,7 @@ fn a_stroke_stops_where_the_button_is_released() {
     let mut h = harness(demo());
     let rect = h.state().viewport_rect().expect("viewport");
     h.state_mut().set_tool(Tool::Paint);
-    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.1, density: 2.0, spacing: 0.3, jitter: 0.0 };
+    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.1, density: 2.0, spacing: 0.3, jitter: 0.0, ..Default::default() };
     let before = h.state().session().project().particles.len();
     let undo_before = h.state().session().undo_len();
     let (a, b) = (rect.center() - Vec2::new(60.0, 0.0), rect.center() + Vec2::new(20.0, 0.0));
@@ -761,4 +761,112 @@ fn every_command_shortcut_dispatches_and_is_on_the_help_sheet() {
     h.run_steps(2);
     h.get_by_label("Ctrl+Shift+Z / Ctrl+Y");
     h.get_by_label("Next slice");
+}
+
+/// The slice plane shows in the viewport as a translucent quad in its axis colour, and the
+/// slice image names its world axes with their ranges in metres and the plane's position.
+#[test]
+fn the_slice_plane_shows_in_the_viewport_and_the_slice_names_its_axes() {
+    use fogsmith::editor::slices::{slice_plane_corners, Axis};
+    let mut h = harness(demo());
+    h.state_mut().slice_settings_mut().axis = Axis::Z;
+    h.state_mut().slice_settings_mut().index = 32;
+    h.state_mut().set_show_slice_plane(false);
+    h.run_steps(3);
+    let grid = h.state().session().project().grid;
+    let corners = slice_plane_corners(&grid, Axis::Z, 32);
+    let centre = corners.iter().copied().sum::<glam::Vec3>() / 4.0;
+    assert!((centre.z - (grid.min.z + 32.5 * grid.cell_size().z)).abs() < 1e-6, "the plane is at the cell centre");
+    let at = screen_of(&h, centre);
+    let pixel = |img: &image::RgbaImage| {
+        let p = img.get_pixel(at.x as u32, at.y as u32).0;
+        [p[0] as i32, p[1] as i32, p[2] as i32]
+    };
+    let without = pixel(&h.render().expect("render"));
+    h.state_mut().set_show_slice_plane(true);
+    h.run_steps(2);
+    let with = pixel(&h.render().expect("render"));
+    let c = Axis::Z.colour();
+    let towards = |i: usize, target: u8| (target as i32 - without[i]).signum() * (with[i] - without[i]);
+    assert!(with != without, "the quad tints the viewport: {without:?} → {with:?}");
+    assert!(towards(2, c.b()) > 0 && towards(0, c.r()) >= 0, "tinted towards the z colour {c:?}: {without:?} → {with:?}");
+
+    h.get_by_label("x -1.00 … 1.00 m");
+    h.get_by_label("y 0.00 … 2.00 m");
+    h.get_by_label("z = 0.016 m");
+    h.key_press(egui::Key::CloseBracket);
+    h.run_steps(3);
+    h.get_by_label("z = 0.047 m");
+}
+
+/// Paint at fog depth: a click over a dense puff paints where the optical depth from the
+/// camera through the pipeline's EV reaches 0.5 (in front of the puff's centre), the brush preview
+/// sits there before the click, a ray through no fog falls back to the working plane, and
+/// the working plane stays a choice.
+#[test]
+fn paint_lands_at_the_fog_depth_under_the_cursor() {
+    use fogsmith::editor::tools::{fog_depth_point, working_plane_point, PaintDepth, FOG_DEPTH_TAU};
+    let mut h = harness(demo());
+    // A dense puff between the camera and the working plane (through the grid centre).
+    let g = h.state().session().project().grid;
+    let puff = fogsmith::scene::Particle::new(glam::Vec3::new(0.1, 1.0, g.max.z - 0.4), 0.12, 20.0);
+    h.state_mut().session_mut().add_particles(0, [puff]);
+    h.run_steps(3);
+    let rect = h.state().viewport_rect().expect("viewport");
+    let project = h.state().session().project().clone();
+    let vp = ViewProjection::new(&project.camera, rect);
+    let wisp = project.particles.last().unwrap().clone();
+    let pos = screen_of(&h, wisp.center);
+    h.state_mut().set_tool(Tool::Paint);
+    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.05, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Fog };
+    let ev = read_ev(&h);
+    let expected = fog_depth_point(&ev, vp.position, vp.ray(pos), FOG_DEPTH_TAU).expect("the ray through the puff reaches τ = 0.5");
+    let cam = project.camera.position;
+    let (d_hit, d_wisp) = ((expected - cam).length(), (wisp.center - cam).length());
+    assert!(d_hit < d_wisp && d_hit > d_wisp - 2.2 * wisp.radius, "the fog begins in front of the puff's centre: {d_hit} vs {d_wisp}");
+
+    h.event(Event::PointerMoved(pos));
+    h.run_steps(2);
+    let preview = h.state().brush_point().expect("the brush preview has a depth");
+    assert!((preview - expected).length() < 1e-3, "the preview sits at the fog: {preview:?} vs {expected:?}");
+    let n = project.particles.len();
+    press(&mut h, pos, PointerButton::Primary, true);
+    press(&mut h, pos, PointerButton::Primary, false);
+    h.run_steps(2);
+    let painted = h.state().session().project().particles[n].center;
+    assert!((painted - expected).length() < 1e-3, "painted at the fog depth: {painted:?} vs {expected:?}");
+    let plane = working_plane_point(&project, &vp, pos).unwrap();
+    assert!((plane - expected).length() > 0.05, "the fog depth differs from the working plane here");
+
+    // A ray through no fog (outside the grid box) falls back to the working plane.
+    let corner = rect.min + Vec2::new(6.0, 6.0);
+    assert!(fog_depth_point(&read_ev(&h), vp.position, vp.ray(corner), FOG_DEPTH_TAU).is_none());
+    let n = h.state().session().project().particles.len();
+    h.event(Event::PointerMoved(corner));
+    h.step();
+    press(&mut h, corner, PointerButton::Primary, true);
+    press(&mut h, corner, PointerButton::Primary, false);
+    h.run_steps(2);
+    let fallback = h.state().session().project().particles[n].center;
+    let plane_corner = working_plane_point(&project, &vp, corner).unwrap();
+    assert!((fallback - plane_corner).length() < 1e-3, "no fog: the working plane ({fallback:?} vs {plane_corner:?})");
+
+    // The working plane as the artist's choice.
+    h.state_mut().brush_mut().depth = PaintDepth::Plane;
+    let rect_now = h.state().viewport_rect().unwrap();
+    let cam_now = h.state().session().project().camera;
+    assert_eq!((rect_now, cam_now), (rect, project.camera), "the view did not move");
+    let n = h.state().session().project().particles.len();
+    h.event(Event::PointerMoved(pos));
+    h.step();
+    press(&mut h, pos, PointerButton::Primary, true);
+    press(&mut h, pos, PointerButton::Primary, false);
+    h.run_steps(2);
+    let added: Vec<_> = h.state().session().project().particles[n..].iter().map(|p| p.center).collect();
+    assert_eq!(added.len(), 1, "one click, one dab: {added:?}");
+    let on_plane = added[0];
+    let centre = (project.grid.min + project.grid.max) * 0.5;
+    let depth = |p: glam::Vec3| (p - vp.position).dot(vp.forward);
+    assert!((depth(on_plane) - depth(centre)).abs() < 1e-4, "on the working plane: {on_plane:?} (plane through {centre:?})");
+    assert!((depth(on_plane) - depth(painted)).abs() > 0.05, "not at the fog depth");
 }

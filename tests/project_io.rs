@@ -177,7 +177,8 @@ fn code_built_projects_save_with_distinct_ids() {
     assert_eq!(back.particles.iter().map(|q| q.id).collect::<Vec<_>>(), [0, 1, 2]);
 }
 
-/// What the outside-the-box rule says on the demos (printed; see the README).
+/// What the outside-the-box rule says on the demos (printed; see the README), and that fitting
+/// the grid leaves no particle crossing it.
 #[test]
 fn demos_particles_crossing_the_grid() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("projects");
@@ -189,6 +190,20 @@ fn demos_particles_crossing_the_grid() {
         for keep in [fogsmith::scene::FitKeep::CellSize, fogsmith::scene::FitKeep::Resolution] {
             let g = p.fit_grid_to_particles(keep).unwrap();
             println!("  fit {keep:?}: {:?} .. {:?} {:?}", g.min, g.max, g.resolution);
+            let fitted = Project { grid: g, ..p.clone() };
+            assert!(fitted.particles_crossing_grid().is_empty(), "{}: after fitting ({keep:?}) no particle crosses", path.display());
+            if keep == fogsmith::scene::FitKeep::Resolution {
+                assert_eq!(g.resolution, p.grid.resolution);
+            }
         }
     }
+}
+
+/// A file without a version (hand-written, minimal) reads as version 1: no ids needed.
+#[test]
+fn files_without_a_version_need_no_ids() {
+    let text = "Project(particles: [(center: (0, 1, 0), radius: 0.5, density: 1), (center: (0.5, 1, 0), radius: 0.5, density: 1)])";
+    let p = parse(text).unwrap();
+    assert_eq!(p.version, fogsmith::scene::PROJECT_VERSION);
+    assert_eq!(p.particles.iter().map(|q| q.id).collect::<Vec<_>>(), [0, 1]);
 }

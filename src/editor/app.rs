@@ -346,42 +346,23 @@ pub(crate) struct Modal {
     pub applied_factor: f32,
 }
 
-/// Everything the panels share, apart from the dock layout.
+/// Everything the panels share, apart from the dock layout, in four parts: the document
+/// (the session with its undo history), the view state, the background jobs and crash
+/// recovery; plus the preview on the GPU and the shell around them (messages, dialogs).
 pub struct EditorState {
+    /// The document: the project, selection and snapshot undo history.
     pub(crate) session: Session,
     /// Bumped when the whole project is replaced, so caches keyed on generations reset.
     pub(crate) epoch: u64,
-    pub(crate) tool: Tool,
-    pub(crate) brush: Brush,
-    pub(crate) slices: SliceSettings,
+    pub(crate) view: ViewState,
+    pub(crate) jobs: Jobs,
+    recovery: RecoveryState,
     pub(crate) gpu: Option<GpuView>,
     pub(crate) gpu_missing: Option<String>,
     pub(crate) toasts: Vec<Toast>,
     pub(crate) recent: Vec<PathBuf>,
     pub(crate) confirm: Option<Action>,
     after_save: Option<Action>,
-    pub(crate) show_shortcuts: bool,
-    pub(crate) gesture: Option<Gesture>,
-    pub(crate) modal: Option<Modal>,
-    pub(crate) scale_wheel: Option<(u64, f64)>,
-    pub(crate) viewport_rect: Option<egui::Rect>,
-    pub(crate) preview_size: [u32; 2],
-    pub(crate) interacting: bool,
-    pub(crate) quality: Quality,
-    /// Scripted camera motion counts as interaction (`--measure-fps`).
-    pub(crate) force_interacting: bool,
-    pub(crate) clock: FrameClock,
-    pub(crate) continuous: bool,
-    pub(crate) slice: SliceCache,
-    /// An export waiting for the bake to complete.
-    pending_export: Option<(Export, PathBuf)>,
-    /// The export being written in the background.
-    export_job: Option<ExportJob>,
-    pub(crate) rename: Option<(super::tools::Hit, String)>,
-    pub(crate) outliner_anchor: Option<super::tools::Hit>,
-    jobs_tx: mpsc::Sender<JobResult>,
-    jobs_rx: mpsc::Receiver<JobResult>,
-    pub(crate) busy: Vec<String>,
     options: EditorOptions,
     frames: u64,
     screenshot_requested: bool,
@@ -390,26 +371,73 @@ pub struct EditorState {
     title: String,
     quit_confirmed: bool,
     ctx: Context,
-    /// Where recovery files go, when enabled.
-    recovery_dir: Option<PathBuf>,
-    recovery_written: Option<(u64, u64, f64)>,
-    /// Work left by an earlier run that did not exit cleanly, offered at start.
-    pub(crate) recoveries: Vec<(PathBuf, crate::scene::recovery::Recovery)>,
     /// The system's file dialogs, or the built-in one and why.
     file_dialogs: FileDialogs,
     /// The built-in file dialog while it is open, and what it was opened for.
     built_in_dialog: Option<(Pick, egui_file_dialog::FileDialog)>,
     built_in_explained: bool,
-    /// Outline every particle in the viewport; otherwise only the selection.
-    pub(crate) outline_all: bool,
     /// What the pipeline's base layer was loaded from: base volume, grid and project file.
     base_loaded: Option<(Option<crate::scene::BaseVolume>, crate::scene::GridSpec, Option<PathBuf>)>,
     /// File → Import VDB… while its window is open.
     import: Option<super::import::ImportVdb>,
-    /// What "Fit grid to particles" keeps.
-    pub(crate) fit_keep: crate::scene::FitKeep,
     /// The command run last, for scripted drivers.
     last_command: Option<Command>,
+}
+
+/// How the artist looks at the document: tools, brush, slices, gestures, the viewport.
+/// Not part of undo; the tool, brush and slice settings persist between runs.
+pub(crate) struct ViewState {
+    pub tool: Tool,
+    pub brush: Brush,
+    pub slices: SliceSettings,
+    pub show_shortcuts: bool,
+    pub gesture: Option<Gesture>,
+    pub modal: Option<Modal>,
+    pub scale_wheel: Option<(u64, f64)>,
+    pub viewport_rect: Option<egui::Rect>,
+    pub preview_size: [u32; 2],
+    pub interacting: bool,
+    pub quality: Quality,
+    /// Scripted camera motion counts as interaction (`--measure-fps`).
+    pub force_interacting: bool,
+    pub clock: FrameClock,
+    pub continuous: bool,
+    pub slice: SliceCache,
+    pub rename: Option<(super::tools::Hit, String)>,
+    pub outliner_anchor: Option<super::tools::Hit>,
+    /// Outline every particle in the viewport; otherwise only the selection.
+    pub outline_all: bool,
+    /// What "Fit grid to particles" keeps.
+    pub fit_keep: crate::scene::FitKeep,
+    /// Draw the Slices panel's plane in the viewport.
+    pub show_slice_plane: bool,
+    /// Where a Paint stroke would start under the pointer.
+    pub brush_point: Option<glam::Vec3>,
+    /// The pipeline's EV read back for painting at the fog's depth, with the epoch and
+    /// content generation it was read at.
+    pub fog_ev: Option<(u64, u64, crate::scene::Volume)>,
+}
+
+/// Work running in background threads and what waits for it.
+pub(crate) struct Jobs {
+    tx: mpsc::Sender<JobResult>,
+    rx: mpsc::Receiver<JobResult>,
+    /// What each running job is doing, for the status bar.
+    pub busy: Vec<String>,
+    /// An export waiting for the bake to complete.
+    pending_export: Option<(Export, PathBuf)>,
+    /// The export being written in the background.
+    export_job: Option<ExportJob>,
+}
+
+/// Crash recovery: where recovery files go and what an earlier run left.
+#[derive(Default)]
+pub(crate) struct RecoveryState {
+    /// Where recovery files go, when enabled.
+    dir: Option<PathBuf>,
+    written: Option<(u64, u64, f64)>,
+    /// Work left by an earlier run that did not exit cleanly, offered at start.
+    pub found: Vec<(PathBuf, crate::scene::recovery::Recovery)>,
 }
 
 /// The slice currently shown and what it was made from.
@@ -446,34 +474,38 @@ impl EditorApp {
         let mut state = EditorState {
             session: Session::new(start.project, start.path, &start.name),
             epoch: 1,
-            tool: persisted.tool,
-            brush: persisted.brush,
-            slices: persisted.slices,
+            view: ViewState {
+                tool: persisted.tool,
+                brush: persisted.brush,
+                slices: persisted.slices,
+                show_shortcuts: false,
+                gesture: None,
+                modal: None,
+                scale_wheel: None,
+                viewport_rect: None,
+                preview_size: [640, 400],
+                interacting: false,
+                quality: if options.screenshot.is_some() { Quality::Full } else { persisted.quality },
+                force_interacting: false,
+                clock: FrameClock::default(),
+                continuous: options.measure_fps.is_some(),
+                slice: SliceCache::default(),
+                rename: None,
+                outliner_anchor: None,
+                outline_all: persisted.outline_all.unwrap_or(true),
+                fit_keep: crate::scene::FitKeep::default(),
+                show_slice_plane: true,
+                brush_point: None,
+                fog_ev: None,
+            },
+            jobs: Jobs { tx: jobs_tx, rx: jobs_rx, busy: Vec::new(), pending_export: None, export_job: None },
+            recovery: RecoveryState::default(),
             gpu,
             gpu_missing,
             toasts: Vec::new(),
             recent: persisted.recent,
             confirm: None,
             after_save: None,
-            show_shortcuts: false,
-            gesture: None,
-            modal: None,
-            scale_wheel: None,
-            viewport_rect: None,
-            preview_size: [640, 400],
-            interacting: false,
-            quality: if options.screenshot.is_some() { Quality::Full } else { persisted.quality },
-            force_interacting: false,
-            clock: FrameClock::default(),
-            continuous: options.measure_fps.is_some(),
-            slice: SliceCache::default(),
-            pending_export: None,
-            export_job: None,
-            rename: None,
-            outliner_anchor: None,
-            jobs_tx,
-            jobs_rx,
-            busy: Vec::new(),
             options,
             frames: 0,
             screenshot_requested: false,
@@ -482,27 +514,22 @@ impl EditorApp {
             title: String::new(),
             quit_confirmed: false,
             ctx: cc.egui_ctx.clone(),
-            recovery_dir: None,
-            recovery_written: None,
-            recoveries: Vec::new(),
             file_dialogs,
             built_in_dialog: None,
             built_in_explained: false,
-            outline_all: persisted.outline_all.unwrap_or(true),
             base_loaded: None,
             import: None,
-            fit_keep: crate::scene::FitKeep::default(),
             last_command: None,
         };
         if state.options.recovery {
             let dir = crate::scene::recovery::state_dir();
             for found in crate::scene::recovery::find_recoveries(&dir) {
                 match found {
-                    Ok(r) => state.recoveries.push(r),
+                    Ok(r) => state.recovery.found.push(r),
                     Err(e) => state.error(format!("A recovery file could not be read: {e}")),
                 }
             }
-            state.recovery_dir = Some(dir);
+            state.recovery.dir = Some(dir);
         }
         if let Some(e) = start.error {
             state.error(e);
@@ -537,27 +564,27 @@ impl EditorApp {
     }
     /// The preview's screen rectangle in the last frame.
     pub fn viewport_rect(&self) -> Option<egui::Rect> {
-        self.state.viewport_rect
+        self.state.view.viewport_rect
     }
     pub fn tool(&self) -> Tool {
-        self.state.tool
+        self.state.view.tool
     }
     pub fn set_tool(&mut self, tool: Tool) {
-        self.state.tool = tool;
+        self.state.view.tool = tool;
     }
     /// Full-resolution previews make frames independent of the adapter's speed (tests).
     pub fn set_quality(&mut self, quality: Quality) {
-        self.state.quality = quality;
+        self.state.view.quality = quality;
     }
     pub fn brush_mut(&mut self) -> &mut Brush {
-        &mut self.state.brush
+        &mut self.state.view.brush
     }
     pub fn slice_settings_mut(&mut self) -> &mut SliceSettings {
-        &mut self.state.slices
+        &mut self.state.view.slices
     }
     /// The slice shown in the Slices panel, if it has been drawn.
     pub fn current_slice(&self) -> Option<&Slice> {
-        self.state.slice.slice.as_ref()
+        self.state.view.slice.slice.as_ref()
     }
     /// Messages currently shown (errors and notices).
     pub fn messages(&self) -> Vec<(bool, String)> {
@@ -580,7 +607,7 @@ impl EditorApp {
     }
     /// Background jobs (saving, loading, dialogs) still running.
     pub fn busy(&self) -> usize {
-        self.state.busy.len()
+        self.state.jobs.busy.len()
     }
     /// Runs or (with unsaved changes) asks before running `action`.
     pub fn request(&mut self, action: Action) {
@@ -600,7 +627,15 @@ impl EditorApp {
     }
     /// View → Particle outlines: every particle, or only the selection.
     pub fn set_outline_all(&mut self, all: bool) {
-        self.state.outline_all = all;
+        self.state.view.outline_all = all;
+    }
+    /// Where a Paint stroke would start under the pointer (the brush preview's depth).
+    pub fn brush_point(&self) -> Option<glam::Vec3> {
+        self.state.view.brush_point
+    }
+    /// View → Slice plane.
+    pub fn set_show_slice_plane(&mut self, show: bool) {
+        self.state.view.show_slice_plane = show;
     }
     /// The command run last, from a menu or a shortcut.
     pub fn last_command(&self) -> Option<Command> {
@@ -629,7 +664,7 @@ impl EditorApp {
             ui.menu_button("View", |ui| self.view_menu(ui));
             ui.menu_button("Help", |ui| {
                 if Command::Shortcuts.menu_button(ui, true) {
-                    self.state.show_shortcuts = true;
+                    self.state.view.show_shortcuts = true;
                 }
             });
         });
@@ -647,8 +682,10 @@ impl EditorApp {
             self.dock = default_layout();
         }
         ui.separator();
-        ui.checkbox(&mut self.state.outline_all, "Particle outlines")
+        ui.checkbox(&mut self.state.view.outline_all, "Particle outlines")
             .on_hover_text("Outline every particle in the viewport; when off, only the selection is outlined");
+        ui.checkbox(&mut self.state.view.show_slice_plane, "Slice plane")
+            .on_hover_text("Show the Slices panel's plane in the viewport, in its axis colour");
         ui.separator();
         ui.label("Camera");
         self.state.camera_menu(ui);
@@ -702,11 +739,11 @@ impl eframe::App for EditorApp {
         let persisted = Persisted {
             dock: Some(self.dock.clone()),
             recent: self.state.recent.clone(),
-            tool: self.state.tool,
-            brush: self.state.brush,
-            slices: self.state.slices,
-            quality: self.state.quality,
-            outline_all: Some(self.state.outline_all),
+            tool: self.state.view.tool,
+            brush: self.state.view.brush,
+            slices: self.state.view.slices,
+            quality: self.state.view.quality,
+            outline_all: Some(self.state.view.outline_all),
         };
         eframe::set_value(storage, STORAGE_KEY, &persisted);
     }
@@ -773,7 +810,7 @@ impl EditorState {
             return;
         }
         gpu.last_frame = self.frames;
-        let budget = match self.quality {
+        let budget = match self.view.quality {
             Quality::Balanced => Some(Duration::from_secs_f64(FRAME_BUDGET_MS * 1e-3)),
             Quality::Full => None,
         };
@@ -792,7 +829,7 @@ impl EditorState {
         }
         let Some(gpu) = &mut self.gpu else { return };
         let before = gpu.error.clone();
-        gpu.render(&self.session, self.epoch, self.preview_size, budget);
+        gpu.render(&self.session, self.epoch, self.view.preview_size, budget);
         if gpu.refining() {
             self.ctx.request_repaint();
         }
@@ -806,15 +843,15 @@ impl EditorState {
         self.drop_recovery();
         self.session.replace(project, path, name);
         self.epoch += 1;
-        self.gesture = None;
-        self.modal = None;
-        self.rename = None;
-        self.slice = SliceCache::default();
+        self.view.gesture = None;
+        self.view.modal = None;
+        self.view.rename = None;
+        self.view.slice = SliceCache::default();
     }
 
     fn spawn(&mut self, label: &str, job: impl FnOnce() -> JobResult + Send + 'static) {
-        self.busy.push(label.to_owned());
-        let tx = self.jobs_tx.clone();
+        self.jobs.busy.push(label.to_owned());
+        let tx = self.jobs.tx.clone();
         let ctx = self.ctx.clone();
         std::thread::spawn(move || {
             let _ = tx.send(job());
@@ -1001,10 +1038,10 @@ impl EditorState {
         };
         if gpu.refining() {
             // The volumes are still being baked: export once they are complete.
-            if self.pending_export.is_none() {
+            if self.jobs.pending_export.is_none() {
                 self.info(format!("Exporting {} once the bake completes…", path.display()));
             }
-            self.pending_export = Some((kind, path));
+            self.jobs.pending_export = Some((kind, path));
             self.ctx.request_repaint();
             return;
         }
@@ -1028,7 +1065,7 @@ impl EditorState {
             cancel: Arc::new(AtomicBool::new(false)),
         };
         let (fraction, cancel) = (job.fraction.clone(), job.cancel.clone());
-        self.export_job = Some(job);
+        self.jobs.export_job = Some(job);
         self.spawn(&format!("Exporting {}", path.display()), move || {
             // Written beside the target and moved onto it only if not cancelled meanwhile.
             let mut staged = crate::cli::progress::Staged::default();
@@ -1062,7 +1099,7 @@ impl EditorState {
     }
 
     fn finish_job(&mut self, result: JobResult) {
-        self.busy.pop();
+        self.jobs.busy.pop();
         match result {
             JobResult::Picked { purpose, spec, path: None, seconds } if seconds < super::files::NO_DIALOG_SECONDS => {
                 let reason = "the system file dialog did not open (no desktop portal or zenity answered)".to_string();
@@ -1073,8 +1110,8 @@ impl EditorState {
             }
             JobResult::Picked { path: None, .. } => self.after_save = None,
             JobResult::Picked { purpose, path: Some(path), .. } => self.picked(purpose, path),
-            JobResult::Exported { path, result } if self.export_job.as_ref().is_some_and(|j| j.path == path) => {
-                self.export_job = None;
+            JobResult::Exported { path, result } if self.jobs.export_job.as_ref().is_some_and(|j| j.path == path) => {
+                self.jobs.export_job = None;
                 match result {
                     Ok(summary) => self.info(format!("Exported {}: {summary}", path.display())),
                     Err(e) if e == EXPORT_CANCELLED => self.info(format!("Export cancelled; {} is unchanged", path.display())),
@@ -1106,21 +1143,21 @@ impl EditorState {
                 self.error(format!("Could not save: {e}"));
             }
             JobResult::Exact { key, result } => {
-                if self.slice.exact_pending == Some(key) {
-                    self.slice.exact_pending = None;
+                if self.view.slice.exact_pending == Some(key) {
+                    self.view.slice.exact_pending = None;
                 }
-                self.slice.exact = Some((key, result));
-                self.slice.key = None;
+                self.view.slice.exact = Some((key, result));
+                self.view.slice.key = None;
             }
         }
     }
 
     /// Starts computing the exact optical depth on a slice's cells, unless it is under way.
     pub(crate) fn request_exact(&mut self, key: ExactKey, cells: Vec<[u32; 3]>) {
-        if self.slice.exact_pending == Some(key) {
+        if self.view.slice.exact_pending == Some(key) {
             return;
         }
-        self.slice.exact_pending = Some(key);
+        self.view.slice.exact_pending = Some(key);
         let project = self.session.project().clone();
         self.spawn("Computing the exact optical depth", move || JobResult::Exact {
             key,
@@ -1130,7 +1167,7 @@ impl EditorState {
 
     /// Removes this session's recovery file: its work was saved or deliberately dropped.
     fn drop_recovery(&mut self) {
-        if let (Some(dir), Some(_)) = (&self.recovery_dir, self.recovery_written.take()) {
+        if let (Some(dir), Some(_)) = (&self.recovery.dir, self.recovery.written.take()) {
             let path = crate::scene::recovery::recovery_path(dir, self.session.path());
             if let Err(e) = crate::scene::recovery::remove_recovery(&path) {
                 self.error(e.to_string());
@@ -1141,20 +1178,20 @@ impl EditorState {
     /// Every few seconds while there are unsaved changes, writes a recovery file in the
     /// background.
     fn write_recovery(&mut self, now: f64) {
-        let Some(dir) = self.recovery_dir.clone() else { return };
+        let Some(dir) = self.recovery.dir.clone() else { return };
         if !self.session.is_dirty() {
             return;
         }
         let key = (self.epoch, self.session.content_generation());
-        if let Some((epoch, generation, at)) = self.recovery_written {
+        if let Some((epoch, generation, at)) = self.recovery.written {
             if (epoch, generation) == key || now - at < recovery_interval_s() {
                 return;
             }
         }
-        self.recovery_written = Some((key.0, key.1, now));
+        self.recovery.written = Some((key.0, key.1, now));
         let project = self.session.project().clone();
         let original = self.session.path().map(Path::to_owned);
-        let tx = self.jobs_tx.clone();
+        let tx = self.jobs.tx.clone();
         std::thread::spawn(move || {
             if let Err(e) = crate::scene::recovery::write_recovery(&dir, original.as_deref(), &project) {
                 let _ = tx.send(JobResult::Exported { path: dir, result: Err(format!("could not write the recovery file: {e}")) });
@@ -1163,13 +1200,13 @@ impl EditorState {
     }
 
     fn recovery_dialog(&mut self, ctx: &Context) {
-        if self.recoveries.is_empty() {
+        if self.recovery.found.is_empty() {
             return;
         }
         let mut action = None;
         egui::Window::new("Recover unsaved work").collapsible(false).resizable(false).show(ctx, |ui| {
             ui.label("Fogsmith did not exit cleanly last time. This work was not saved:");
-            for (i, (_, rec)) in self.recoveries.iter().enumerate() {
+            for (i, (_, rec)) in self.recovery.found.iter().enumerate() {
                 ui.horizontal(|ui| {
                     let name = rec.original.as_ref().map_or("untitled project".to_string(), |p| p.display().to_string());
                     ui.label(format!("{name} ({} particles, {} lights)", rec.project.particles.len(), rec.project.lights.len()));
@@ -1183,7 +1220,7 @@ impl EditorState {
             }
         });
         if let Some((i, restore)) = action {
-            let (file, rec) = self.recoveries.remove(i);
+            let (file, rec) = self.recovery.found.remove(i);
             if restore {
                 self.replace_project(rec.project, rec.original, "recovered.ron");
                 self.session.mark_unsaved();
@@ -1195,9 +1232,9 @@ impl EditorState {
     }
 
     fn begin_frame(&mut self, ctx: &Context) {
-        self.clock.tick();
+        self.view.clock.tick();
         self.frames += 1;
-        while let Ok(result) = self.jobs_rx.try_recv() {
+        while let Ok(result) = self.jobs.rx.try_recv() {
             self.finish_job(result);
         }
         let dropped: Vec<PathBuf> = ctx.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).filter(|p| !p.as_os_str().is_empty()).collect());
@@ -1236,14 +1273,14 @@ impl EditorState {
             ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
             self.title = title;
         }
-        if self.continuous || !self.busy.is_empty() {
+        if self.view.continuous || !self.jobs.busy.is_empty() {
             ctx.request_repaint();
         }
         // After every panel has applied this frame's input, so the preview shows it in the
         // frame being painted.
         self.render_preview();
         if self.gpu.as_ref().is_some_and(|g| !g.refining()) {
-            if let Some((kind, path)) = self.pending_export.take() {
+            if let Some((kind, path)) = self.jobs.pending_export.take() {
                 self.export_to(kind, path);
             }
         }
@@ -1292,11 +1329,11 @@ impl EditorState {
                 self.measure_frames[1] += 1;
                 let camera = super::view::orbit(&self.session.project().camera, 0.02, 0.0);
                 self.session.set_camera(camera);
-                self.force_interacting = true;
-                self.interacting = true;
+                self.view.force_interacting = true;
+                self.view.interacting = true;
             } else {
-                self.force_interacting = false;
-                self.interacting = false;
+                self.view.force_interacting = false;
+                self.view.interacting = false;
                 let half = seconds * 0.5;
                 let p = self.session.project();
                 println!(
@@ -1306,8 +1343,8 @@ impl EditorState {
                     p.particles.len(),
                     p.lights.len(),
                     p.grid.resolution.to_array(),
-                    self.preview_size[0],
-                    self.preview_size[1]
+                    self.view.preview_size[0],
+                    self.view.preview_size[1]
                 );
                 if let Some(g) = &self.gpu {
                     let t = g.report.timings_ms;
@@ -1332,7 +1369,7 @@ impl EditorState {
     fn shortcuts(&mut self, ctx: &Context) {
         let typing = ctx.egui_wants_keyboard_input();
         let pointer = ctx.input(|i| i.pointer.hover_pos());
-        let in_viewport = pointer.zip(self.viewport_rect).is_some_and(|(p, r)| r.contains(p));
+        let in_viewport = pointer.zip(self.view.viewport_rect).is_some_and(|(p, r)| r.contains(p));
         for command in Command::pressed(ctx, typing, in_viewport) {
             self.run(command);
         }
@@ -1362,6 +1399,28 @@ impl EditorState {
         }
     }
 
+    /// The pipeline's extinction volume, read back once per content change (for painting at
+    /// the fog's depth); None without a pipeline or when the read fails.
+    pub(crate) fn fog_ev(&mut self) -> Option<&crate::scene::Volume> {
+        let key = (self.epoch, self.session.content_generation());
+        let fresh = self.view.fog_ev.as_ref().is_some_and(|(e, g, _)| (*e, *g) == key);
+        if !fresh {
+            let gpu = self.gpu.as_ref()?;
+            let grid = self.session.project().grid;
+            let stale_usable = self.view.fog_ev.as_ref().is_some_and(|(e, _, ev)| *e == key.0 && ev.grid == grid);
+            // While the bake catches up with an edit, the last complete read is close enough.
+            if !(gpu.refining() && stale_usable) {
+                let ev = gpu.pipeline.read_ev().ok()?;
+                if ev.grid != grid {
+                    return None;
+                }
+                let generation = if gpu.refining() { 0 } else { key.1 };
+                self.view.fog_ev = Some((key.0, generation, ev));
+            }
+        }
+        self.view.fog_ev.as_ref().map(|(_, _, ev)| ev)
+    }
+
     /// Runs `command`, from a menu or a shortcut.
     pub(crate) fn run(&mut self, command: Command) {
         use super::view::AxisView;
@@ -1386,7 +1445,7 @@ impl EditorState {
             Command::Duplicate => self.duplicate(),
             Command::Delete => self.delete(),
             Command::Escape => {
-                if self.modal.is_some() {
+                if self.view.modal.is_some() {
                     self.cancel_modal();
                 } else {
                     self.session.selection.clear();
@@ -1396,16 +1455,16 @@ impl EditorState {
                 let scale = command == Command::ScaleSelection;
                 let start = self.ctx.input(|i| i.pointer.hover_pos());
                 let applicable = if scale { !self.session.selection.particles.is_empty() } else { !self.session.selection.is_empty() };
-                if let (Some(start), true, true) = (start, applicable, self.modal.is_none()) {
+                if let (Some(start), true, true) = (start, applicable, self.view.modal.is_none()) {
                     self.start_modal(scale, start);
                 }
             }
             Command::FitGrid => super::viewport::fit_grid(self),
-            Command::ToolSelect => self.tool = Tool::Select,
-            Command::ToolPaint => self.tool = Tool::Paint,
-            Command::ToolScale => self.tool = Tool::Scale,
-            Command::ToolErase => self.tool = Tool::Erase,
-            Command::ToolLight => self.tool = Tool::Light,
+            Command::ToolSelect => self.view.tool = Tool::Select,
+            Command::ToolPaint => self.view.tool = Tool::Paint,
+            Command::ToolScale => self.view.tool = Tool::Scale,
+            Command::ToolErase => self.view.tool = Tool::Erase,
+            Command::ToolLight => self.view.tool = Tool::Light,
             Command::FrameSelection => self.frame_selection(),
             Command::ViewFront => self.axis_view(AxisView::Front),
             Command::ViewRight => self.axis_view(AxisView::Right),
@@ -1413,21 +1472,21 @@ impl EditorState {
             Command::ZoomIn => zoom(self, 0.85),
             Command::ZoomOut => zoom(self, 1.0 / 0.85),
             Command::SliceNext | Command::SlicePrevious => {
-                let max = self.session.project().grid.resolution.to_array()[self.slices.axis.index()].saturating_sub(1);
-                let i = self.slices.index.min(max);
-                self.slices.index = if command == Command::SliceNext { (i + 1).min(max) } else { i.saturating_sub(1) };
+                let max = self.session.project().grid.resolution.to_array()[self.view.slices.axis.index()].saturating_sub(1);
+                let i = self.view.slices.index.min(max);
+                self.view.slices.index = if command == Command::SliceNext { (i + 1).min(max) } else { i.saturating_sub(1) };
             }
-            Command::Shortcuts => self.show_shortcuts = !self.show_shortcuts,
+            Command::Shortcuts => self.view.show_shortcuts = !self.view.show_shortcuts,
         }
     }
 
     fn start_modal(&mut self, scale: bool, start: egui::Pos2) {
         let tag = self.session.new_tag();
-        self.modal = Some(Modal { scale, tag, start, applied: glam::Vec3::ZERO, applied_factor: 1.0 });
+        self.view.modal = Some(Modal { scale, tag, start, applied: glam::Vec3::ZERO, applied_factor: 1.0 });
     }
 
     pub(crate) fn cancel_modal(&mut self) {
-        if let Some(m) = self.modal.take() {
+        if let Some(m) = self.view.modal.take() {
             if m.applied != glam::Vec3::ZERO || m.applied_factor != 1.0 {
                 self.session.undo();
             }
@@ -1435,14 +1494,14 @@ impl EditorState {
     }
 
     pub(crate) fn undo(&mut self) {
-        self.modal = None;
+        self.view.modal = None;
         if !self.session.undo() {
             self.info("Nothing to undo");
         }
     }
 
     pub(crate) fn redo(&mut self) {
-        self.modal = None;
+        self.view.modal = None;
         if !self.session.redo() {
             self.info("Nothing to redo");
         }
@@ -1587,12 +1646,12 @@ impl EditorState {
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
-            if let Some(job) = self.busy.last() {
+            if let Some(job) = self.jobs.busy.last() {
                 ui.spinner();
                 ui.label(job.as_str());
                 ui.separator();
             }
-            if let Some(job) = &self.export_job {
+            if let Some(job) = &self.jobs.export_job {
                 let f = f32::from_bits(job.fraction.load(Ordering::Relaxed));
                 let name = job.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
                 ui.add(egui::ProgressBar::new(f).desired_width(160.0).show_percentage().text(format!("exporting {name}")));
@@ -1604,11 +1663,11 @@ impl EditorState {
                 ui.separator();
                 ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
             }
-            if let Some((_, path)) = &self.pending_export {
+            if let Some((_, path)) = &self.jobs.pending_export {
                 let path = path.clone();
                 ui.label(format!("{} waits for the bake", path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()));
                 if ui.button("Cancel").on_hover_text("Do not export").clicked() {
-                    self.pending_export = None;
+                    self.jobs.pending_export = None;
                     self.info(format!("Export cancelled; {} is unchanged", path.display()));
                 }
                 ui.separator();
@@ -1626,9 +1685,9 @@ impl EditorState {
                 p.particles.len(),
                 p.lights.len(),
                 self.session.selection.len(),
-                self.tool.label()
+                self.view.tool.label()
             ));
-            if self.modal.is_some() {
+            if self.view.modal.is_some() {
                 ui.separator();
                 ui.label("Move the mouse; click or Enter to confirm, Esc or right-click to cancel");
             }
@@ -1678,7 +1737,7 @@ impl EditorState {
     }
 
     fn shortcuts_window(&mut self, ctx: &Context) {
-        let mut open = self.show_shortcuts;
+        let mut open = self.view.show_shortcuts;
         egui::Window::new("Shortcuts").open(&mut open).resizable(false).show(ctx, |ui| {
             egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
                 for (k, v) in super::commands::help_sheet() {
@@ -1688,7 +1747,7 @@ impl EditorState {
                 }
             });
         });
-        self.show_shortcuts = open;
+        self.view.show_shortcuts = open;
     }
 
     fn show_toasts(&mut self, ctx: &Context) {

@@ -14,7 +14,7 @@ use glam::Vec3;
 pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
     let lights = state.session.project().lights.len();
     let grid = state.session.project().grid;
-    let s = &mut state.slices;
+    let s = &mut state.view.slices;
     ui.horizontal_wrapped(|ui| {
         egui::ComboBox::from_id_salt("slice-field").selected_text(s.field.label()).show_ui(ui, |ui| {
             for f in Field::ALL {
@@ -45,18 +45,18 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
         });
         ui.checkbox(&mut s.log, "log").on_hover_text("Logarithmic colour scale over six decades below the maximum");
     });
-    if state.slices.field.needs_light() && lights == 0 {
+    if state.view.slices.field.needs_light() && lights == 0 {
         ui.label("The project has no lights: add one with the Light tool.");
         return;
     }
-    state.slices.light = state.slices.light.min(lights.saturating_sub(1));
+    state.view.slices.light = state.view.slices.light.min(lights.saturating_sub(1));
     refresh_slice(state, ui.ctx());
 
-    if let Some(e) = &state.slice.error {
+    if let Some(e) = &state.view.slice.error {
         ui.colored_label(ui.visuals().error_fg_color, e);
     }
-    let (Some(slice), Some(tex)) = (state.slice.slice.clone(), state.slice.texture.clone()) else {
-        if state.slice.exact_pending.is_some() {
+    let (Some(slice), Some(tex)) = (state.view.slice.slice.clone(), state.view.slice.texture.clone()) else {
+        if state.view.slice.exact_pending.is_some() {
             ui.horizontal(|ui| {
                 ui.spinner();
                 ui.label("Computing the exact optical depth on this slice…");
@@ -65,7 +65,7 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
         return;
     };
     let (lo, hi) = slice.range();
-    let scale = Scale::for_range(lo, hi, state.slices.log);
+    let scale = Scale::for_range(lo, hi, state.view.slices.log);
     let avail = ui.available_rect_before_wrap();
     let bar_w = 70.0;
     let probe_h = 20.0;
@@ -86,21 +86,33 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
     let response = ui.allocate_rect(Rect::from_min_max(avail.min, avail.max), Sense::click_and_drag());
     let painter = ui.painter_at(avail);
     painter.image(tex.id(), img_rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
-    colour_bar(&painter, Rect::from_min_size(Pos2::new(img_rect.max.x + 8.0, img_rect.min.y + 7.0), egui::vec2(14.0, (h - 14.0).max(4.0))), state.slices.colormap, &scale, ui);
+    colour_bar(&painter, Rect::from_min_size(Pos2::new(img_rect.max.x + 8.0, img_rect.min.y + 7.0), egui::vec2(14.0, (h - 14.0).max(4.0))), state.view.slices.colormap, &scale, ui);
 
     let hover = response.hover_pos().filter(|p| img_rect.contains(*p));
-    let unit = state.slices.field.unit();
-    state.slice.hover = hover.map(|p| {
+    let unit = state.view.slices.field.unit();
+    state.view.slice.hover = hover.map(|p| {
         let x = (((p.x - img_rect.min.x) / w * slice.width as f32) as usize).min(slice.width - 1);
         let y = (((p.y - img_rect.min.y) / h * slice.height as f32) as usize).min(slice.height - 1);
         let [i, j, k] = slice.cell(x, y);
         let c = grid.cell_center(i, j, k);
         format!("cell ({i}, {j}, {k}) · world ({:.3}, {:.3}, {:.3}) m · value {:.5} {unit}", c.x, c.y, c.z, slice.get(x, y))
     });
-    let probe = state.slice.hover.clone().unwrap_or_else(|| format!("range {lo:.4} … {hi:.4} {unit}"));
+    // World axes and units on the image, in the plane's axis colour.
+    let [across, up, plane] = super::slices::slice_axis_labels(&grid, slice.axis, slice.index);
+    let small = |t: String, c: Color32| egui::Label::new(egui::RichText::new(t).small().color(c).background_color(Color32::from_black_alpha(170)));
+    let (ua, va) = slice.axis.image_axes();
+    let colour = |a: usize| [Axis::X, Axis::Y, Axis::Z][a].colour();
+    let mut corner_label = |at: Pos2, label: egui::Label| {
+        let r = Rect::from_min_size(at, egui::vec2(w, 16.0));
+        ui.scope_builder(egui::UiBuilder::new().max_rect(r).layout(egui::Layout::left_to_right(egui::Align::Min)), |ui| ui.add(label));
+    };
+    corner_label(img_rect.left_bottom() - egui::vec2(-2.0, 16.0), small(across, colour(ua)));
+    corner_label(img_rect.left_top() + egui::vec2(2.0, 2.0), small(up, colour(va)));
+    corner_label(img_rect.left_top() + egui::vec2(2.0, 18.0), small(plane, slice.axis.colour()));
+    let probe = state.view.slice.hover.clone().unwrap_or_else(|| format!("range {lo:.4} … {hi:.4} {unit}"));
     painter.text(Pos2::new(avail.min.x, img_rect.max.y + 4.0), egui::Align2::LEFT_TOP, probe, egui::FontId::monospace(12.0), ui.visuals().text_color());
 
-    if state.tool == Tool::Paint {
+    if state.view.tool == Tool::Paint {
         slice_paint(state, &response, img_rect, slice.axis, slice.index);
     }
 }
@@ -122,11 +134,11 @@ fn slice_paint(state: &mut EditorState, response: &egui::Response, img_rect: Rec
     right[ua] = 1.0;
     up[va] = 1.0;
     if response.drag_started_by(egui::PointerButton::Primary) || response.clicked() {
-        state.gesture = Some(Gesture::SlicePaint(Stroke::new(state.session.new_tag())));
+        state.view.gesture = Some(Gesture::SlicePaint(Stroke::new(state.session.new_tag())));
     }
-    if let (Some(Gesture::SlicePaint(stroke)), Some(p)) = (&mut state.gesture, response.interact_pointer_pos()) {
+    if let (Some(Gesture::SlicePaint(stroke)), Some(p)) = (&mut state.view.gesture, response.interact_pointer_pos()) {
         if img_rect.contains(p) {
-            let dabs = stroke.dabs_to(to_world(p), Vec3::from_array(right), Vec3::from_array(up), &state.brush);
+            let dabs = stroke.dabs_to(to_world(p), Vec3::from_array(right), Vec3::from_array(up), &state.view.brush);
             let tag = stroke.tag;
             if !dabs.is_empty() {
                 state.session.add_particles(tag, dabs);
@@ -134,7 +146,7 @@ fn slice_paint(state: &mut EditorState, response: &egui::Response, img_rect: Rec
         }
     }
     if response.drag_stopped() || response.clicked() {
-        state.gesture = None;
+        state.view.gesture = None;
         state.session.end_edit();
     }
 }
@@ -160,20 +172,20 @@ fn colour_bar(painter: &egui::Painter, rect: Rect, cmap: Colormap, scale: &Scale
 
 /// Reads back and colours the slice if the project or the settings changed.
 fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
-    let settings = state.slices;
+    let settings = state.view.slices;
     // The volumes change when the pipeline finishes baking them, frames after the edit.
     let baked = state.gpu.as_ref().map_or(0, |g| g.pipeline.volumes_generation());
     let key = (state.epoch, baked, settings);
-    if state.slice.key == Some(key) {
+    if state.view.slice.key == Some(key) {
         return;
     }
     let Some(gpu) = &state.gpu else {
-        state.slice.error = state.gpu_missing.clone();
+        state.view.slice.error = state.gpu_missing.clone();
         return;
     };
     if let Some(e) = &gpu.error {
-        state.slice.error = Some(e.clone());
-        state.slice.key = Some(key);
+        state.view.slice.error = Some(e.clone());
+        state.view.slice.key = Some(key);
         return;
     }
     let source = match settings.field {
@@ -186,13 +198,13 @@ fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
     let plane = match gpu.pipeline.read_slice(source, settings.axis.index(), index) {
         Ok(p) => p,
         Err(e) => {
-            state.slice.error = Some(e.to_string());
-            state.slice.key = Some(key);
+            state.view.slice.error = Some(e.to_string());
+            state.view.slice.key = Some(key);
             return;
         }
     };
     let mut slice = slices::from_plane(&plane, settings.axis);
-    state.slice.error = None;
+    state.view.slice.error = None;
     match settings.field {
         Field::Transmittance => slice.values.iter_mut().for_each(|v| *v = (-*v).exp()),
         Field::Error | Field::ResolutionError => {
@@ -203,19 +215,19 @@ fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
                 axis: settings.axis,
                 index: slice.index,
             };
-            match &state.slice.exact {
+            match &state.view.slice.exact {
                 Some((k, Ok(exact))) if *k == ek => slice = slices::error_slice(&slice, exact, settings.field),
                 Some((k, Err(e))) if *k == ek => {
-                    state.slice.error = Some(format!("Error view unavailable: {e}"));
-                    state.slice.slice = None;
-                    state.slice.key = Some(key);
+                    state.view.slice.error = Some(format!("Error view unavailable: {e}"));
+                    state.view.slice.slice = None;
+                    state.view.slice.key = Some(key);
                     return;
                 }
                 _ => {
                     let cells = slice.cells();
                     state.request_exact(ek, cells);
-                    state.slice.slice = None;
-                    state.slice.texture = None;
+                    state.view.slice.slice = None;
+                    state.view.slice.texture = None;
                     return;
                 }
             }
@@ -225,12 +237,12 @@ fn refresh_slice(state: &mut EditorState, ctx: &egui::Context) {
     let (lo, hi) = slice.range();
     let image = slices::colorize(&slice, settings.colormap, &Scale::for_range(lo, hi, settings.log));
     let options = egui::TextureOptions::NEAREST;
-    match &mut state.slice.texture {
+    match &mut state.view.slice.texture {
         Some(t) => t.set(image, options),
-        None => state.slice.texture = Some(ctx.load_texture("slice", image, options)),
+        None => state.view.slice.texture = Some(ctx.load_texture("slice", image, options)),
     }
-    state.slice.slice = Some(slice);
-    state.slice.key = Some(key);
+    state.view.slice.slice = Some(slice);
+    state.view.slice.key = Some(key);
 }
 
 // ---------------------------------------------------------------- Outliner
@@ -293,14 +305,14 @@ fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
                 }
             }
         }
-        if let Some((h, text)) = &mut state.rename {
+        if let Some((h, text)) = &mut state.view.rename {
             if *h == hit {
                 let r = ui.text_edit_singleline(text);
                 r.request_focus();
                 if r.lost_focus() {
                     let committed = ui.input(|i| !i.key_pressed(egui::Key::Escape));
                     let new = text.trim().to_owned();
-                    state.rename = None;
+                    state.view.rename = None;
                     if committed && new != name {
                         let name = (!new.is_empty()).then_some(new);
                         let p = state.session.edit(NEW_STEP);
@@ -323,7 +335,7 @@ fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
         }
         let r = ui.selectable_label(is_selected(state, hit), &name).on_hover_text("Click: select · Ctrl-click: toggle · Shift-click: range · double-click: rename");
         if r.double_clicked() {
-            state.rename = Some((hit, name.clone()));
+            state.view.rename = Some((hit, name.clone()));
         } else if r.clicked() {
             let m = ui.input(|i| i.modifiers);
             outliner_click(state, hit, m);
@@ -334,11 +346,11 @@ fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
 fn outliner_click(state: &mut EditorState, hit: Hit, m: egui::Modifiers) {
     let sel = &mut state.session.selection;
     if m.shift {
-        if let (Some(Hit::Particle(a)), Hit::Particle(b)) = (state.outliner_anchor, hit) {
+        if let (Some(Hit::Particle(a)), Hit::Particle(b)) = (state.view.outliner_anchor, hit) {
             sel.particles.extend(a.min(b)..=a.max(b));
             return;
         }
-        if let (Some(Hit::Light(a)), Hit::Light(b)) = (state.outliner_anchor, hit) {
+        if let (Some(Hit::Light(a)), Hit::Light(b)) = (state.view.outliner_anchor, hit) {
             sel.lights.extend(a.min(b)..=a.max(b));
             return;
         }
@@ -353,7 +365,7 @@ fn outliner_click(state: &mut EditorState, hit: Hit, m: egui::Modifiers) {
     if !set.0.remove(&set.1) {
         set.0.insert(set.1);
     }
-    state.outliner_anchor = Some(hit);
+    state.view.outliner_anchor = Some(hit);
 }
 
 // ---------------------------------------------------------------- Inspector
@@ -600,11 +612,11 @@ fn grid_fit_warning(state: &EditorState, grid: &crate::scene::GridSpec, lights: 
 // ---------------------------------------------------------------- Stats
 
 pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
-    match state.clock.fps() {
+    match state.view.clock.fps() {
         Some(fps) => ui.label(format!("{fps:.1} frames/s (while redrawing)")),
         None => ui.label("– frames/s (idle)"),
     };
-    ui.checkbox(&mut state.continuous, "Redraw continuously").on_hover_text("Redraw every frame, to measure the frame rate");
+    ui.checkbox(&mut state.view.continuous, "Redraw continuously").on_hover_text("Redraw every frame, to measure the frame rate");
     let Some(gpu) = &state.gpu else {
         ui.label(state.gpu_missing.clone().unwrap_or_default());
         return;
@@ -663,6 +675,6 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
     ui.separator();
     let p = state.session.project();
     ui.label(format!("{} particles, {} lights, grid {:?}", p.particles.len(), p.lights.len(), p.grid.resolution.to_array()));
-    ui.label(format!("Preview {}×{} px, {} frames rendered", state.preview_size[0], state.preview_size[1], gpu.renders));
+    ui.label(format!("Preview {}×{} px, {} frames rendered", state.view.preview_size[0], state.view.preview_size[1], gpu.renders));
     ui.label(format!("Undo steps: {}", state.session.undo_len()));
 }

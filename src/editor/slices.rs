@@ -69,6 +69,46 @@ impl Axis {
     pub fn label(self) -> &'static str {
         ["X", "Y", "Z"][self.index()]
     }
+    /// The axis colour, as Blender and Godot draw x, y and z.
+    pub fn colour(self) -> Color32 {
+        [Color32::from_rgb(235, 70, 80), Color32::from_rgb(120, 200, 40), Color32::from_rgb(60, 130, 240)][self.index()]
+    }
+}
+
+/// World position of the slice plane: the centre of cell `index` along `axis`.
+pub fn slice_position(grid: &GridSpec, axis: Axis, index: u32) -> f32 {
+    let a = axis.index();
+    let n = grid.resolution.to_array()[a].max(1);
+    grid.min[a] + (index.min(n - 1) as f32 + 0.5) * grid.cell_size()[a]
+}
+
+/// The slice plane's corners in world space, counter-clockwise in the image (bottom-left,
+/// bottom-right, top-right, top-left).
+pub fn slice_plane_corners(grid: &GridSpec, axis: Axis, index: u32) -> [glam::Vec3; 4] {
+    let (ua, va) = axis.image_axes();
+    let at = slice_position(grid, axis, index);
+    let corner = |u: f32, v: f32| {
+        let mut p = glam::Vec3::ZERO;
+        p[axis.index()] = at;
+        p[ua] = u;
+        p[va] = v;
+        p
+    };
+    let (lo, hi) = (grid.min, grid.max);
+    [corner(lo[ua], lo[va]), corner(hi[ua], lo[va]), corner(hi[ua], hi[va]), corner(lo[ua], hi[va])]
+}
+
+/// Labels of a slice image: along its columns (left to right), along its rows (bottom to
+/// top), both with their world range, and the plane itself, e.g. ("x -1.00 … 1.00 m",
+/// "y 0.00 … 2.00 m", "z = 0.016 m").
+pub fn slice_axis_labels(grid: &GridSpec, axis: Axis, index: u32) -> [String; 3] {
+    let (ua, va) = axis.image_axes();
+    let name = |a: usize| ["x", "y", "z"][a];
+    [
+        format!("{} {:.2} … {:.2} m", name(ua), grid.min[ua], grid.max[ua]),
+        format!("{} {:.2} … {:.2} m", name(va), grid.min[va], grid.max[va]),
+        format!("{} = {:.3} m", name(axis.index()), slice_position(grid, axis, index)),
+    ]
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

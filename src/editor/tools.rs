@@ -44,12 +44,58 @@ impl Tool {
     pub fn tooltip(self) -> &'static str {
         match self {
             Tool::Select => "Select / Move: click to select, Shift/Ctrl-click to add or toggle, drag on empty space for a box, drag a selected item to move it in the view plane. G grabs, S scales the selection.",
-            Tool::Paint => "Paint: click or drag to deposit particles on the working plane (through the grid centre, facing the camera). In the Slices panel, paints on the slice plane.",
+            Tool::Paint => "Paint: click or drag to deposit particles at the depth of the fog under the cursor (where its optical depth from the camera reaches 0.5), or on the working plane (through the grid centre, facing the camera) where there is no fog or when the brush is set to the plane. A stroke stays at the depth where it began. In the Slices panel, paints on the slice plane.",
             Tool::Scale => "Scale: wheel or horizontal drag grows/shrinks the radius of the selection, or of the particles under the brush when nothing is selected. Hold Alt to change density instead.",
             Tool::Erase => "Erase: click or drag to remove the particles under the brush (through all depths).",
             Tool::Light => "Light: click empty space to add a light on the working plane, drag a light to move it.",
         }
     }
+}
+
+/// Where Paint puts a stroke along the view ray.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PaintDepth {
+    /// Where the fog under the cursor starts: the first point along the ray where the
+    /// optical depth reaches [`FOG_DEPTH_TAU`]; the working plane where the ray never does.
+    #[default]
+    Fog,
+    /// The working plane: through the grid centre, facing the camera.
+    Plane,
+}
+
+/// Optical depth from the camera at which Paint finds the fog's surface: e^−0.5 ≈ 61 % of the
+/// light still gets through, so the point is where the fog visibly begins.
+pub const FOG_DEPTH_TAU: f32 = 0.5;
+
+/// The first point along `origin + t·dir` (unit `dir`) where the optical depth through `ev`
+/// (nearest cell, steps of half the smallest cell edge, inside the grid box) reaches `tau`;
+/// None when it never does.
+pub fn fog_depth_point(ev: &crate::scene::Volume, origin: Vec3, dir: Vec3, tau: f32) -> Option<Vec3> {
+    let g = &ev.grid;
+    let inv = dir.recip();
+    let (ta, tb) = ((g.min - origin) * inv, (g.max - origin) * inv);
+    let t0 = ta.min(tb).max_element().max(0.0);
+    let t1 = ta.max(tb).min_element();
+    if !(t0 < t1) || !t0.is_finite() || !t1.is_finite() {
+        return None;
+    }
+    let cell = g.cell_size();
+    let dt = 0.5 * cell.min_element();
+    let n = g.resolution.as_ivec3();
+    let mut acc = 0.0f32;
+    let mut t = t0;
+    while t < t1 {
+        let step = dt.min(t1 - t);
+        let p = origin + dir * (t + 0.5 * step);
+        let c = ((p - g.min) / cell).floor().as_ivec3().clamp(glam::IVec3::ZERO, n - 1);
+        let sigma = ev.get(c.x as u32, c.y as u32, c.z as u32).max(0.0);
+        if acc + sigma * step >= tau {
+            return Some(origin + dir * (t + (tau - acc) / sigma));
+        }
+        acc += sigma * step;
+        t += step;
+    }
+    None
 }
 
 /// Brush settings shared by Paint, Scale and Erase.
@@ -64,11 +110,13 @@ pub struct Brush {
     pub spacing: f32,
     /// Random offset of each dab in the plane, as a fraction of the radius.
     pub jitter: f32,
+    /// Where Paint puts a stroke along the view ray.
+    pub depth: PaintDepth,
 }
 
 impl Default for Brush {
     fn default() -> Self {
-        Self { radius: 0.15, density: 2.0, spacing: 0.5, jitter: 0.3 }
+        Self { radius: 0.15, density: 2.0, spacing: 0.5, jitter: 0.3, depth: PaintDepth::Fog }
     }
 }
 
@@ -96,11 +144,14 @@ pub struct Stroke {
     pub tag: super::session::EditTag,
     last: Option<Vec3>,
     rng: Rng,
+    /// A point of the plane (facing the camera) the stroke paints on, fixed where it began:
+    /// at the fog's depth or on the working plane.
+    pub anchor: Option<Vec3>,
 }
 
 impl Stroke {
     pub fn new(tag: super::session::EditTag) -> Self {
-        Self { tag, last: None, rng: Rng::new(tag) }
+        Self { tag, last: None, rng: Rng::new(tag), anchor: None }
     }
 
     /// Dabs for the pointer moving to `point` on a plane spanned by `right`, `up`.
@@ -207,8 +258,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn fog_depth_is_where_the_optical_depth_reaches_the_threshold() {
+        use crate::scene::{GridSpec, Volume};
+        let grid = GridSpec { min: Vec3::ZERO, max: Vec3::ONE, resolution: glam::UVec3::new(4, 4, 16) };
+        // Empty for z < 0.5, σ = 2/m beyond: τ = 0.5 is reached 0.25 m into the fog.
+        let data = (0..grid.cell_count() as usize).map(|i| if grid.cell_of(i)[2] >= 8 { 2.0 } else { 0.0 }).collect();
+        let ev = Volume::new(grid, data);
+        let hit = fog_depth_point(&ev, Vec3::new(0.5, 0.5, -3.0), Vec3::Z, 0.5).unwrap();
+        assert!((hit.z - 0.75).abs() < 1e-5, "{hit:?}");
+        assert_eq!(fog_depth_point(&ev, Vec3::new(0.5, 0.5, -3.0), Vec3::Z, 1.5), None, "only τ = 1 in the box");
+        assert_eq!(fog_depth_point(&ev, Vec3::new(0.5, 0.5, -3.0), -Vec3::Z, 0.5), None, "pointing away");
+    }
+
+    #[test]
     fn a_stroke_follows_the_spacing() {
-        let brush = Brush { radius: 0.1, density: 1.0, spacing: 0.5, jitter: 0.0 };
+        let brush = Brush { radius: 0.1, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Plane };
         let mut s = Stroke::new(3);
         assert_eq!(s.dabs_to(Vec3::ZERO, Vec3::X, Vec3::Y, &brush).len(), 1);
         let dabs = s.dabs_to(Vec3::new(0.52, 0.0, 0.0), Vec3::X, Vec3::Y, &brush);
@@ -219,7 +283,7 @@ mod tests {
 
     #[test]
     fn jitter_stays_within_the_brush() {
-        let brush = Brush { radius: 0.2, density: 1.0, spacing: 0.1, jitter: 0.5 };
+        let brush = Brush { radius: 0.2, density: 1.0, spacing: 0.1, jitter: 0.5, depth: PaintDepth::Plane };
         let mut s = Stroke::new(9);
         s.dabs_to(Vec3::ZERO, Vec3::X, Vec3::Y, &brush);
         for d in s.dabs_to(Vec3::new(1.0, 0.0, 0.0), Vec3::X, Vec3::Y, &brush) {

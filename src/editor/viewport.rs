@@ -20,11 +20,19 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
         return;
     }
     let response = ui.allocate_rect(rect, Sense::click_and_drag());
-    state.viewport_rect = Some(rect);
+    state.view.viewport_rect = Some(rect);
     let ppp = ui.ctx().pixels_per_point();
     let size = [((rect.width() * ppp).round() as u32).clamp(16, 4096), ((rect.height() * ppp).round() as u32).clamp(16, 4096)];
-    state.preview_size = size;
+    state.view.preview_size = size;
     handle_input(state, ui, &response, rect);
+    // Where a Paint stroke would start under the pointer, for the brush preview.
+    state.view.brush_point = match response.hover_pos() {
+        Some(pos) if state.view.tool == Tool::Paint && state.view.gesture.is_none() => {
+            let vp = ViewProjection::new(&state.session.project().camera, rect);
+            paint_point(state, &vp, pos)
+        }
+        _ => None,
+    };
 
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 0.0, Color32::from_gray(8));
@@ -62,7 +70,7 @@ fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
             crate::scene::SUPPORT_FRACTION * 100.0,
             (1.0 / crate::scene::SUPPORT_FRACTION).ln().sqrt()
         ));
-        let keep = &mut state.fit_keep;
+        let keep = &mut state.view.fit_keep;
         ui.selectable_value(keep, FitKeep::CellSize, "keep cell size").on_hover_text("The resolution follows the new box");
         ui.selectable_value(keep, FitKeep::Resolution, "keep resolution").on_hover_text("The cells stretch with the new box");
         if ui.button("Fit grid to particles").on_hover_text("Resize the grid box to hold every visible particle (one undo step)").clicked() {
@@ -74,7 +82,7 @@ fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
 /// Resizes the grid box to the visible particles, as one undo step.
 pub(crate) fn fit_grid(state: &mut EditorState) {
     let max_edge = state.gpu.as_ref().map_or(1024, |g| g.pipeline.context().max_grid_edge());
-    match state.session.project().fit_grid_to_particles(state.fit_keep) {
+    match state.session.project().fit_grid_to_particles(state.view.fit_keep) {
         Ok(g) if g.resolution.max_element() > max_edge => state.error(format!(
             "Cannot fit the grid: it would need {:?} cells, more than this adapter's {max_edge} per axis; keep the resolution instead",
             g.resolution.to_array()
@@ -95,12 +103,12 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
     ui.horizontal_wrapped(|ui| {
         for tool in Tool::ALL {
             let text = format!("{} ({})", tool.label(), tool.command().shortcut_text());
-            if ui.selectable_label(state.tool == tool, text).on_hover_text(tool.tooltip()).clicked() {
-                state.tool = tool;
+            if ui.selectable_label(state.view.tool == tool, text).on_hover_text(tool.tooltip()).clicked() {
+                state.view.tool = tool;
             }
         }
         ui.separator();
-        let b = &mut state.brush;
+        let b = &mut state.view.brush;
         ui.add(egui::DragValue::new(&mut b.radius).speed(0.005).range(0.005..=10.0).prefix("radius ").suffix(" m"))
             .on_hover_text("Brush radius: the radius r of painted particles (σ = c·exp(−d²/r²)) and the brush footprint");
         ui.add(egui::DragValue::new(&mut b.density).speed(0.05).range(0.0..=1000.0).prefix("density ").suffix(" 1/m"))
@@ -109,18 +117,31 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             .on_hover_text("Distance between dabs along a stroke, in brush radii");
         ui.add(egui::DragValue::new(&mut b.jitter).speed(0.01).range(0.0..=2.0).prefix("jitter ").suffix("×r"))
             .on_hover_text("Random offset of each dab within the working plane, in brush radii");
+        egui::ComboBox::from_id_salt("paint-depth")
+            .selected_text(match b.depth {
+                tools::PaintDepth::Fog => "at fog depth",
+                tools::PaintDepth::Plane => "on working plane",
+            })
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut b.depth, tools::PaintDepth::Fog, "at fog depth")
+                    .on_hover_text("Paint where the fog under the cursor starts (optical depth 0.5 from the camera); the working plane where there is none");
+                ui.selectable_value(&mut b.depth, tools::PaintDepth::Plane, "on working plane")
+                    .on_hover_text("Paint on the plane through the grid centre, facing the camera");
+            })
+            .response
+            .on_hover_text("Where Paint puts a stroke along the view ray");
     });
     ui.horizontal_wrapped(|ui| {
         use super::app::Quality;
         egui::ComboBox::new("quality", "preview")
-            .selected_text(match state.quality {
+            .selected_text(match state.view.quality {
                 Quality::Balanced => "live",
                 Quality::Full => "wait for full",
             })
             .show_ui(ui, |ui| {
-                ui.selectable_value(&mut state.quality, Quality::Balanced, "live")
+                ui.selectable_value(&mut state.view.quality, Quality::Balanced, "live")
                     .on_hover_text("Each frame shows the edit at once (coarser, shadows may lag), then refines to full resolution over the next frames");
-                ui.selectable_value(&mut state.quality, Quality::Full, "wait for full")
+                ui.selectable_value(&mut state.view.quality, Quality::Full, "wait for full")
                     .on_hover_text("Every frame waits for the full-resolution image with fresh shadows (the window pauses; seconds per edit on software adapters)");
             })
             .response
@@ -142,15 +163,15 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
     let (modifiers, events, pointer) = ui.input(|i| (i.modifiers, i.raw.events.clone(), i.pointer.clone()));
     let hover = response.hover_pos();
 
-    if state.modal.is_some() {
+    if state.view.modal.is_some() {
         modal(state, &vp, pointer.hover_pos(), ui, response);
-        state.interacting = false;
+        state.view.interacting = false;
         return;
     }
 
     let wheel = Wheel::from_events(&events);
     if let Some(pos) = hover {
-        if state.tool == Tool::Scale {
+        if state.view.tool == Tool::Scale {
             let now = ui.input(|i| i.time);
             if wheel.plain != 0.0 {
                 wheel_scale(state, &vp, pos, wheel.plain, false, now);
@@ -179,11 +200,11 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
             view::orbit(&camera, delta.x * 0.008, delta.y * 0.008)
         };
         state.session.set_camera(c);
-        state.gesture = Some(if modifiers.shift { Gesture::Pan } else { Gesture::Orbit });
+        state.view.gesture = Some(if modifiers.shift { Gesture::Pan } else { Gesture::Orbit });
     }
 
     let primary_pressed = response.drag_started_by(egui::PointerButton::Primary)
-        || (response.clicked_by(egui::PointerButton::Primary) && state.gesture.is_none());
+        || (response.clicked_by(egui::PointerButton::Primary) && state.view.gesture.is_none());
     let pos = pointer.interact_pos().or(hover);
 
     let mut down_at_start = true;
@@ -200,11 +221,11 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
         let points = if track.points.is_empty() { pos.filter(|_| primary_pressed).into_iter().collect() } else { track.points.clone() };
         continue_gesture(state, &vp, &points, modifiers.alt);
     }
-    if track.released.is_some() || response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.gesture.is_some()) {
+    if track.released.is_some() || response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.view.gesture.is_some()) {
         finish_gesture(state, &vp, track.released.or(pos), modifiers);
     }
-    state.interacting = state.force_interacting
-        || matches!(state.gesture, Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. }));
+    state.view.interacting = state.view.force_interacting
+        || matches!(state.view.gesture, Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. }));
 }
 
 fn is_primary(e: &egui::Event, pressed: bool) -> bool {
@@ -283,27 +304,27 @@ impl Wheel {
 
 fn wheel_scale(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, scroll: f32, density: bool, now: f64) {
     let targets = if state.session.selection.particles.is_empty() {
-        tools::under_brush(state.session.project(), vp, pos, state.brush.radius)
+        tools::under_brush(state.session.project(), vp, pos, state.view.brush.radius)
     } else {
         state.session.selection.particles.clone()
     };
     if targets.is_empty() {
         return;
     }
-    let tag = match state.scale_wheel {
+    let tag = match state.view.scale_wheel {
         Some((tag, last)) if now - last < 0.6 => tag,
         _ => {
             state.session.end_edit();
             state.session.new_tag()
         }
     };
-    state.scale_wheel = Some((tag, now));
+    state.view.scale_wheel = Some((tag, now));
     state.session.scale_particles(tag, &targets, (scroll * 0.002).exp(), density);
 }
 
 fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifiers: egui::Modifiers) {
     let project = state.session.project();
-    state.gesture = match state.tool {
+    state.view.gesture = match state.view.tool {
         Tool::Select => match tools::pick(project, vp, pos) {
             Some(hit) => {
                 let selected = match hit {
@@ -326,20 +347,21 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
         },
         Tool::Paint => {
             let mut stroke = Stroke::new(state.session.new_tag());
-            if let Some(point) = tools::working_plane_point(state.session.project(), vp, pos) {
-                let dabs = stroke.dabs_to(point, vp.right, vp.up, &state.brush);
+            stroke.anchor = paint_point(state, vp, pos);
+            if let Some(point) = stroke.anchor {
+                let dabs = stroke.dabs_to(point, vp.right, vp.up, &state.view.brush);
                 state.session.add_particles(stroke.tag, dabs);
             }
             Some(Gesture::Paint(stroke))
         }
         Tool::Erase => {
             let tag = state.session.new_tag();
-            state.session.erase_along_ray(tag, vp.position, vp.ray(pos), state.brush.radius);
+            state.session.erase_along_ray(tag, vp.position, vp.ray(pos), state.view.brush.radius);
             Some(Gesture::Erase { tag })
         }
         Tool::Scale => {
             let targets = if state.session.selection.particles.is_empty() {
-                tools::under_brush(project, vp, pos, state.brush.radius)
+                tools::under_brush(project, vp, pos, state.view.brush.radius)
             } else {
                 state.session.selection.particles.clone()
             };
@@ -381,14 +403,25 @@ fn toggle(state: &mut EditorState, hit: Hit, toggle: bool) {
 
 /// Continues the gesture through `points`, where the pointer went this frame while the
 /// button was held.
+/// Where a Paint stroke starting at `pos` paints: at the fog's depth under the cursor (from
+/// the pipeline's EV as it stands), else on the working plane.
+fn paint_point(state: &mut EditorState, vp: &ViewProjection, pos: Pos2) -> Option<Vec3> {
+    if state.view.brush.depth == tools::PaintDepth::Fog {
+        if let Some(p) = state.fog_ev().and_then(|ev| tools::fog_depth_point(ev, vp.position, vp.ray(pos), tools::FOG_DEPTH_TAU)) {
+            return Some(p);
+        }
+    }
+    tools::working_plane_point(state.session.project(), vp, pos)
+}
+
 fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2], alt: bool) {
-    let brush = state.brush;
+    let brush = state.view.brush;
     let Some(&last) = points.last() else { return };
-    match &mut state.gesture {
+    match &mut state.view.gesture {
         Some(Gesture::Paint(stroke)) => {
             let mut dabs = Vec::new();
             for &p in points {
-                if let Some(point) = tools::working_plane_point(state.session.project(), vp, p) {
+                if let Some(point) = stroke.anchor.and_then(|a| vp.on_view_plane(p, a)) {
                     dabs.extend(stroke.dabs_to(point, vp.right, vp.up, &brush));
                 }
             }
@@ -436,7 +469,7 @@ fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2
 }
 
 fn finish_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2>, modifiers: egui::Modifiers) {
-    if let (Some(Gesture::Box { start }), Some(end)) = (&state.gesture, pos) {
+    if let (Some(Gesture::Box { start }), Some(end)) = (&state.view.gesture, pos) {
         let r = Rect::from_two_pos(*start, end);
         if r.area() > 4.0 {
             let (particles, lights) = tools::box_select(state.session.project(), vp, r);
@@ -449,7 +482,7 @@ fn finish_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2
             state.session.selection.clear();
         }
     }
-    state.gesture = None;
+    state.view.gesture = None;
     state.session.end_edit();
 }
 
@@ -458,11 +491,11 @@ fn modal(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2>, ui: &U
     let confirm = response.clicked() || ui.input(|i| i.key_pressed(egui::Key::Enter));
     let cancel = response.secondary_clicked();
     let Some(center) = state.session.selection_center() else {
-        state.modal = None;
+        state.view.modal = None;
         return;
     };
     let Some((center_screen, depth)) = vp.project(center) else { return };
-    let Some(m) = &mut state.modal else { return };
+    let Some(m) = &mut state.view.modal else { return };
     if m.scale {
         let d0 = m.start.distance(center_screen).max(4.0);
         let factor = (pos.distance(center_screen) / d0).clamp(0.01, 100.0);
@@ -480,7 +513,7 @@ fn modal(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2>, ui: &U
     if cancel {
         state.cancel_modal();
     } else if confirm {
-        state.modal = None;
+        state.view.modal = None;
         state.session.end_edit();
     }
 }
@@ -488,6 +521,17 @@ fn modal(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2>, ui: &U
 fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Option<Pos2>) {
     let project = state.session.project();
     let vp = ViewProjection::new(&project.camera, rect);
+    if state.view.show_slice_plane {
+        // The Slices panel's plane as a translucent quad in its axis colour.
+        let s = &state.view.slices;
+        let corners = super::slices::slice_plane_corners(&project.grid, s.axis, s.index);
+        let points: Option<Vec<Pos2>> = corners.iter().map(|&c| vp.project(c).map(|(p, _)| p)).collect();
+        if let Some(points) = points {
+            let c = s.axis.colour();
+            let fill = Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), 56);
+            painter.add(egui::Shape::convex_polygon(points, fill, Line::new(1.5, c)));
+        }
+    }
     let g = &project.grid;
     let corners: Vec<Vec3> =
         (0..8).map(|i| Vec3::new(if i & 1 == 0 { g.min.x } else { g.max.x }, if i & 2 == 0 { g.min.y } else { g.max.y }, if i & 4 == 0 { g.min.z } else { g.max.z })).collect();
@@ -498,7 +542,7 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
         }
     }
     let outline = Line::new(1.0, Color32::from_rgba_unmultiplied(200, 220, 255, 45));
-    let draw_all = state.outline_all && project.particles.len() <= MAX_OUTLINES;
+    let draw_all = state.view.outline_all && project.particles.len() <= MAX_OUTLINES;
     for (i, p) in project.particles.iter().enumerate() {
         let selected = state.session.selection.particles.contains(&i);
         if p.hidden || !(draw_all || selected) {
@@ -526,17 +570,29 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
         }
         painter.circle(s, 6.0, if l.hidden { Color32::GRAY } else { fill }, Line::new(if selected { 2.0 } else { 1.0 }, edge));
     }
-    if let Some(Gesture::Box { start }) = &state.gesture {
+    if let Some(Gesture::Box { start }) = &state.view.gesture {
         if let Some(end) = hover {
             painter.rect_stroke(Rect::from_two_pos(*start, end), 0.0, Line::new(1.0, SELECTED), egui::StrokeKind::Inside);
         }
     }
     if let Some(pos) = hover {
-        if matches!(state.tool, Tool::Paint | Tool::Erase | Tool::Scale) {
-            let z = tools::working_plane_point(project, &vp, pos).and_then(|p| vp.project(p)).map_or(1.0, |(_, z)| z);
-            let r = state.brush.radius * vp.points_per_metre(z);
-            let color = if state.tool == Tool::Erase { Color32::from_rgb(255, 90, 90) } else { Color32::WHITE };
+        if matches!(state.view.tool, Tool::Paint | Tool::Erase | Tool::Scale) {
+            // Paint previews the brush where the stroke would go: a ring at that depth, sized
+            // for it, with its centre marked; a stroke in progress keeps its depth.
+            let anchor = match &state.view.gesture {
+                Some(Gesture::Paint(stroke)) => stroke.anchor.and_then(|a| vp.on_view_plane(pos, a)),
+                _ if state.view.tool == Tool::Paint => state.view.brush_point,
+                _ => None,
+            };
+            let at = anchor.or_else(|| tools::working_plane_point(project, &vp, pos));
+            let z = at.and_then(|p| vp.project(p)).map_or(1.0, |(_, z)| z);
+            let r = state.view.brush.radius * vp.points_per_metre(z);
+            let color = if state.view.tool == Tool::Erase { Color32::from_rgb(255, 90, 90) } else { Color32::WHITE };
             painter.circle_stroke(pos, r, Line::new(1.0, color));
+            if anchor.is_some() {
+                painter.circle_filled(pos, 2.0, color);
+                painter.circle_stroke(pos, r * 0.5, Line::new(1.0, color.gamma_multiply(0.5)));
+            }
         }
     }
 }

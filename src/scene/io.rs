@@ -46,6 +46,11 @@ pub fn parse_project(text: &str, origin: &Path) -> Result<Project, ProjectError>
     Ok(project)
 }
 
+/// The version of a project file that names none.
+pub(crate) fn unversioned() -> u32 {
+    1
+}
+
 /// Brings an older project up to [`PROJECT_VERSION`] and checks what the version implies.
 ///
 /// - Version 1 had no ids: particles and lights get their list positions as ids, so what

@@ -34,7 +34,9 @@ pub const PROJECT_VERSION: u32 = 2;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Project {
-    /// File format version; see [`PROJECT_VERSION`].
+    /// File format version; see [`PROJECT_VERSION`]. A file without one is read as version 1
+    /// (hand-written files need no ids: they get their list positions).
+    #[serde(default = "io::unversioned")]
     pub version: u32,
     pub grid: GridSpec,
     pub medium: Medium,
