@@ -1,4 +1,5 @@
-// σ_t pairs for the sweep from eight texel loads: used where r32float cannot be filtered.
+// σ_t pairs from eight texel loads: the sweep's variant where r32float cannot be filtered, and
+// the directional sweep's always.
 // The sweep binds a sampler at 7 either way; this variant does not use it.
 
 // σ_t at cell-centre coordinates p and q (cell (i, j, k) at (i, j, k)), both within the

@@ -166,7 +166,13 @@ mod tests {
         let sweep = [&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/sweep_sigma_filtered.wgsl"), include_str!("../../shaders/propagate_sweep.wgsl")];
         let exact = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
         let slice = [&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")];
-        let directional = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_directional.wgsl")];
+        let directional = [
+            &opv_rw,
+            VOLUME_LOOKUP,
+            include_str!("../../shaders/sweep_sigma_loads.wgsl"),
+            include_str!("../../shaders/integrate_exact.wgsl"),
+            include_str!("../../shaders/propagate_directional.wgsl"),
+        ];
         let cases: [(&[&str], &str, usize); 10] = [
             (&directional, "PlaneParams", std::mem::size_of::<PlaneParams>()),
             (&sweep, "SweepBox", std::mem::size_of::<SweepBox>()),

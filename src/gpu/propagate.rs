@@ -115,7 +115,13 @@ impl Propagator {
         let directional = compute_pipeline(
             device,
             "propagate_directional",
-            &[&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_directional.wgsl")],
+            &[
+                &opv_rw,
+                VOLUME_LOOKUP,
+                include_str!("../../shaders/sweep_sigma_loads.wgsl"),
+                include_str!("../../shaders/integrate_exact.wgsl"),
+                include_str!("../../shaders/propagate_directional.wgsl"),
+            ],
             &exact_layout,
         );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
