@@ -296,6 +296,10 @@ pub struct FogPipeline {
     /// See [`FogPipeline::set_inject_chunk_bytes`].
     inject_chunk_limit: Option<u64>,
     opv_layout: OpvLayout,
+    /// The segmentation the stages' shaders were built for: only as many segments as the
+    /// current scene's OPVs fill, since every extra segment adds a branch to each OPV read
+    /// (the march reads eight per light per sample).
+    stage_layout: OpvLayout,
     /// See [`FogPipeline::peak_memory_bytes`].
     peak_memory: std::sync::atomic::AtomicU64,
     /// Bin edge of the last injection's particle lists (see `binning`).
@@ -334,9 +338,10 @@ impl FogPipeline {
     pub fn with_opv_layout(ctx: GpuContext, opv_layout: OpvLayout) -> Self {
         let device = &ctx.device;
         let injector = Injector::new(device);
-        let propagator = Propagator::new(device, opv_layout);
-        let marcher = Marcher::new(device, opv_layout);
-        let slicer = Slicer::new(device, opv_layout);
+        let stage_layout = OpvLayout { segments: 1, ..opv_layout };
+        let propagator = Propagator::new(device, stage_layout);
+        let marcher = Marcher::new(device, stage_layout);
+        let slicer = Slicer::new(device, stage_layout);
         let timer = StageTimer::new(&ctx);
         Self {
             ctx,
@@ -359,6 +364,7 @@ impl FogPipeline {
             inject_chunk_limit: None,
             peak_memory: Default::default(),
             opv_layout,
+            stage_layout,
             bin_size: binning::BRICK,
             volumes_generation: 0,
         }
@@ -1059,18 +1065,39 @@ impl FogPipeline {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let (lights_buf, opv) = light_buffers(device, self.opv_layout, &spec, light_count);
+        let layout = self.stages_for(&spec, light_count);
+        let device = &self.ctx.device;
+        let (lights_buf, opv) = light_buffers(device, layout, &spec, light_count);
         self.grid = Some(GridResources { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max });
         self.baked = Baked::default();
         self.jobs = Jobs::default();
     }
 
+    /// The segmentation for `light_count` lights on `spec`: the fewest segments that hold them
+    /// (at most the device's). Rebuilds the stages that read OPVs when that number changes.
+    fn stages_for(&mut self, spec: &GridSpec, light_count: usize) -> OpvLayout {
+        let cells = spec.cell_count();
+        let per_segment = self.opv_layout.segment_for(cells).max(1);
+        let needed = (cells * light_count.max(1) as u64).div_ceil(per_segment).clamp(1, self.opv_layout.segments as u64) as u32;
+        if needed != self.stage_layout.segments {
+            self.stage_layout = OpvLayout { segments: needed, ..self.opv_layout };
+            let device = &self.ctx.device;
+            self.propagator = Propagator::new(device, self.stage_layout);
+            self.marcher = Marcher::new(device, self.stage_layout);
+            self.slicer = Slicer::new(device, self.stage_layout);
+            self.jobs = Jobs::default();
+        }
+        self.stage_layout
+    }
+
     /// Reallocates the per-light buffers for a new light count on the same grid, keeping the
     /// OPVs of the lights that remain (by index), so adding a light propagates only that one.
     fn resize_lights(&mut self, light_count: usize) {
+        let Some(spec) = self.grid.as_ref().map(|g| g.spec.clone()) else { return };
+        let layout = self.stages_for(&spec, light_count);
         let Some(g) = &mut self.grid else { return };
         let device = &self.ctx.device;
-        let (lights_buf, opv) = light_buffers(device, self.opv_layout, &g.spec, light_count);
+        let (lights_buf, opv) = light_buffers(device, layout, &g.spec, light_count);
         let kept = g.spec.cell_count() * 4 * g.light_count.min(light_count) as u64;
         if kept > 0 {
             let mut encoder = device.create_command_encoder(&Default::default());
