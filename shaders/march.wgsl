@@ -45,7 +45,9 @@ struct MarchParams {
     max_step: f32,
     surface_count: u32,
     row_offset: u32,
-    _pad1: u32,
+    // Directional lights among the lights, visited after the others in a loop of their own:
+    // their code inside the point lights' loop slows every sample.
+    sun_count: u32,
     _pad2: u32,
 }
 
@@ -262,19 +264,15 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
             continue;
         }
         if light.kind == LIGHT_DIRECTIONAL {
-            var sun: f32;
-            if inside {
-                sun = sun_opv_at(tri, l, x);
-            } else {
-                sun = sun_depth(x, l);
-            }
-            inscatter += light.rgb * (phase(dot(light.direction, -dir)) * exp(-sun));
             continue;
         }
         let to_x = x - light.position;
-        let cone = cone_mean(light, x, dir, dt);
-        if cone <= 0.0 {
-            continue;
+        var cone = 1.0;
+        if light.kind == LIGHT_SPOT {
+            cone = cone_mean(light, x, dir, dt);
+            if cone <= 0.0 {
+                continue;
+            }
         }
         let d = max(length(to_x), 1e-12);
         var depth: f32;
@@ -285,6 +283,21 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
         }
         let cos_theta = dot(to_x / d, -dir);
         inscatter += light.rgb * (cone * phase(cos_theta) * exp(-depth) * mean_inverse_square(x, dir, dt, light.position));
+    }
+    if params.sun_count > 0u {
+        for (var l = 0u; l < grid.light_count; l++) {
+            let light = lights[l];
+            if light.kind != LIGHT_DIRECTIONAL || all(light.rgb == vec3f(0.0)) {
+                continue;
+            }
+            var sun: f32;
+            if inside {
+                sun = sun_opv_at(tri, l, x);
+            } else {
+                sun = sun_depth(x, l);
+            }
+            inscatter += light.rgb * (phase(dot(light.direction, -dir)) * exp(-sun));
+        }
     }
     radiance += transmittance * params.albedo * inscatter * one_minus_exp_neg(tau);
     transmittance *= exp(-tau);
@@ -337,9 +350,12 @@ fn nearest_light(x: vec3f) -> f32 {
 // is split into up to 32 sub-steps of a quarter of the ramp's angular width A·B (at least
 // 0.01 rad), each taken at its midpoint; elsewhere the factor is constant over the step.
 fn cone_mean(light: LightGpu, x: vec3f, dir: vec3f, dt: f32) -> f32 {
+    if light.kind != LIGHT_SPOT {
+        return 1.0;
+    }
     let v = x - light.position;
     let d = length(v);
-    if light.kind != LIGHT_SPOT || d <= 0.0 {
+    if d <= 0.0 {
         return 1.0;
     }
     let theta = acos(clamp(dot(light.direction, v) / d, -1.0, 1.0));

@@ -67,7 +67,9 @@ pub struct MarchParams {
     pub surface_count: u32,
     /// First image row of this dispatch (the march runs in bands of rows).
     pub row_offset: u32,
-    pub _pad: [u32; 2],
+    /// Directional lights among the lights: the march visits them in a loop of their own.
+    pub sun_count: u32,
+    pub _pad: u32,
 }
 
 #[repr(C)]

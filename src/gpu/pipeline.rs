@@ -1420,7 +1420,8 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
         max_step: 4.0 * step,
         surface_count,
         row_offset: 0,
-        _pad: [0; 2],
+        sun_count: project.lights.iter().filter(|l| matches!(l.kind, crate::scene::LightKind::Directional { .. })).count() as u32,
+        _pad: 0,
     }
 }
 
