@@ -7,13 +7,15 @@
 //
 // X steps from its centre towards S to a plane P at least `stride` layers closer along its
 // dominant axis a (the axis of largest |X − S| in cell units). The plane is a layer of the axis
-// whose face the ray leaves the box through, else of a: the cells around P then see nearly the
-// same length of box ahead. If the ray leaves the box before P (or S is that close), X
-// integrates its whole in-box path directly: so the cells on the faces that see an outside
-// light start the sweep. Otherwise m at P is interpolated from the cells of that layer around
-// P, T_in(P) = m·|P − E|, and ∫σ_t over [P, X] is added exactly for the trilinear EV. m is
-// constant in a homogeneous medium, so that case is exact. A larger stride means fewer
-// interpolations along a ray, hence less numerical diffusion.
+// whose face the ray leaves the box of cell centres through, else of a: the cells around P
+// then lie at the same distance from that face and see nearly the same length of box ahead,
+// and P never lies in an outer half-cell. If that layer lies beyond the grid or the ray leaves
+// the box before P (or S is that close), X integrates its whole in-box path directly: so the
+// cells on the faces that see an outside light start the sweep. Otherwise m at P is
+// interpolated from the cells of that layer around P, T_in(P) = m·|P − E|, and ∫σ_t over
+// [P, X] is added exactly for the trilinear EV. m is constant in a homogeneous medium, so that
+// case is exact. A larger stride means fewer interpolations along a ray, hence less numerical
+// diffusion.
 //
 // Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
 // units, around the light, or around a far light's anchor on the same line) closer to the
@@ -87,13 +89,18 @@ struct Exit {
 }
 
 fn exit_box(x: vec3f, dir: vec3f, len: f32) -> Exit {
+    return exit_from(x, dir, len, grid.min, grid.max);
+}
+
+// Where the ray from x (inside [lo, hi]) leaves the box [lo, hi].
+fn exit_from(x: vec3f, dir: vec3f, len: f32, lo: vec3f, hi: vec3f) -> Exit {
     var e = Exit(len, 3u);
     for (var i = 0u; i < 3u; i++) {
         var t = len;
         if dir[i] > 0.0 {
-            t = (grid.max[i] - x[i]) / dir[i];
+            t = (hi[i] - x[i]) / dir[i];
         } else if dir[i] < 0.0 {
-            t = (grid.min[i] - x[i]) / dir[i];
+            t = (lo[i] - x[i]) / dir[i];
         }
         if t < e.t {
             e = Exit(t, i);
@@ -111,47 +118,85 @@ fn catmull_rom(t: f32) -> vec4f {
 
 // Mean in-box extinction at P (cell-centre coordinates u) in layer `layer` of axis a:
 // Catmull-Rom over the 4×4 cells around P (less numerical diffusion than bilinear), limited to
-// the range of the 2×2 nearest so that it cannot overshoot. Within the outer half-cell P takes
-// the edge cells' values.
+// the range of the 2×2 nearest so that it cannot overshoot. Stencil positions beyond the grid
+// take the linear extrapolation of the two edge cells rather than a copy of the edge cell: a
+// copy flattens the slope there, an error of first order in the cell size that the many
+// interpolations along a ray grazing a face accumulate. So the outer half-cell is linear and
+// the last interval reproduces linear variation.
 fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> f32 {
     let b = (a + 1u) % 3u;
     let d = (a + 2u) % 3u;
     let nb = i32(grid.dims[b]);
     let nd = i32(grid.dims[d]);
+    // Stride 3 leaves no room for the wider stencil in the ordering: bilinear there, clamped
+    // to the edge cells.
+    if step.stride < 4u {
+        let ub = clamp(u[b], 0.0, f32(nb - 1));
+        let ud = clamp(u[d], 0.0, f32(nd - 1));
+        let fb = i32(floor(ub));
+        let fd = i32(floor(ud));
+        let tb = ub - f32(fb);
+        let td = ud - f32(fd);
+        var cell = vec3i(0);
+        cell[a] = layer;
+        var v: array<f32, 4>;
+        for (var k = 0; k < 4; k++) {
+            cell[b] = min(fb + (k & 1), nb - 1);
+            cell[d] = min(fd + (k >> 1u), nd - 1);
+            v[k] = load_mean(light, cell);
+        }
+        return mix(mix(v[0], v[1], tb), mix(v[2], v[3], tb), td);
+    }
     let ub = clamp(u[b], 0.0, f32(nb - 1));
     let ud = clamp(u[d], 0.0, f32(nd - 1));
     let fb = i32(floor(ub));
     let fd = i32(floor(ud));
-    // Stride 3 leaves no room for the wider stencil in the ordering: bilinear there.
-    let cubic = step.stride >= 4u;
-    let first = select(1, 0, cubic);
-    let last = select(3, 4, cubic);
-    var wb = vec4f(0.0, 1.0 - (ub - f32(fb)), ub - f32(fb), 0.0);
-    var wd = vec4f(0.0, 1.0 - (ud - f32(fd)), ud - f32(fd), 0.0);
-    if cubic {
-        wb = catmull_rom(ub - f32(fb));
-        wd = catmull_rom(ud - f32(fd));
+    let wb = catmull_rom(ub - f32(fb));
+    let wd = catmull_rom(ud - f32(fd));
+    var v: array<array<f32, 4>, 4>;
+    var cell = vec3i(0);
+    cell[a] = layer;
+    for (var j = 0; j < 4; j++) {
+        cell[d] = clamp(fd + j - 1, 0, nd - 1);
+        var row: array<f32, 4>;
+        for (var i = 0; i < 4; i++) {
+            cell[b] = clamp(fb + i - 1, 0, nb - 1);
+            row[i] = load_mean(light, cell);
+        }
+        v[j] = extrapolated(row, fb, nb);
     }
     var sum = 0.0;
     var lo = 3.4e38;
-    var hi = 0.0;
-    var cell = vec3i(0);
-    cell[a] = layer;
-    for (var j = first; j < last; j++) {
-        cell[d] = clamp(fd + j - 1, 0, nd - 1);
-        var row = 0.0;
-        for (var i = first; i < last; i++) {
-            cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            let m = load_mean(light, cell);
-            row += wb[i] * m;
-            if (i == 1 || i == 2) && (j == 1 || j == 2) {
-                lo = min(lo, m);
-                hi = max(hi, m);
-            }
+    var hi = -3.4e38;
+    for (var i = 0; i < 4; i++) {
+        let col = extrapolated(array<f32, 4>(v[0][i], v[1][i], v[2][i], v[3][i]), fd, nd);
+        sum += wb[i] * (wd[0] * col[0] + wd[1] * col[1] + wd[2] * col[2] + wd[3] * col[3]);
+        if i == 1 || i == 2 {
+            lo = min(lo, min(col[1], col[2]));
+            hi = max(hi, max(col[1], col[2]));
         }
-        sum += wd[j] * row;
     }
-    return clamp(sum, lo, hi);
+    return max(clamp(sum, lo, hi), 0.0);
+}
+
+// `row` with the values of stencil positions beyond an axis of n cells (position k holds
+// cell f − 1 + k, loaded clamped) replaced by the linear extrapolation of the two edge cells.
+fn extrapolated(row: array<f32, 4>, f: i32, n: i32) -> array<f32, 4> {
+    var v = row;
+    if n < 2 {
+        return v;
+    }
+    for (var k = 0; k < 4; k++) {
+        let c = f - 1 + k;
+        if c < 0 {
+            let z = k - c;
+            v[k] = v[z] + f32(c) * (v[z + 1] - v[z]);
+        } else if c >= n {
+            let z = k - (c - (n - 1));
+            v[k] = v[z] + f32(c - n + 1) * (v[z] - v[z - 1]);
+        }
+    }
+    return v;
 }
 
 fn solve(c: vec3i, light: u32) {
@@ -176,27 +221,30 @@ fn solve(c: vec3i, light: u32) {
         a = 2u;
     }
     let stride = f32(step.stride);
-    // The interpolation plane is a layer of axis e: the axis of the face the ray leaves the box
-    // through (so that the cells around P see nearly the same length of box ahead), else the
-    // dominant axis a. It is the first such layer at least `stride` layers closer along a.
+    // The interpolation plane is a layer of axis e (see the top of this file), the first at
+    // least `stride` layers closer along a. Were e the axis of the face of the box itself, a
+    // ray grazing another face would be interpolated across it, from neighbours whose paths
+    // leave the box at far different points.
+    let half = 0.5 * grid.cell;
+    let centres = exit_from(x, dir, len, grid.min + half, grid.max - half);
     var e = a;
     var layers = stride;
-    if exit.axis < 3u && exit.axis != a {
-        e = exit.axis;
+    if centres.axis < 3u && centres.axis != a {
+        e = centres.axis;
         layers = max(ceil(stride * mag[e] / mag[a]), 1.0);
     }
     let to_plane = len * layers / mag[e];
+    let layer = c[e] + i32(layers) * i32(sign(v[e]));
     // Either the whole in-box path is integrated, or the part up to P plus the interpolated
     // rest: one call either way, so that threads taking different branches share it.
-    var far_end = x + dir * inside;
+    var near = inside;
     var t_rest = 0.0;
-    if mag[a] >= stride + 0.5 && inside > to_plane {
-        far_end = x + dir * to_plane;
-        let u = (far_end - grid.min) / grid.cell - 0.5;
-        let layer = clamp(c[e] + i32(layers) * i32(sign(v[e])), 0, i32(grid.dims[e]) - 1);
+    if mag[a] >= stride + 0.5 && inside > to_plane && layer >= 0 && layer < i32(grid.dims[e]) {
+        near = to_plane;
+        let u = (x + dir * to_plane - grid.min) / grid.cell - 0.5;
         t_rest = layer_mean(light, e, layer, u) * (inside - to_plane);
     }
-    let t_in = t_rest + integrate_pieces(far_end, x);
+    let t_in = integrate_pieces(x + dir * near, x) + t_rest;
     store(light, c, t_in + grid.base_extinction * (len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 

@@ -141,6 +141,9 @@ fn worst_by_class(scheme: Scheme, stride: u32) -> Vec<(f64, f64)> {
                     CLASSES[l],
                     light.position.length()
                 );
+                if std::env::var("PLACEMENT_DIAG").is_ok() {
+                    diagnose(&p, l, &ev, &gpu.read_opv(l).unwrap(), &cells);
+                }
                 worst[l].0 = worst[l].0.max(s);
                 worst[l].1 = worst[l].1.max(r);
             }
@@ -151,6 +154,47 @@ fn worst_by_class(scheme: Scheme, stride: u32) -> Vec<(f64, f64)> {
         println!("  {class:16} scheme {s:.2e}  resolution {r:.2e}");
     }
     worst
+}
+
+/// The worst cell of light `l` and the cells along its path towards the light (every 4
+/// cells along the dominant axis): reference and computed optical depth, and where the ray
+/// leaves the box.
+fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith::scene::Volume, cells: &[[u32; 3]]) {
+    use fogsmith::reference::{grid_optical_depth_cells, GridMedium64};
+    let medium = GridMedium64::from_volume(&p.grid, ev, p.medium.base_extinction.max(0.0) as f64);
+    let s = p.lights[l].position.as_dvec3();
+    let exact = grid_optical_depth_cells(&p.grid, &medium, s, cells);
+    let err = |c: &[u32; 3], t: f64| ((-(opv.get(c[0], c[1], c[2]) as f64)).exp() - (-t).exp()).abs();
+    let (n, _) = cells.iter().zip(&exact).enumerate().map(|(n, (c, t))| (n, err(c, *t))).max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+    let c = cells[n];
+    let cell = p.grid.cell_size().as_dvec3();
+    let x = p.grid.cell_center(c[0], c[1], c[2]).as_dvec3();
+    let su = (s - p.grid.min.as_dvec3()) / cell - 0.5;
+    let v = (s - x) / cell;
+    let len = (s - x).length();
+    let dir = (s - x) / len;
+    let (lo, hi) = (p.grid.min.as_dvec3(), p.grid.max.as_dvec3());
+    let (t0, t1) = fogsmith::reference::clip_to_box(lo, hi, x, dir, len).unwrap_or((0.0, 0.0));
+    let e = x + dir * t1;
+    let eu = (e - lo) / cell - 0.5;
+    println!("    worst cell {c:?} err {:.2e} light(cells) {:.1?} path(cells) {:.1?} in-box {:.2} cells t0 {t0:.2} exit(cells) {:.2?}", err(&c, exact[n]), su.to_array(), v.to_array(), t1 / cell.min_element(), eu.to_array());
+    let a = (0..3).max_by(|&i, &j| v[i].abs().total_cmp(&v[j].abs())).unwrap();
+    let res = p.grid.resolution;
+    let mut along = Vec::new();
+    let mut k = 0.0;
+    while k <= v[a].abs() {
+        let q = x + dir * (k / v[a].abs()) * len;
+        let qu = ((q - lo) / cell - 0.5).round();
+        if (0..3).any(|i| qu[i] < 0.0 || qu[i] >= res[i] as f64) {
+            break;
+        }
+        along.push([qu.x as u32, qu.y as u32, qu.z as u32]);
+        k += 4.0;
+    }
+    let ex = grid_optical_depth_cells(&p.grid, &medium, s, &along);
+    for (q, t) in along.iter().zip(&ex) {
+        println!("      {q:?} ref {t:.5} got {:.5}", opv.get(q[0], q[1], q[2]));
+    }
 }
 
 #[test]
