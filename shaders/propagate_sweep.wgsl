@@ -235,11 +235,27 @@ fn solve(c: vec3i, light: u32) {
     }
     let to_plane = len * layers / mag[e];
     let layer = c[e] + i32(layers) * i32(sign(v[e]));
+    // Where the ray would reach the plane of another face's outermost cells less than two
+    // cells (along that face's axis) after leaving through e's, the stencil around P holds
+    // cells whose rays leave through that face instead: their in-box lengths and means meet
+    // at a kink there, which interpolation smears. Such cells integrate directly.
+    var kink = false;
+    if centres.axis < 3u {
+        for (var f = 0u; f < 3u; f++) {
+            if f != centres.axis && dir[f] != 0.0 {
+                let face = select(grid.min[f] + half[f], grid.max[f] - half[f], dir[f] > 0.0);
+                let t_f = (face - x[f]) / dir[f];
+                if t_f < len && (t_f - centres.t) * abs(dir[f]) < 2.0 * grid.cell[f] {
+                    kink = true;
+                }
+            }
+        }
+    }
     // Either the whole in-box path is integrated, or the part up to P plus the interpolated
     // rest: one call either way, so that threads taking different branches share it.
     var near = inside;
     var t_rest = 0.0;
-    if mag[a] >= stride + 0.5 && inside > to_plane && layer >= 0 && layer < i32(grid.dims[e]) {
+    if mag[a] >= stride + 0.5 && inside > to_plane && layer >= 0 && layer < i32(grid.dims[e]) && !kink {
         near = to_plane;
         let u = (x + dir * to_plane - grid.min) / grid.cell - 0.5;
         t_rest = layer_mean(light, e, layer, u) * (inside - to_plane);
