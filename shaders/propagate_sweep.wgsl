@@ -118,83 +118,61 @@ fn catmull_rom(t: f32) -> vec4f {
 
 // Mean in-box extinction at P (cell-centre coordinates u) in layer `layer` of axis a:
 // Catmull-Rom over the 4×4 cells around P (less numerical diffusion than bilinear), limited to
-// the range of the 2×2 nearest so that it cannot overshoot. Stencil positions beyond the grid
-// take the linear extrapolation of the two edge cells rather than a copy of the edge cell: a
-// copy flattens the slope there, an error of first order in the cell size that the many
-// interpolations along a ray grazing a face accumulate. So the outer half-cell is linear and
-// the last interval reproduces linear variation.
+// the range of the 2×2 nearest so that it cannot overshoot. A stencil position beyond the grid
+// stands for the linear extrapolation of the two edge cells (its weight moves onto them), not
+// for a copy of the edge cell: a copy flattens the slope in the last interval, an error of
+// first order in the cell size that the many interpolations along a ray near a face
+// accumulate. Within the outer half-cell P takes the edge cells' values.
 fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> f32 {
     let b = (a + 1u) % 3u;
     let d = (a + 2u) % 3u;
     let nb = i32(grid.dims[b]);
     let nd = i32(grid.dims[d]);
-    // Stride 3 leaves no room for the wider stencil in the ordering: bilinear there, clamped
-    // to the edge cells.
-    if step.stride < 4u {
-        let ub = clamp(u[b], 0.0, f32(nb - 1));
-        let ud = clamp(u[d], 0.0, f32(nd - 1));
-        let fb = i32(floor(ub));
-        let fd = i32(floor(ud));
-        let tb = ub - f32(fb);
-        let td = ud - f32(fd);
-        var cell = vec3i(0);
-        cell[a] = layer;
-        var v: array<f32, 4>;
-        for (var k = 0; k < 4; k++) {
-            cell[b] = min(fb + (k & 1), nb - 1);
-            cell[d] = min(fd + (k >> 1u), nd - 1);
-            v[k] = load_mean(light, cell);
-        }
-        return mix(mix(v[0], v[1], tb), mix(v[2], v[3], tb), td);
-    }
     let ub = clamp(u[b], 0.0, f32(nb - 1));
     let ud = clamp(u[d], 0.0, f32(nd - 1));
     let fb = i32(floor(ub));
     let fd = i32(floor(ud));
-    let wb = catmull_rom(ub - f32(fb));
-    let wd = catmull_rom(ud - f32(fd));
-    var v: array<array<f32, 4>, 4>;
-    var cell = vec3i(0);
-    cell[a] = layer;
-    for (var j = 0; j < 4; j++) {
-        cell[d] = clamp(fd + j - 1, 0, nd - 1);
-        var row: array<f32, 4>;
-        for (var i = 0; i < 4; i++) {
-            cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            row[i] = load_mean(light, cell);
-        }
-        v[j] = extrapolated(row, fb, nb);
+    // Stride 3 leaves no room for the wider stencil in the ordering: bilinear there.
+    let cubic = step.stride >= 4u;
+    let first = select(1, 0, cubic);
+    let last = select(3, 4, cubic);
+    var wb = vec4f(0.0, 1.0 - (ub - f32(fb)), ub - f32(fb), 0.0);
+    var wd = vec4f(0.0, 1.0 - (ud - f32(fd)), ud - f32(fd), 0.0);
+    if cubic {
+        wb = fold_ghosts(catmull_rom(ub - f32(fb)), fb, nb);
+        wd = fold_ghosts(catmull_rom(ud - f32(fd)), fd, nd);
     }
     var sum = 0.0;
     var lo = 3.4e38;
-    var hi = -3.4e38;
-    for (var i = 0; i < 4; i++) {
-        let col = extrapolated(array<f32, 4>(v[0][i], v[1][i], v[2][i], v[3][i]), fd, nd);
-        sum += wb[i] * (wd[0] * col[0] + wd[1] * col[1] + wd[2] * col[2] + wd[3] * col[3]);
-        if i == 1 || i == 2 {
-            lo = min(lo, min(col[1], col[2]));
-            hi = max(hi, max(col[1], col[2]));
+    var hi = 0.0;
+    var cell = vec3i(0);
+    cell[a] = layer;
+    for (var j = first; j < last; j++) {
+        cell[d] = clamp(fd + j - 1, 0, nd - 1);
+        var row = 0.0;
+        for (var i = first; i < last; i++) {
+            cell[b] = clamp(fb + i - 1, 0, nb - 1);
+            let m = load_mean(light, cell);
+            row += wb[i] * m;
+            if (i == 1 || i == 2) && (j == 1 || j == 2) {
+                lo = min(lo, m);
+                hi = max(hi, m);
+            }
         }
+        sum += wd[j] * row;
     }
-    return max(clamp(sum, lo, hi), 0.0);
+    return clamp(sum, lo, hi);
 }
 
-// `row` with the values of stencil positions beyond an axis of n cells (position k holds
-// cell f − 1 + k, loaded clamped) replaced by the linear extrapolation of the two edge cells.
-fn extrapolated(row: array<f32, 4>, f: i32, n: i32) -> array<f32, 4> {
-    var v = row;
-    if n < 2 {
-        return v;
+// Weights `w` of the stencil cells f − 1 … f + 2 along an axis of n cells, with the weight of
+// a position beyond the axis moved onto the two edge cells it extrapolates linearly from.
+fn fold_ghosts(w: vec4f, f: i32, n: i32) -> vec4f {
+    var v = w;
+    if n >= 2 && f == 0 {
+        v = vec4f(0.0, v.y + 2.0 * v.x, v.z - v.x, v.w);
     }
-    for (var k = 0; k < 4; k++) {
-        let c = f - 1 + k;
-        if c < 0 {
-            let z = k - c;
-            v[k] = v[z] + f32(c) * (v[z + 1] - v[z]);
-        } else if c >= n {
-            let z = k - (c - (n - 1));
-            v[k] = v[z] + f32(c - n + 1) * (v[z] - v[z - 1]);
-        }
+    if n >= 2 && f == n - 2 {
+        v = vec4f(v.x, v.y - v.w, v.z + 2.0 * v.w, 0.0);
     }
     return v;
 }
