@@ -7,13 +7,15 @@
 //
 // X steps from its centre towards S to a plane P at least `stride` layers closer along its
 // dominant axis a (the axis of largest |X − S| in cell units). The plane is a layer of the axis
-// whose face the ray leaves the box through, else of a: the cells around P then see nearly the
-// same length of box ahead. If the ray leaves the box before P (or S is that close), X
-// integrates its whole in-box path directly: so the cells on the faces that see an outside
-// light start the sweep. Otherwise m at P is interpolated from the cells of that layer around
-// P, T_in(P) = m·|P − E|, and ∫σ_t over [P, X] is added exactly for the trilinear EV. m is
-// constant in a homogeneous medium, so that case is exact. A larger stride means fewer
-// interpolations along a ray, hence less numerical diffusion.
+// whose face the ray leaves the box of cell centres through, else of a: the cells around P
+// then lie at the same distance from that face and see nearly the same length of box ahead,
+// and P never lies in an outer half-cell. If that layer lies beyond the grid or the ray leaves
+// the box before P (or S is that close), X integrates its whole in-box path directly: so the
+// cells on the faces that see an outside light start the sweep. Otherwise m at P is
+// interpolated from the cells of that layer around P, T_in(P) = m·|P − E|, and ∫σ_t over
+// [P, X] is added exactly for the trilinear EV. m is constant in a homogeneous medium, so that
+// case is exact. A larger stride means fewer interpolations along a ray, hence less numerical
+// diffusion.
 //
 // Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
 // units, around the light, or around a far light's anchor on the same line) closer to the
@@ -86,13 +88,18 @@ struct Exit {
 }
 
 fn exit_box(x: vec3f, dir: vec3f, len: f32) -> Exit {
+    return exit_from(x, dir, len, grid.min, grid.max);
+}
+
+// Where the ray from x (inside [lo, hi]) leaves the box [lo, hi].
+fn exit_from(x: vec3f, dir: vec3f, len: f32, lo: vec3f, hi: vec3f) -> Exit {
     var e = Exit(len, 3u);
     for (var i = 0u; i < 3u; i++) {
         var t = len;
         if dir[i] > 0.0 {
-            t = (grid.max[i] - x[i]) / dir[i];
+            t = (hi[i] - x[i]) / dir[i];
         } else if dir[i] < 0.0 {
-            t = (grid.min[i] - x[i]) / dir[i];
+            t = (lo[i] - x[i]) / dir[i];
         }
         if t < e.t {
             e = Exit(t, i);
@@ -110,8 +117,11 @@ fn catmull_rom(t: f32) -> vec4f {
 
 // Mean in-box extinction at P (cell-centre coordinates u) in layer `layer` of axis a:
 // Catmull-Rom over the 4×4 cells around P (less numerical diffusion than bilinear), limited to
-// the range of the 2×2 nearest so that it cannot overshoot. Within the outer half-cell P takes
-// the edge cells' values.
+// the range of the 2×2 nearest so that it cannot overshoot. A stencil position beyond the grid
+// stands for the linear extrapolation of the two edge cells (its weight moves onto them), not
+// for a copy of the edge cell: a copy flattens the slope in the last interval, an error of
+// first order in the cell size that the many interpolations along a ray near a face
+// accumulate. Within the outer half-cell P takes the edge cells' values.
 fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> f32 {
     let b = (a + 1u) % 3u;
     let d = (a + 2u) % 3u;
@@ -128,8 +138,8 @@ fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> f32 {
     var wb = vec4f(0.0, 1.0 - (ub - f32(fb)), ub - f32(fb), 0.0);
     var wd = vec4f(0.0, 1.0 - (ud - f32(fd)), ud - f32(fd), 0.0);
     if cubic {
-        wb = catmull_rom(ub - f32(fb));
-        wd = catmull_rom(ud - f32(fd));
+        wb = fold_ghosts(catmull_rom(ub - f32(fb)), fb, nb);
+        wd = fold_ghosts(catmull_rom(ud - f32(fd)), fd, nd);
     }
     var sum = 0.0;
     var lo = 3.4e38;
@@ -151,6 +161,19 @@ fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> f32 {
         sum += wd[j] * row;
     }
     return clamp(sum, lo, hi);
+}
+
+// Weights `w` of the stencil cells f − 1 … f + 2 along an axis of n cells, with the weight of
+// a position beyond the axis moved onto the two edge cells it extrapolates linearly from.
+fn fold_ghosts(w: vec4f, f: i32, n: i32) -> vec4f {
+    var v = w;
+    if n >= 2 && f == 0 {
+        v = vec4f(0.0, v.y + 2.0 * v.x, v.z - v.x, v.w);
+    }
+    if n >= 2 && f == n - 2 {
+        v = vec4f(v.x, v.y - v.w, v.z + 2.0 * v.w, 0.0);
+    }
+    return v;
 }
 
 fn solve(c: vec3i, light: u32) {
@@ -175,27 +198,46 @@ fn solve(c: vec3i, light: u32) {
         a = 2u;
     }
     let stride = f32(step.stride);
-    // The interpolation plane is a layer of axis e: the axis of the face the ray leaves the box
-    // through (so that the cells around P see nearly the same length of box ahead), else the
-    // dominant axis a. It is the first such layer at least `stride` layers closer along a.
+    // The interpolation plane is a layer of axis e (see the top of this file), the first at
+    // least `stride` layers closer along a. Were e the axis of the face of the box itself, a
+    // ray grazing another face would be interpolated across it, from neighbours whose paths
+    // leave the box at far different points.
+    let half = 0.5 * grid.cell;
+    let centres = exit_from(x, dir, len, grid.min + half, grid.max - half);
     var e = a;
     var layers = stride;
-    if exit.axis < 3u && exit.axis != a {
-        e = exit.axis;
+    if centres.axis < 3u && centres.axis != a {
+        e = centres.axis;
         layers = max(ceil(stride * mag[e] / mag[a]), 1.0);
     }
     let to_plane = len * layers / mag[e];
+    let layer = c[e] + i32(layers) * i32(sign(v[e]));
+    // Where the ray would reach the plane of another face's outermost cells less than two
+    // cells (along that face's axis) after leaving through e's, the stencil around P holds
+    // cells whose rays leave through that face instead: their in-box lengths and means meet
+    // at a kink there, which interpolation smears. Such cells integrate directly.
+    var kink = false;
+    if centres.axis < 3u {
+        for (var f = 0u; f < 3u; f++) {
+            if f != centres.axis && dir[f] != 0.0 {
+                let face = select(grid.min[f] + half[f], grid.max[f] - half[f], dir[f] > 0.0);
+                let t_f = (face - x[f]) / dir[f];
+                if t_f < len && (t_f - centres.t) * abs(dir[f]) < 2.0 * grid.cell[f] {
+                    kink = true;
+                }
+            }
+        }
+    }
     // Either the whole in-box path is integrated, or the part up to P plus the interpolated
     // rest: one call either way, so that threads taking different branches share it.
-    var far_end = x + dir * inside;
+    var near = inside;
     var t_rest = 0.0;
-    if mag[a] >= stride + 0.5 && inside > to_plane {
-        far_end = x + dir * to_plane;
-        let u = (far_end - grid.min) / grid.cell - 0.5;
-        let layer = clamp(c[e] + i32(layers) * i32(sign(v[e])), 0, i32(grid.dims[e]) - 1);
+    if mag[a] >= stride + 0.5 && inside > to_plane && layer >= 0 && layer < i32(grid.dims[e]) && !kink {
+        near = to_plane;
+        let u = (x + dir * to_plane - grid.min) / grid.cell - 0.5;
         t_rest = layer_mean(light, e, layer, u) * (inside - to_plane);
     }
-    let t_in = t_rest + integrate_pieces(far_end, x);
+    let t_in = integrate_pieces(x + dir * near, x) + t_rest;
     store(light, c, t_in + grid.base_extinction * (len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 

@@ -766,19 +766,24 @@ mod tests {
         let v = light - x;
         let len = v.length();
         let dir = v / len;
-        let (mut inside, mut exit_axis) = (len, 3);
-        for i in 0..3 {
-            let t = if dir[i] > 0.0 {
-                (grid.max[i] - x[i]) / dir[i]
-            } else if dir[i] < 0.0 {
-                (grid.min[i] - x[i]) / dir[i]
-            } else {
-                len
-            };
-            if t < inside {
-                (inside, exit_axis) = (t, i);
+        let exit = |lo: Vec3, hi: Vec3| {
+            let (mut at, mut axis) = (len, 3);
+            for i in 0..3 {
+                let t = if dir[i] > 0.0 {
+                    (hi[i] - x[i]) / dir[i]
+                } else if dir[i] < 0.0 {
+                    (lo[i] - x[i]) / dir[i]
+                } else {
+                    len
+                };
+                if t < at {
+                    (at, axis) = (t, i);
+                }
             }
-        }
+            (at.max(0.0), axis)
+        };
+        let (inside, _) = exit(grid.min, grid.max);
+        let (_, exit_axis) = exit(grid.min + 0.5 * cell, grid.max - 0.5 * cell);
         let mag = (v / cell).abs();
         let mut a = 0;
         if mag.y > mag[a] {
@@ -794,12 +799,13 @@ mod tests {
             layers = (s * mag[e] / mag[a]).ceil().max(1.0);
         }
         let to_plane = len * layers / mag[e];
-        if mag[a] < s + 0.5 || inside <= to_plane {
+        let n = grid.resolution.as_ivec3();
+        let layer = c[e] + layers as i32 * v[e].signum() as i32;
+        if mag[a] < s + 0.5 || inside <= to_plane || layer < 0 || layer >= n[e] {
             return Vec::new();
         }
         let p = x + dir * to_plane;
         let u = (p - grid.min) / cell - 0.5;
-        let n = grid.resolution.as_ivec3();
         let reach = if stride >= 4 { 1 } else { 0 };
         let mut out = Vec::new();
         let (b, d) = ((e + 1) % 3, (e + 2) % 3);
@@ -808,7 +814,7 @@ mod tests {
         for j in -reach..=1 + reach {
             for i in -reach..=1 + reach {
                 let mut r = IVec3::from(c);
-                r[e] = (c[e] + layers as i32 * v[e].signum() as i32).clamp(0, n[e] - 1);
+                r[e] = layer;
                 r[b] = (fb + i).clamp(0, n[b] - 1);
                 r[d] = (fd + j).clamp(0, n[d] - 1);
                 out.push(r.to_array());
