@@ -23,7 +23,7 @@ pub mod surface_glow;
 
 pub use grid::{clip_to_box, clipped_optical_depth, GridMedium64};
 pub use render::{
-    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, RefRenderOptions,
+    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, shadowed, RefRenderOptions,
 };
 
 use crate::scene::{GridSpec, Project};
