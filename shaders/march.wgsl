@@ -21,7 +21,8 @@
 // [¼, 4] × the fixed step). With skip_empty, bricks whose dilated maximum σ_t is 0
 // are jumped over (exact: every sample in them would add nothing). A ray stops once its
 // transmittance falls below tr_cutoff, and at the first surface, which is shaded by every
-// light through the fog (Lambert, no surface-to-surface shadows).
+// light through the fog (Lambert, shadowed by the other surfaces, plus Sun et al.'s surface
+// term; see shade_surface).
 
 struct MarchParams {
     origin: vec3f,
@@ -539,8 +540,45 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
     return hit;
 }
 
+// Whether a surface blocks the path from x (on a surface with normal n) along unit u before
+// distance t_max: boxes (entered from outside or containing the start) and the ground (from
+// above). The start is lifted off its own surface along n; a light within 0.1 % of the
+// distance of a face, on its outer side, is not blocked by that face.
+fn shadowed(x: vec3f, n: vec3f, u: vec3f, t_max: f32) -> bool {
+    let eps = 1e-5 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
+    let o = x + n * eps;
+    let reach = t_max * (1.0 - 1e-3);
+    let inv = 1.0 / select(u, vec3f(1e-30), abs(u) < vec3f(1e-30));
+    for (var i = 0u; i < params.surface_count; i++) {
+        let s = surfaces[i];
+        if s.kind == 1u {
+            if u.y < 0.0 && o.y > s.min.y && (s.min.y - o.y) / u.y < reach {
+                return true;
+            }
+        } else {
+            let ta = (s.min - o) * inv;
+            let tb = (s.max - o) * inv;
+            let tn = min(ta, tb);
+            let tf = max(ta, tb);
+            let t_in = max(tn.x, max(tn.y, tn.z));
+            let t_out = min(tf.x, min(tf.y, tf.z));
+            if t_out > 0.0 && t_in <= t_out && t_in < reach {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
+// Lambertian radiance leaving x: every light's direct light through the fog unless a surface
+// shadows it, plus, in homogeneous base fog (no height falloff), Sun et al.'s surface term
+// for point and spot lights (shaders/surface_glow.wgsl): isotropic scattering, the spot's
+// cone factor towards x, the grid's extra optical depth on the direct path, no occlusion of
+// the glow. A sun adds none: homogeneous fog without end extinguishes it.
 fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
     var l_out = vec3f(0.0);
+    let beta = grid.base_extinction;
+    let glow = beta > 0.0 && grid.height_falloff == 0.0;
     for (var l = 0u; l < grid.light_count; l++) {
         let light = lights[l];
         if all(light.rgb == vec3f(0.0)) {
@@ -548,7 +586,7 @@ fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
         }
         if light.kind == LIGHT_DIRECTIONAL {
             let cos_sun = dot(n, -light.direction);
-            if cos_sun > 0.0 {
+            if cos_sun > 0.0 && !shadowed(x, n, -light.direction, OPAQUE) {
                 l_out += albedo / PI * light.rgb * (cos_sun * exp(-sun_depth(x, l)));
             }
             continue;
@@ -558,10 +596,18 @@ fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
         let d = sqrt(d2);
         let cos_i = dot(n, to_light / d);
         let cone = cone_factor(light, -to_light);
-        if cos_i <= 0.0 || cone <= 0.0 {
+        if cone <= 0.0 || (cos_i <= 0.0 && !glow) {
             continue;
         }
-        l_out += albedo / PI * light.rgb * (cone * cos_i / d2 * exp(-light_depth(x, l, d)));
+        let depth = light_depth(x, l, d);
+        if glow {
+            let theta_s = acos(clamp(cos_i, -1.0, 1.0));
+            let extra = exp(-max(depth - beta * d, 0.0));
+            l_out += albedo * light.rgb * (params.albedo * cone * extra * glow_radiance(beta, d, theta_s));
+        }
+        if cos_i > 0.0 && !shadowed(x, n, to_light / d, d) {
+            l_out += albedo / PI * light.rgb * (cone * cos_i / d2 * exp(-depth));
+        }
     }
     return l_out;
 }

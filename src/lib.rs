@@ -9,6 +9,7 @@
 //! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
 //! - [`stress`]: the numerical stress matrix behind `fogsmith stress`.
 //! - [`sun_table`]: Sun et al.'s F function and the table the GPU reads.
+//! - [`surface_table`]: Sun et al.'s surface term (fog glow on diffuse surfaces) and its table.
 //! - [`quad`]: adaptive quadrature (the Sun table's construction and the reference).
 
 pub mod bench;
@@ -24,3 +25,4 @@ pub mod reference;
 pub mod scene;
 pub mod stress;
 pub mod sun_table;
+pub mod surface_table;

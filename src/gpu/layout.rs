@@ -107,7 +107,10 @@ pub fn shared_constants() -> String {
          const SUN_K_SCALE: f32 = {:?};\n\
          const SUN_GAMMA_MIN: f32 = {:e};\n\
          const SUN_FAR_SKIP: f32 = {:?};\n\
-         const SUN_SHORT_RATIO: f32 = {:?};\n",
+         const SUN_SHORT_RATIO: f32 = {:?};\n\
+         const GLOW_NT: u32 = {}u;\n\
+         const GLOW_NTHETA: u32 = {}u;\n\
+         const GLOW_T_MAX: f32 = {:?};\n",
         super::binning::BRICK,
         sun::GPU_TABLE_SIZE,
         sun::GPU_TABLE_SIZE,
@@ -116,6 +119,9 @@ pub fn shared_constants() -> String {
         sun::GAMMA_MIN,
         sun::FAR_SKIP,
         sun::SHORT_RATIO,
+        crate::surface_table::GLOW_NT,
+        crate::surface_table::GLOW_NTHETA,
+        crate::surface_table::GLOW_T_MAX,
     )
 }
 

@@ -85,7 +85,8 @@ impl MarchJob {
 pub struct Marcher {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
-    /// Sun et al.'s F table (remapped layout) for the closed-form base fog.
+    /// Sun et al.'s F table (remapped layout) for the closed-form base fog, then the G table
+    /// of their surface term.
     sun_table: wgpu::Buffer,
     counters_buf: wgpu::Buffer,
     surfaces_buf: wgpu::Buffer,
@@ -115,11 +116,17 @@ impl Marcher {
         let pipeline = compute_pipeline(
             device,
             "march",
-            &[&opv_read, include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/march.wgsl")],
+            &[
+                &opv_read,
+                include_str!("../../shaders/sun.wgsl"),
+                include_str!("../../shaders/surface_glow.wgsl"),
+                include_str!("../../shaders/march.wgsl"),
+            ],
             &layout,
         );
-        let sun = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE);
-        let sun_table = super::pipeline::storage_buffer(device, "sun F table", bytemuck::cast_slice(&sun.data));
+        let mut tables = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE).data;
+        tables.extend_from_slice(crate::surface_table::glow_table());
+        let sun_table = super::pipeline::storage_buffer(device, "sun F and G tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::pipeline::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::pipeline::storage_buffer(device, "surfaces", &[]);
         Self { layout, pipeline, sun_table, counters_buf, surfaces_buf }

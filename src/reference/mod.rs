@@ -11,6 +11,7 @@
 //! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
 //!   (§4) with exact transmittance.
 //! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
+//! - [`surface_glow`]: Sun et al.'s surface term by hemisphere quadrature (§9).
 //! - [`lights`]: directional lights' optical depths and the height fog's closed form (§9).
 
 mod grid;
@@ -18,10 +19,11 @@ pub mod lights;
 pub use crate::quad;
 mod render;
 pub mod sun;
+pub mod surface_glow;
 
 pub use grid::{clip_to_box, clipped_optical_depth, GridMedium64};
 pub use render::{
-    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, RefRenderOptions,
+    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, shadowed, RefRenderOptions,
 };
 
 use crate::scene::{GridSpec, Project};

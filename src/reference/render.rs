@@ -341,16 +341,60 @@ pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRe
     out
 }
 
-/// Lambertian radiance leaving a surface point lit by every light through the fog.
+/// Lambertian radiance leaving a surface point lit by every light through the fog, by the
+/// rules of the GPU march's `shade_surface`: direct light unless another surface blocks the
+/// straight path to the light ([`shadowed`]), plus, in homogeneous base fog, Sun et al.'s
+/// surface term for point and spot lights from the exact G function
+/// ([`crate::surface_table::g_exact`], itself checked against hemisphere quadrature in
+/// [`super::surface_glow`]), times the medium's albedo, the spot's cone factor at x and the
+/// transmittance of the medium's optical depth beyond the base fog's on the direct path.
 fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x: DVec3, normal: DVec3, albedo: DVec3) -> DVec3 {
+    let beta = project.medium.base_extinction as f64;
+    let glow = beta > 0.0 && project.medium.height_falloff == 0.0;
     lights
         .iter()
-        .filter_map(|l| {
-            let (travel, geometry, tr) = arriving(medium, project, l, x)?;
-            let cos = normal.dot(-travel);
-            (cos > 0.0).then(|| albedo / PI * l.rgb * (geometry * cos * tr))
+        .map(|l| {
+            let mut out = DVec3::ZERO;
+            if glow && l.sun.is_none() {
+                let to_light = l.position - x;
+                let d = to_light.length();
+                let cone = l.cone(x);
+                if cone > 0.0 && d > 0.0 {
+                    let theta = normal.dot(to_light / d).clamp(-1.0, 1.0).acos();
+                    let extra = (-(medium.optical_depth(x, l.position) - beta * d).max(0.0)).exp();
+                    let g = crate::surface_table::glow_radiance(beta, d, theta, crate::surface_table::g_exact);
+                    out += albedo * l.rgb * (project.medium.albedo as f64 * cone * extra * g);
+                }
+            }
+            if let Some((travel, geometry, tr)) = arriving(medium, project, l, x) {
+                let cos = normal.dot(-travel);
+                let reach = if l.sun.is_some() { f64::INFINITY } else { (l.position - x).length() };
+                if cos > 0.0 && !shadowed(project, x, normal, -travel, reach) {
+                    out += albedo / PI * l.rgb * (geometry * cos * tr);
+                }
+            }
+            out
         })
         .sum()
+}
+
+/// Whether a surface of `project` blocks the path from `x` (on a surface with normal `n`)
+/// along unit `u` before distance `t_max`: a box the path enters (or starts in), or the ground
+/// crossed from above. The start is lifted off its surface by a hair along `n`, and a light
+/// within 0.1 % of the distance of a face, on its outer side, is not blocked by that face.
+pub fn shadowed(project: &Project, x: DVec3, n: DVec3, u: DVec3, t_max: f64) -> bool {
+    let eps = 1e-9 * (1.0 + x.abs().max_element());
+    let o = x + n * eps;
+    let reach = t_max * (1.0 - 1e-3);
+    if let Some(g) = &project.surfaces.ground {
+        let h = g.height as f64;
+        if u.y < 0.0 && o.y > h && (h - o.y) / u.y < reach {
+            return true;
+        }
+    }
+    project.surfaces.boxes.iter().any(|b| {
+        ray_box(o, u, b.min.as_dvec3(), b.max.as_dvec3()).is_some_and(|(t_in, t_out)| t_out > 0.0 && t_in < reach)
+    })
 }
 
 #[cfg(test)]

@@ -1,0 +1,133 @@
+//! Reference for Sun et al.'s surface term (physics.md §9): the airlight L_a of §6 arriving
+//! from every direction of the hemisphere, weighted by the Lambertian BRDF ρ/π and cosθ_i,
+//! integrated numerically in two dimensions. Directions are parametrised around the light
+//! (γ from the direction to the light, φ the azimuth), where L_a depends on γ alone and
+//! sinγ·dγ removes its 1/γ peak; the clamped cosine is integrated over φ numerically, split
+//! where it reaches zero. Nothing here uses the G function or its table.
+
+use super::quad;
+use super::sun::sun_la;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+/// ∫_0^{2π} max(cosθ_s cosγ + sinθ_s sinγ cosφ, 0) dφ by quadrature.
+fn azimuth_quadrature(theta_s: f64, gamma: f64) -> f64 {
+    let (a, b) = (theta_s.cos() * gamma.cos(), theta_s.sin() * gamma.sin());
+    let mut points = vec![0.0, PI];
+    if b.abs() > a.abs() {
+        points.push((-a / b).acos());
+    }
+    let points = quad::breakpoints(points, 0.0, PI);
+    2.0 * quad::integrate(|phi| (a + b * phi.cos()).max(0.0), &points, 1e-12, 1e-300, 1000).0
+}
+
+/// Radiance scattered by homogeneous fog β onto a diffuse surface of albedo 1 at distance `d`
+/// from an isotropic point light of intensity 1, `theta_s` the angle between the normal and
+/// the direction to the light (0..π), ignoring occlusion by other surfaces.
+pub fn surface_glow_quadrature(beta: f64, d: f64, theta_s: f64) -> f64 {
+    if beta <= 0.0 {
+        return 0.0;
+    }
+    let k1 = (FRAC_PI_2 - theta_s).abs();
+    let t = beta * d;
+    let mut points = vec![k1, PI - k1];
+    points.extend([1e-6, 1e-4, 1e-2].iter().map(|k| k / t.max(1e-3)));
+    points.extend(crate::sun_table::KNEES.iter().map(|k| (k / t.max(1e-300)).min(PI)));
+    let points = quad::breakpoints(points, 0.0, PI);
+    let integrand = |g: f64| sun_la(g, d, f64::INFINITY, beta, 1.0) * g.sin() * azimuth_quadrature(theta_s, g) / PI;
+    quad::integrate(integrand, &points, 1e-9, 1e-300, 4_000).0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::surface_table::{g_exact, glow_lookup, glow_radiance, glow_table, GLOW_NT, GLOW_NTHETA, GLOW_T_MAX};
+
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Random (β, D, θ_s): optical distances from 1e-3 to 30, every light direction.
+    fn cases(n: usize) -> Vec<(f64, f64, f64)> {
+        let mut s = 7u64;
+        (0..n)
+            .map(|_| {
+                let beta = 10f64.powf(-2.0 + 2.0 * lcg(&mut s));
+                let t = 10f64.powf(-3.0 + 4.5 * lcg(&mut s));
+                (beta, t / beta, PI * lcg(&mut s))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn g_function_matches_hemisphere_quadrature() {
+        let mut worst: f64 = 0.0;
+        for (beta, d, theta) in cases(60) {
+            let want = surface_glow_quadrature(beta, d, theta);
+            let got = glow_radiance(beta, d, theta, g_exact);
+            assert!(want.is_finite() && want >= 0.0);
+            let rel = (got - want).abs() / want.max(1e-300);
+            worst = worst.max(rel);
+            assert!(rel < 2e-5, "β {beta} D {d} θ {theta}: {got} vs {want}");
+        }
+        println!("exact G vs hemisphere quadrature: max relative error {worst:.2e}");
+    }
+
+    /// The table's error against the hemisphere quadrature, bounded by bilinear
+    /// interpolation's error (Δx²/8)|G_xx| + (Δy²/8)|G_yy| with the second derivatives
+    /// estimated from the table's own second differences over the neighbouring nodes (×2 for
+    /// their variation inside a cell), plus f32 rounding.
+    #[test]
+    fn glow_table_error_within_bilinear_bound() {
+        let table = glow_table();
+        let at = |i: usize, j: usize| table[j * GLOW_NT + i] as f64;
+        let d2x = |i: usize, j: usize| {
+            let i = i.clamp(1, GLOW_NT - 2);
+            (at(i - 1, j) - 2.0 * at(i, j) + at(i + 1, j)).abs()
+        };
+        let d2y = |i: usize, j: usize| {
+            let j = j.clamp(1, GLOW_NTHETA - 2);
+            (at(i, j - 1) - 2.0 * at(i, j) + at(i, j + 1)).abs()
+        };
+        let (mut sum, mut max, mut n, mut max_scale) = (0.0f64, 0.0f64, 0usize, 0.0f64);
+        for (beta, d, theta) in cases(400) {
+            let t = beta * d;
+            let want = surface_glow_quadrature(beta, d, theta);
+            let got = glow_radiance(beta, d, theta, |t, th| glow_lookup(table, t, th));
+            let fx = (t.min(GLOW_T_MAX) / GLOW_T_MAX).sqrt().sqrt() * (GLOW_NT - 1) as f64;
+            let fy = theta / PI * (GLOW_NTHETA - 1) as f64;
+            let (i, j) = ((fx as usize).min(GLOW_NT - 2), (fy as usize).min(GLOW_NTHETA - 2));
+            let mut curv = 0.0f64;
+            for (a, b) in [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)] {
+                for (a, b) in [(a.saturating_sub(1), b), (a, b.saturating_sub(1)), (a, b), (a + 1, b), (a, b + 1)] {
+                    let (a, b) = (a.min(GLOW_NT - 1), b.min(GLOW_NTHETA - 1));
+                    curv = curv.max(d2x(a, b) + d2y(a, b));
+                }
+            }
+            let g_want = want / glow_radiance(beta, d, theta, |_, _| 1.0);
+            let g_bound = 2.0 * curv / 8.0 + 1e-6 * g_want.abs() + 1e-7;
+            let g_got = glow_lookup(table, t, theta);
+            assert!(
+                (g_got - g_want).abs() <= g_bound,
+                "T {t} θ {theta}: G table {g_got} vs quadrature {g_want}, bound {g_bound}"
+            );
+            // Relative to the light's glow at this distance facing it (θ_s = 0), the scale a
+            // viewer sees.
+            let scale = glow_radiance(beta, d, 0.0, g_exact);
+            let rel = (got - want).abs() / scale;
+            max_scale = max_scale.max(rel);
+            if want > 1e-3 * scale {
+                let r = (got - want).abs() / want;
+                sum += r;
+                max = max.max(r);
+                n += 1;
+            }
+        }
+        println!(
+            "glow table {GLOW_NT}x{GLOW_NTHETA} vs hemisphere quadrature: relative mean {:.2e} max {max:.2e} \
+             (over {n} samples with term > 1e-3 of the facing value); max error / facing value {max_scale:.2e}",
+            sum / n as f64
+        );
+        assert!(max_scale < 0.01, "{max_scale}");
+    }
+}
