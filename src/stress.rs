@@ -108,8 +108,9 @@ pub const HOMOGENEOUS_BOUND: f64 = 1e-4;
 
 /// The matrix. `quick` keeps every case small; the full matrix adds a million particles, a
 /// grid at the adapter's largest OPV and every scheme on more cases. `max_3d` and
-/// `max_binding` are the adapter's limits, used to build cases just past them.
-pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
+/// `max_binding` are the adapter's limits and `opv_capacity` the bytes of optical-depth
+/// volumes a pipeline can hold on a 64³ grid, used to build cases just past them.
+pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> Vec<StressCase> {
     let mut cases = Vec::new();
     let all = [Scheme::Sweep, Scheme::Giroud, Scheme::Exact];
     let cell = 2.0 / DEFAULT_RES as f32;
@@ -258,22 +259,6 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
         case.reference_cells = if n >= 100_000 { 24 } else { 200 };
         cases.push(case);
     }
-    {
-        // Enough huge particles that their brick lists would exceed one storage binding.
-        let mut p = base(256);
-        let bricks = (256u64 / 8).pow(3);
-        let n = (max_binding / 4 / bricks + 1) as usize;
-        p.particles = vec![Particle::new(Vec3::ZERO, 1e3 * 2.0 / 256.0, 1.0); n];
-        p.lights.push(light(Vec3::ONE * 0.5));
-        cases.push(StressCase {
-            name: format!("{n} particles overlapping every brick"),
-            project: p,
-            scheme: Scheme::Sweep,
-            expect: Expect::Refused("particle–bin"),
-            reference_cells: 0,
-        });
-    }
-
     // Grid shapes.
     let mut shapes = vec![UVec3::ONE, UVec3::new(1, 1, 64), UVec3::new(2, 3, 5), UVec3::new(max_3d, 1, 1)];
     if !quick {
@@ -306,7 +291,7 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64) -> Vec<StressCase> {
         });
         let mut p = base(64);
         let per_light = 64u64.pow(3) * 4;
-        let lights = (max_binding / per_light + 1) as usize;
+        let lights = (opv_capacity / per_light + 1) as usize;
         p.lights = (0..lights).map(|i| light(Vec3::new(-0.9 + 1.8 * (i as f32 / lights as f32), 0.5, 0.5))).collect();
         cases.push(StressCase {
             name: format!("{lights} lights on 64³ (past the device)"),

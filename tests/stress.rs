@@ -24,7 +24,7 @@ fn reduced_stress_matrix_holds() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
     let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
-    let cases = reduced(matrix(true, limits.max_texture_dimension_3d, binding), limits.max_texture_dimension_3d);
+    let cases = reduced(matrix(true, limits.max_texture_dimension_3d, binding, opv_capacity(&limits)), limits.max_texture_dimension_3d);
     assert!(cases.len() >= 40, "{} cases", cases.len());
     let mut failures = Vec::new();
     for case in &cases {
@@ -38,7 +38,11 @@ fn reduced_stress_matrix_holds() {
     assert!(failures.is_empty(), "failed cases:\n{}", failures.join("\n"));
 }
 
-/// A grid edge, OPV, particle list or light count past the adapter is refused by
+fn opv_capacity(limits: &wgpu::Limits) -> u64 {
+    fogsmith::gpu::OpvLayout::for_limits(limits).capacity_bytes_for(64 * 64 * 64)
+}
+
+/// A grid edge, OPV total, particle count or image past the adapter is refused by
 /// `check_limits` (and so by `update`) with the limit and a suggestion in the message.
 #[test]
 fn limits_are_refused_before_allocation_with_the_limit_named() {
@@ -55,17 +59,15 @@ fn limits_are_refused_before_allocation_with_the_limit_named() {
     let msg = limit_message(&p, 16, 16);
     assert!(msg.contains(&limits.max_texture_dimension_3d.to_string()) && msg.contains("lower grid.resolution"), "{msg}");
 
+    // OPVs span several storage bindings: refused only past all of them together.
     let mut p = small_scene(64, &[]);
-    let lights = binding / (64 * 64 * 64 * 4) + 1;
+    let capacity = opv_capacity(&limits);
+    let lights = capacity / (64 * 64 * 64 * 4) + 1;
     p.lights = (0..lights).map(|i| fogsmith::scene::Light::new(Vec3::new(i as f32 * 1e-3, 0.0, 0.0), 1.0, Vec3::ONE)).collect();
     let msg = limit_message(&p, 16, 16);
-    assert!(msg.contains("optical-depth") && msg.contains(&binding.to_string()) && msg.contains("at most"), "{msg}");
-
-    let mut p = small_scene(256, &[Vec3::ONE]);
-    let n = binding / 4 / 32768 + 1;
-    p.particles = vec![Particle::new(Vec3::ZERO, 100.0, 1.0); n as usize];
-    let msg = limit_message(&p, 16, 16);
-    assert!(msg.contains("particle–bin") && msg.contains("fewer or smaller particles"), "{msg}");
+    assert!(msg.contains("optical-depth") && msg.contains(&capacity.to_string()) && msg.contains("at most"), "{msg}");
+    p.lights.truncate(lights as usize - 1);
+    assert!(gpu.check_limits(&p, 16, 16).is_ok(), "the most lights that fit are accepted");
 
     let mut p = small_scene(8, &[Vec3::ONE]);
     let n = binding / 32 + 1;
@@ -208,7 +210,7 @@ fn oversized_base_layer_and_empty_frames_are_errors() {
 fn stress_results_serialise_with_the_documented_keys() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
-    let case = matrix(true, limits.max_texture_dimension_3d, limits.max_storage_buffer_binding_size as u64).remove(0);
+    let case = matrix(true, limits.max_texture_dimension_3d, limits.max_storage_buffer_binding_size as u64, opv_capacity(&limits)).remove(0);
     let v = serde_json::to_value(vec![run_case(&mut gpu, &case)]).unwrap();
     let row = &v[0];
     for key in ["case", "max_error", "nan_or_inf", "time_ms", "passed", "bound", "scheme"] {

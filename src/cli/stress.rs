@@ -8,8 +8,9 @@ pub fn run(quick: bool, json: bool, quiet: bool) -> Result<(), Box<dyn std::erro
     let adapter = ctx.adapter_summary();
     let max_3d = ctx.limits.max_texture_dimension_3d;
     let max_binding = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+    let opv_capacity = crate::gpu::OpvLayout::for_limits(&ctx.limits).capacity_bytes_for(64 * 64 * 64);
     let mut gpu = FogPipeline::new(ctx);
-    let mut cases = matrix(quick, max_3d, max_binding);
+    let mut cases = matrix(quick, max_3d, max_binding, opv_capacity);
     cases.extend((0..if quick { 40 } else { 400 }).map(random_case));
     if !json {
         println!("stress matrix ({} cases{}) on {adapter}", cases.len(), if quick { ", quick" } else { "" });

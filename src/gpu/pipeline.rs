@@ -390,7 +390,25 @@ impl FogPipeline {
     /// storage binding each), the image (2D texture and its readback buffer), and the GPU
     /// memory all of it needs together where the device's memory is known.
     pub fn check_limits(&self, project: &Project, width: u32, height: u32) -> Result<(), GpuError> {
-        self.check_sizes(&project.grid, project.lights.len(), project.particles.len(), width, height)
+        self.check_sizes(&project.grid, project.lights.len(), project.particles.len(), width, height)?;
+        // The base layer is read through one storage binding (set_base_layer uploads nothing
+        // larger): refused here rather than injected as empty.
+        if let Some((v, _)) = &self.base_layer {
+            let limits = &self.ctx.limits;
+            let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+            let bytes = v.data.len() as u64 * 4;
+            if v.grid == project.grid && bytes > binding {
+                let r = project.grid.resolution;
+                return Err(GpuError::Limit {
+                    what: format!("the base layer on a {}×{}×{} grid", r.x, r.y, r.z),
+                    needed: bytes,
+                    limit: binding,
+                    adapter: self.ctx.adapter_info.name.clone(),
+                    suggestion: "lower grid.resolution".into(),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Peak GPU memory, in bytes, of the resources a scene of this size needs: EV, brick
