@@ -94,7 +94,7 @@ pub fn wgpu_setup() -> egui_wgpu::WgpuSetup {
     }));
     setup.device_descriptor = Arc::new(|adapter: &wgpu::Adapter| wgpu::DeviceDescriptor {
         label: Some("fogsmith editor"),
-        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+        required_features: adapter.features() & crate::gpu::OPTIONAL_FEATURES,
         required_limits: adapter.limits(),
         ..Default::default()
     });

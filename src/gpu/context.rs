@@ -13,8 +13,9 @@ pub struct GpuContext {
     pub features: wgpu::Features,
 }
 
-/// Features used when the adapter has them; none is required.
-const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::FLOAT32_FILTERABLE);
+/// Features the pipeline uses where the adapter has them; every device it runs on (headless or
+/// the editor's) requests the same ones, so both compute the same values.
+pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::FLOAT32_FILTERABLE);
 
 impl GpuContext {
     /// Opens the best adapter without a window. Vulkan is preferred: on machines with only

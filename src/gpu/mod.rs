@@ -28,7 +28,7 @@ mod slice;
 mod timer;
 
 pub use binning::{cutoff_epsilon, cutoff_radius};
-pub use context::{adapter_rank, GpuContext};
+pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};
 pub use error::GpuError;
 pub use layout::shared_constants;
 pub use opv_store::OpvLayout;
