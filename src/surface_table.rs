@@ -7,9 +7,11 @@
 //! between the normal and the direction to the light, integrating the airlight L_a(γ, D, ∞)
 //! (physics.md §6) over the hemisphere with a Lambertian BRDF ρ/π gives
 //!
-//!     L_p,a = (ρ/π) · β I e^{−T} / (2π D) · G(T, θ_s)
-//!     G(T, θ_s) = ∫_0^π C(θ_s, γ) B(T, γ) dγ
-//!     B(T, γ) = ∫_{γ/2}^{π/2} exp(−T (cosγ + sinγ tanξ − 1)) dξ
+//! ```text
+//! L_p,a = (ρ/π) · β I e^{−T} / (2π D) · G(T, θ_s)
+//! G(T, θ_s) = ∫_0^π C(θ_s, γ) B(T, γ) dγ
+//! B(T, γ) = ∫_{γ/2}^{π/2} exp(−T (cosγ + sinγ tanξ − 1)) dξ
+//! ```
 //!
 //! γ is the angle between an incoming direction and the direction to the light; the sinγ of
 //! the solid angle cancels the 1/sinγ of the airlight's A0, and C(θ_s, γ) is the clamped
