@@ -7,7 +7,7 @@ pub fn run(quick: bool, json: bool, quiet: bool) -> Result<(), Box<dyn std::erro
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let max_3d = ctx.limits.max_texture_dimension_3d;
-    let max_binding = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+    let max_binding = ctx.max_binding_bytes();
     let opv_capacity = crate::gpu::OpvLayout::for_limits(&ctx.limits).capacity_bytes_for(64 * 64 * 64);
     let mut gpu = FogPipeline::new(ctx);
     let mut cases = matrix(quick, max_3d, max_binding, opv_capacity);

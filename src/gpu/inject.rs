@@ -79,7 +79,7 @@ pub struct Injector {
 /// headroom, within one storage binding).
 fn upload(ctx: &GpuContext, buf: &mut wgpu::Buffer, label: &str, bytes: &[u8]) {
     if bytes.len() as u64 > buf.size() {
-        let binding = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+        let binding = ctx.max_binding_bytes();
         let len = (bytes.len() as u64).next_multiple_of(4);
         let size = (len * 3 / 2).next_multiple_of(256).min(binding / 4 * 4).max(len);
         *buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {

@@ -394,8 +394,7 @@ impl FogPipeline {
         // The base layer is read through one storage binding (set_base_layer uploads nothing
         // larger): refused here rather than injected as empty.
         if let Some((v, _)) = &self.base_layer {
-            let limits = &self.ctx.limits;
-            let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+            let binding = self.ctx.max_binding_bytes();
             let bytes = v.data.len() as u64 * 4;
             if v.grid == project.grid && bytes > binding {
                 let r = project.grid.resolution;
@@ -503,7 +502,7 @@ impl FogPipeline {
                 });
             }
         }
-        let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        let binding = self.ctx.max_binding_bytes();
         let particle_bytes = particle_count as u64 * std::mem::size_of::<ParticleGpu>() as u64;
         if particle_bytes > binding {
             return Err(GpuError::Limit {
@@ -1171,7 +1170,7 @@ impl FogPipeline {
 
     /// The particle–bin list bytes one injection chunk may use.
     pub fn inject_chunk_bytes(&self) -> u64 {
-        let binding = (self.ctx.limits.max_storage_buffer_binding_size as u64).min(self.ctx.limits.max_buffer_size);
+        let binding = self.ctx.max_binding_bytes();
         self.inject_chunk_limit.map_or(binding, |b| b.clamp(4, binding))
     }
 
@@ -1185,11 +1184,10 @@ impl FogPipeline {
     /// such as a VDB grid resampled into the project's grid. It must match the grid of the
     /// projects passed to [`update`](Self::update).
     pub fn set_base_layer(&mut self, layer: Option<Volume>) {
-        let limits = &self.ctx.limits;
-        let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        let binding = self.ctx.max_binding_bytes();
         self.base_layer = layer.map(|v| {
-            // A layer too large to bind is not uploaded (wgpu would panic): it is as large as
-            // one light's OPV, so `update` refuses its grid with the limit named.
+            // A layer too large to bind is not uploaded (wgpu would panic); `check_limits`
+            // refuses its grid with the limit named.
             let bytes: &[u8] = bytemuck::cast_slice(&v.data);
             let buf = storage_buffer(&self.ctx.device, "base layer", if bytes.len() as u64 > binding { &[] } else { bytes });
             (v, buf)
