@@ -5,7 +5,7 @@
 
 use crate::gpu::Image;
 use crate::reference::{
-    clipped_optical_depth_cells, grid_optical_depth_cells, optical_depth_cells, GridMedium64, Medium64,
+    clipped_optical_depth_cells, grid_light_depth_cells, optical_depth_cells, GridMedium64, Medium64,
 };
 use crate::scene::{GridSpec, Project, Volume};
 use serde::Serialize;
@@ -39,7 +39,7 @@ pub struct OpvError {
     /// Largest |T − T_exact| / T_exact where T_exact > 0.01.
     pub depth_max_rel_error: f64,
     pub cells: usize,
-    /// Whether the GPU volume held a NaN or infinity (counted as error 1).
+    /// Whether the compared depths held a NaN or −∞ (counted as error 1).
     pub nan_or_inf: bool,
 }
 
@@ -57,7 +57,9 @@ pub fn opv_error_against(light: usize, opv: &Volume, cells: &[[u32; 3]], exact: 
 pub fn depth_error(light: usize, got: &[f64], exact: &[f64]) -> OpvError {
     let (mut max, mut sum, mut rel, mut bad) = (0.0f64, 0.0f64, 0.0f64, false);
     for (&t, t_exact) in got.iter().zip(exact) {
-        let e = if t.is_finite() {
+        // T = +∞ is an opaque path (transmittance 0), as the reference gives for a sun
+        // seen through endless homogeneous fog.
+        let e = if !t.is_nan() && t != f64::NEG_INFINITY {
             ((-t).exp() - (-t_exact).exp()).abs()
         } else {
             bad = true;
@@ -96,9 +98,8 @@ pub struct OpvErrors {
 /// [`OpvErrors`] of `light` at `cells`; `ev` is the extinction volume the OPV was propagated
 /// through.
 pub fn opv_errors(project: &Project, light: usize, ev: &Volume, opv: &Volume, cells: &[[u32; 3]]) -> OpvErrors {
-    let medium = GridMedium64::from_volume(&project.grid, ev, project.medium.base_extinction.max(0.0) as f64);
-    let source = project.lights[light].position.as_dvec3();
-    let grid_depth = grid_optical_depth_cells(&project.grid, &medium, source, cells);
+    let medium = GridMedium64::for_project(project, ev);
+    let grid_depth = grid_light_depth_cells(project, &medium, light, cells);
     let clipped = clipped_optical_depth_cells(project, light, cells);
     let got: Vec<f64> = cells.iter().map(|c| opv.get(c[0], c[1], c[2]) as f64).collect();
     OpvErrors {

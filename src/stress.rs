@@ -1,7 +1,8 @@
 //! The numerical stress matrix behind `fogsmith stress` and `tests/stress.rs`.
 //!
 //! Each [`StressCase`] is a small project at an extreme of the inputs (densities, particle
-//! radii and counts, light and camera placement, base fog, grid size, propagation scheme).
+//! radii and counts, light placement and kind, camera placement, base and height fog, grid
+//! size, propagation scheme).
 //! [`run_case`] bakes it on the real adapter and checks what must hold whatever the input:
 //! EV, OPV and image free of NaN and infinity, optical depth T ≥ 0 (so the transmittance
 //! exp(−T) lies in [0, 1]), image alpha within [0, 1], OPV non-decreasing away from the light
@@ -20,7 +21,7 @@
 use crate::gpu::{FogPipeline, FrameRequest, GpuError};
 use crate::measure::{ev_error, opv_error, sample_cells};
 use crate::scene::{
-    Camera, GridSpec, Light, Medium, Particle, Project, Scheme, StepPolicy, Volume, MAX_COORDINATE, MAX_EXTINCTION,
+    Camera, GridSpec, Light, LightKind, Medium, Particle, Project, Scheme, StepPolicy, Volume, MAX_COORDINATE, MAX_EXTINCTION,
     MAX_INTENSITY,
 };
 use glam::{UVec3, Vec3};
@@ -81,6 +82,13 @@ fn base(res: u32) -> Project {
 
 fn light(pos: Vec3) -> Light {
     Light::new(pos, 4.0, Vec3::new(1.0, 0.9, 0.8))
+}
+
+/// A sun of irradiance 3 W/m² travelling along `direction`.
+fn sun(direction: Vec3) -> Light {
+    let mut l = Light::new(Vec3::ZERO, 3.0, Vec3::new(1.0, 0.95, 0.9));
+    l.kind = LightKind::Directional { direction };
+    l
 }
 
 /// Centre of cell (i, j, k) of a project's grid.
@@ -226,6 +234,64 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
         cases.push(bake("camera in fog at a light".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
     }
 
+    // Light kinds and height fog (physics.md §9).
+    {
+        let blob = |p: &mut Project| {
+            let c = center(p, [14, 17, 15]);
+            p.particles.push(Particle::new(c, 4.0 * cell, 0.5 / cell));
+        };
+        // Suns: along an axis (parallel to four faces), diagonal, grazing a face, and from
+        // below; no base fog (a sun in homogeneous fog sees infinite optical depth).
+        for (name, dir) in [
+            ("sun along -y, parallel to the side faces", Vec3::new(0.0, -1.0, 0.0)),
+            ("sun along +x, parallel to four faces", Vec3::new(1.0, 0.0, 0.0)),
+            ("sun diagonal", Vec3::new(1.0, -1.0, 1.0)),
+            ("sun grazing the top face", Vec3::new(1.0, -1e-4, 0.3)),
+            ("sun from below", Vec3::new(0.2, 1.0, -0.1)),
+        ] {
+            let schemes: &[Scheme] = if quick { &all[..1] } else { &all };
+            for &s in schemes {
+                let mut p = base(DEFAULT_RES);
+                blob(&mut p);
+                p.lights.push(sun(dir));
+                cases.push(bake(name.into(), p, s, Some(RESOLVED_BOUND), false));
+            }
+        }
+        // Height fog: ordinary, a thin layer (k large), and k·(y − y₀) past the clamp.
+        for (name, beta, k, y0, bound) in [
+            ("height fog k 2/m", 0.4f32, 2.0f32, -0.3f32, Some(RESOLVED_BOUND)),
+            ("height fog in a layer a cell thick (k 30/m)", 0.4, 30.0, -0.2, None),
+            ("height fog k 1e4/m, overflowing below y0", 1e-3, 1e4, 0.9, None),
+            ("height fog k 1e6/m far above y0", 50.0, 1e6, -1e3, Some(HOMOGENEOUS_BOUND)),
+        ] {
+            let mut p = base(DEFAULT_RES);
+            p.medium.base_extinction = beta;
+            p.medium.height_falloff = k;
+            p.medium.height_origin = y0;
+            blob(&mut p);
+            p.lights.push(light(Vec3::new(0.21, -0.33, 0.47)));
+            p.lights.push(light(Vec3::new(2.5, 1.5, -0.3)));
+            p.lights.push(sun(Vec3::new(0.3, -1.0, 0.2)));
+            let mut spot = light(Vec3::new(-0.4, 0.8, 0.1));
+            spot.kind = LightKind::Spot { direction: Vec3::new(0.2, -1.0, 0.0), angle_deg: 25.0, blend: 0.3 };
+            p.lights.push(spot);
+            cases.push(bake(name.into(), p, Scheme::Sweep, bound, false));
+        }
+        // Spots: one whose cone misses the grid entirely, and one on a face pointing in.
+        let mut p = base(DEFAULT_RES);
+        p.medium.base_extinction = 0.7;
+        let mut away = light(Vec3::new(0.0, 0.0, 1.5));
+        away.kind = LightKind::Spot { direction: Vec3::Z, angle_deg: 30.0, blend: 0.2 };
+        p.lights.push(away);
+        cases.push(bake("spot pointing away from the grid".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        let mut p = base(DEFAULT_RES);
+        p.medium.base_extinction = 0.7;
+        let mut on_face = light(Vec3::new(p.grid.max.x, 0.1, -0.2));
+        on_face.kind = LightKind::Spot { direction: -Vec3::X, angle_deg: 90.0, blend: 1.0 };
+        p.lights.push(on_face);
+        cases.push(bake("spot on a face, 90° cone, full blend".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+    }
+
     // One particle: density × radius (in cells), light in its densest cell.
     for density in [1e-6f32, 1.0, 1e4] {
         for radius_cells in [1e-3f32, 0.1, 1.0, 4.0, 1e3] {
@@ -306,7 +372,8 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
 
 /// A random small scene with every magnitude drawn log-uniformly up to the project's bounds
 /// (scene size 1e-6 to 1e8 m, extinction up to [`MAX_EXTINCTION`], lights up to
-/// [`MAX_COORDINATE`] away, any scheme and step policy): only the properties that hold for
+/// [`MAX_COORDINATE`] away, point, spot and directional lights, height fog, any scheme and
+/// step policy): only the properties that hold for
 /// every input are checked, not the error against the reference.
 pub fn random_case(seed: u64) -> StressCase {
     let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
@@ -333,7 +400,19 @@ pub fn random_case(seed: u64) -> StressCase {
         }
         for _ in 0..1 + (u() * 3.0) as usize {
             let at = point(3.0, u(), u(), u(), u());
-            p.lights.push(Light::new(at.clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE)), log(-3.0, 15.0, u()), Vec3::new(u(), u(), u())));
+            let mut l = Light::new(at.clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE)), log(-3.0, 15.0, u()), Vec3::new(u(), u(), u()));
+            let (kind, dir) = (u(), Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5));
+            let dir = if u() < 0.3 { Vec3::AXES[(u() * 3.0) as usize % 3] * dir.signum() } else { dir };
+            if kind < 0.25 {
+                l.kind = LightKind::Directional { direction: dir };
+            } else if kind < 0.5 {
+                l.kind = LightKind::Spot { direction: dir, angle_deg: 0.1 + 89.9 * u(), blend: u() };
+            }
+            p.lights.push(l);
+        }
+        if u() < 0.3 {
+            p.medium.height_falloff = log(-3.0, 6.0, u()) / size.max(1e-6);
+            p.medium.height_origin = point(2.0, u(), u(), u(), u()).y;
         }
         p.camera.position = point(2.0, u(), u(), u(), u()).clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE));
         p.camera.target = if u() < 0.3 { p.lights[0].position } else { mid };
@@ -426,7 +505,7 @@ fn check_bake(
             result.nan_or_inf |= !v.is_finite();
             failures.push(format!("OPV of light {l} holds T = {v}"));
         }
-        if monotone {
+        if monotone && !matches!(light.kind, LightKind::Directional { .. }) {
             if let Some(problem) = monotone_violation(p, &opv, light.position) {
                 failures.push(format!("light {l}: {problem}"));
             }

@@ -7,7 +7,7 @@ use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::measure::{depth_error, image_error, opv_error_against, sample_cells};
 use crate::reference::sun::{f_exact, table_error, table_error_paper_metric, FTable, Interp, TableLayout};
 use crate::reference::{
-    clipped_optical_depth_cells, grid_optical_depth_cells, render_reference, GridMedium64, RefRenderOptions,
+    clipped_optical_depth_cells, grid_light_depth_cells, render_reference, GridMedium64, RefRenderOptions,
 };
 use crate::scene::{Light, Particle, Project, Scheme, StepPolicy};
 use glam::{UVec3, Vec3};
@@ -112,12 +112,9 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
             // EV, the same for every scheme); resolution error: that medium against the
             // analytic gaussians clipped to the box.
             ctx.full(&project, 8, 8)?;
-            let medium = GridMedium64::from_volume(&project.grid, &ctx.gpu.read_ev()?, project.medium.base_extinction.max(0.0) as f64);
-            let exact: Vec<Vec<f64>> = project
-                .lights
-                .iter()
-                .map(|l| grid_optical_depth_cells(&project.grid, &medium, l.position.as_dvec3(), &cells))
-                .collect();
+            let medium = GridMedium64::for_project(&project, &ctx.gpu.read_ev()?);
+            let exact: Vec<Vec<f64>> =
+                (0..project.lights.len()).map(|l| grid_light_depth_cells(&project, &medium, l, &cells)).collect();
             let resolution = exact
                 .iter()
                 .enumerate()

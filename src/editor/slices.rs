@@ -347,8 +347,7 @@ pub fn exact_optical_depth(project: &Project, light: usize, cells: &[[u32; 3]]) 
         return Err(format!("light {light} does not exist"));
     }
     let medium = crate::reference::GridMedium64::sampled(&project.grid, &crate::reference::Medium64::from_project(project));
-    let source = project.lights[light].position.as_dvec3();
-    let mut out = crate::reference::grid_optical_depth_cells(&project.grid, &medium, source, cells);
+    let mut out = crate::reference::grid_light_depth_cells(project, &medium, light, cells);
     out.extend(crate::reference::clipped_optical_depth_cells(project, light, cells));
     Ok(out)
 }

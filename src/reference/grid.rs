@@ -1,10 +1,11 @@
 //! The medium a grid represents, in f64: σ_t trilinear between cell centres, held constant
-//! from the outermost centres out to the box faces, and only the base fog outside the box.
+//! from the outermost centres out to the box faces, and only the base fog outside the box
+//! (with the project's height falloff, integrated in closed form).
 //! This is what the GPU's propagation schemes integrate, so the exact line integral through
 //! it isolates a scheme's own error from the grid's resolution error.
 
 use super::{cell_center64, Medium64};
-use crate::scene::{GridSpec, Volume};
+use crate::scene::{GridSpec, Project, Volume};
 use glam::DVec3;
 
 /// Sample points and weights of 2-point Gauss–Legendre on [0, 1]: exact for cubics, and the
@@ -19,6 +20,8 @@ pub struct GridMedium64 {
     dims: [usize; 3],
     values: Vec<f64>,
     base: f64,
+    /// Height fog falloff k and origin y₀ of the fog outside the box (k = 0: homogeneous).
+    height: (f64, f64),
 }
 
 impl GridMedium64 {
@@ -38,7 +41,42 @@ impl GridMedium64 {
             dims: [r.x as usize, r.y as usize, r.z as usize],
             values,
             base,
+            height: (0.0, 0.0),
         }
+    }
+
+    /// The medium a project's EV represents: its values inside the box, and the project's
+    /// base fog, with its height falloff, outside it.
+    pub fn for_project(project: &Project, ev: &Volume) -> Self {
+        let m = &project.medium;
+        Self::from_volume(&project.grid, ev, m.base_extinction.max(0.0) as f64)
+            .with_height_fog(m.height_falloff as f64, m.height_origin as f64)
+    }
+
+    /// The fog outside the box becomes base·exp(−k·(y − y₀)).
+    pub fn with_height_fog(mut self, falloff: f64, origin: f64) -> Self {
+        self.height = (falloff, origin);
+        self
+    }
+
+    /// Extinction of the fog outside the box at height `y`.
+    fn outside_at(&self, y: f64) -> f64 {
+        if self.height.0 == 0.0 {
+            return self.base;
+        }
+        self.base * (-self.height.0 * (y - self.height.1)).min(crate::scene::MAX_HEIGHT_EXPONENT).exp()
+    }
+
+    /// Optical depth of the fog outside the box along `o + t·d`, t in [0, len] (len may be
+    /// infinite).
+    fn outside_depth(&self, o: DVec3, d: DVec3, len: f64) -> f64 {
+        if self.base <= 0.0 || len <= 0.0 {
+            return 0.0;
+        }
+        if self.height.0 == 0.0 {
+            return self.base * len;
+        }
+        super::lights::height_fog_depth_raw(self.base, self.height.0, self.height.1, o, d, len)
     }
 
     /// The medium of a volume read back from the GPU (the EV).
@@ -53,7 +91,8 @@ impl GridMedium64 {
             let [i, j, k] = grid.cell_of(idx);
             medium.extinction(cell_center64(grid, i, j, k))
         });
-        Self::new(grid, values, medium.base())
+        let (k, y0) = medium.height_fog();
+        Self::new(grid, values, medium.base()).with_height_fog(k, y0)
     }
 
     fn value(&self, i: usize, j: usize, k: usize) -> f64 {
@@ -63,7 +102,7 @@ impl GridMedium64 {
     /// σ_t at `x`.
     pub fn extinction(&self, x: DVec3) -> f64 {
         if (0..3).any(|a| x[a] < self.min[a] || x[a] > self.max[a]) {
-            return self.base;
+            return self.outside_at(x.y);
         }
         let mut i0 = [0usize; 3];
         let mut i1 = [0usize; 3];
@@ -92,8 +131,13 @@ impl GridMedium64 {
         if len == 0.0 {
             return 0.0;
         }
-        let dir = (b - a) / len;
-        let Some((t0, t1)) = clip_to_box(self.min, self.max, a, dir, len) else { return self.base * len };
+        self.ray_depth(a, (b - a) / len, len)
+    }
+
+    /// Optical depth along `a + t·dir` (unit `dir`), t in [0, len]; `len` may be infinite
+    /// (the path to a sun).
+    pub fn ray_depth(&self, a: DVec3, dir: DVec3, len: f64) -> f64 {
+        let Some((t0, t1)) = clip_to_box(self.min, self.max, a, dir, len) else { return self.outside_depth(a, dir, len) };
         let mut cuts = vec![t0, t1];
         for ax in 0..3 {
             if dir[ax] == 0.0 {
@@ -121,7 +165,8 @@ impl GridMedium64 {
             }
             sum += h * GAUSS.iter().map(|&(x, wt)| wt * self.extinction(a + dir * (w[0] + h * x))).sum::<f64>();
         }
-        sum + self.base * (len - (t1 - t0))
+        let after = if len.is_finite() { len - t1 } else { f64::INFINITY };
+        sum + self.outside_depth(a, dir, t0) + self.outside_depth(a + dir * t1, dir, after)
     }
 }
 
@@ -152,8 +197,10 @@ pub fn clipped_optical_depth(grid: &GridSpec, medium: &Medium64, a: DVec3, b: DV
     }
     let dir = (b - a) / len;
     match clip_to_box(grid.min.as_dvec3(), grid.max.as_dvec3(), a, dir, len) {
-        Some((t0, t1)) => medium.optical_depth(a + dir * t0, a + dir * t1) + medium.base() * (len - (t1 - t0)),
-        None => medium.base() * len,
+        Some((t0, t1)) => {
+            medium.optical_depth(a + dir * t0, a + dir * t1) + medium.base_depth(a, dir, t0) + medium.base_depth(a + dir * t1, dir, len - t1)
+        }
+        None => medium.base_depth(a, dir, len),
     }
 }
 

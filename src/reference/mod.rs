@@ -93,6 +93,11 @@ impl Medium64 {
         lights::height_fog_depth_raw(self.base, self.height.0, self.height.1, o, d, len)
     }
 
+    /// The height fog's falloff k and origin y₀ (k = 0: homogeneous base fog).
+    pub fn height_fog(&self) -> (f64, f64) {
+        self.height
+    }
+
     /// Homogeneous base extinction, 1/m.
     pub fn base(&self) -> f64 {
         self.base
@@ -233,6 +238,28 @@ pub fn grid_optical_depth_cells(grid: &GridSpec, medium: &GridMedium64, source: 
         medium.optical_depth(cell_center64(grid, i, j, k), source)
     });
     out
+}
+
+/// Exact optical depth towards light `light` of `project` through the grid's own medium,
+/// at the centres of `cells`: to the light's position for point and spot lights, along the
+/// reversed light direction to infinity for directional ones.
+///
+/// # Panics
+/// If `light` is not an index into `project.lights`.
+pub fn grid_light_depth_cells(project: &Project, medium: &GridMedium64, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    let l = &project.lights[light];
+    match l.kind {
+        crate::scene::LightKind::Directional { direction } => {
+            let towards = -direction.as_dvec3().normalize_or_zero();
+            let mut out = vec![0.0; cells.len()];
+            par_fill(&mut out, 64, |n| {
+                let [i, j, k] = cells[n];
+                medium.ray_depth(cell_center64(&project.grid, i, j, k), towards, f64::INFINITY)
+            });
+            out
+        }
+        _ => grid_optical_depth_cells(&project.grid, medium, l.position.as_dvec3(), cells),
+    }
 }
 
 /// Exact optical depth towards `light` through the analytic medium clipped to the grid box
