@@ -42,8 +42,14 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let ev = gpu.read_ev()?;
     let (ev_err, ev_abs) = ev_error(&project, &ev, &cells);
     let mut opv = Vec::new();
-    for light in 0..project.lights.len() {
-        opv.push(opv_errors(&project, light, &ev, &gpu.read_opv(light)?, &cells));
+    // Hidden, dark and culled lights have no optical-depth volume to compare.
+    let mut without_opv = Vec::new();
+    for (light, l) in project.lights.iter().enumerate() {
+        if crate::gpu::light_has_opv(&project, l) {
+            opv.push(opv_errors(&project, light, &ev, &gpu.read_opv(light)?, &cells));
+        } else {
+            without_opv.push(light);
+        }
     }
     let image = gpu.read_image()?;
     let reference = render_reference(&project, width, height, &RefRenderOptions::default());
@@ -62,6 +68,7 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
             "ev_rel_threshold": EV_REL_THRESHOLD,
             "ev_max_abs_error": ev_abs,
             "opv": opv,
+            "lights_without_opv": without_opv,
             "image_rel_rmse": img_err.rel_rmse,
             "image_max_abs_error": img_err.max_abs_error,
             "image_size": [width, height],
@@ -89,6 +96,9 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
                 e.resolution.transmittance_mean_abs_error,
                 e.total.transmittance_max_abs_error,
             );
+        }
+        for l in &without_opv {
+            println!("light {l}: no optical-depth volume (hidden, dark, or its light cannot reach the grid)");
         }
         println!("  scheme: the OPV against the line integral through the grid's trilinear medium (base fog outside the box)");
         println!("  resolution: that grid medium against the analytic gaussians clipped to the box");

@@ -899,7 +899,7 @@ impl FogPipeline {
     /// The OPV inputs light `l` needs, or None when it is not propagated at all (hidden,
     /// dark or culled).
     fn opv_key(&self, project: &Project, l: &Light, scheme: Scheme) -> Option<OpvKey> {
-        if l.hidden || l.intensity <= 0.0 || light_is_negligible(project, l) || !l.reaches_box(project.grid.min, project.grid.max) {
+        if !light_has_opv(project, l) {
             return None;
         }
         // A sun's volume depends on its direction only, whatever the scheme.
@@ -1326,6 +1326,13 @@ fn light_buffers(device: &wgpu::Device, layout: OpvLayout, spec: &GridSpec, ligh
         mapped_at_creation: false,
     });
     (lights_buf, opv)
+}
+
+/// Whether light `l` gets an optical-depth volume: it is shown, has intensity, can reach
+/// the grid box (a spot's cone, a point light's reach) and is not negligible. The others add
+/// nothing to the image, so their volumes are never read (their contents are unspecified).
+pub fn light_has_opv(project: &Project, l: &Light) -> bool {
+    !(l.hidden || l.intensity <= 0.0 || light_is_negligible(project, l) || !l.reaches_box(project.grid.min, project.grid.max))
 }
 
 /// Radiance below which a light's whole contribution is dropped: the tone-mapped display

@@ -220,8 +220,8 @@ pub fn radiance_along_ray(
         tau += seg;
         t = t_next;
         let tv = (-tau).exp();
-        // A sun has no falloff: what it can still add is bounded by the opacity of the fog
-        // left ahead, once the grid box is behind (∫σ e^{−τ} ≤ 1 − e^{−τ_rest}).
+        // What a light can still add is bounded by the opacity of the fog left ahead, once
+        // the grid box is behind (∫σ e^{−τ} ≤ 1 − e^{−τ_rest}); a sun has no falloff.
         let fog_ahead = if t >= b1 || b0.is_infinite() {
             -(-medium.base_depth(origin + dir * t, dir, f64::INFINITY)).exp_m1()
         } else {
@@ -233,7 +233,9 @@ pub fn radiance_along_ray(
                 // In homogeneous base fog no sunlight gets through at all.
                 Some(_) if project.medium.height_falloff == 0.0 && medium.base() > 0.0 => 0.0,
                 Some(_) => l.rgb.element_sum() * fog_ahead,
-                None => l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2),
+                // ∫σ e^{−τ} over what is left is at most the opacity of the fog ahead, too:
+                // height fog thinning out ends the march, as it does for a sun.
+                None => l.rgb.element_sum() / nearest_ahead(origin, dir, t, l.position).powi(2) * fog_ahead,
             })
             .sum();
         if tv == 0.0 || tv * bound_scale * rest <= opts.tolerance * radiance.element_sum() {
