@@ -38,7 +38,7 @@ fn spot_cone_matches_reference_at_its_edge() {
         p.lights[0].kind = spot(Vec3::new(1.0, -0.8, -0.4), 22.0, blend);
         p.render.step_policy = StepPolicy::Fixed;
         p.render.step_factor = 0.25;
-        p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.6) });
+        p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.6), ..Ground::default() });
         let (image, reference, _) = render_both(&p);
         let mut point = p.clone();
         point.lights[0].kind = LightKind::Point;
@@ -84,7 +84,7 @@ fn random_spots_match_reference() {
         p.lights[0].intensity = 10.0;
         let aim = (-pos + rng.v(-0.5, 0.5)).normalize();
         p.lights[0].kind = spot(aim, rng.range(10.0, 60.0), rng.range(0.0, 1.0));
-        p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5) });
+        p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5), ..Ground::default() });
         p.render.step_policy = StepPolicy::Fixed;
         p.render.step_factor = 0.25;
         let spot_err = abs_rmse(&p);
@@ -229,7 +229,7 @@ fn sun_image_matches_reference() {
     p.medium.base_extinction = 0.0;
     p.lights[0].kind = sun(Vec3::new(0.5, -1.0, -0.3));
     p.lights[0].intensity = 3.0;
-    p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.6) });
+    p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.6), ..Ground::default() });
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
@@ -250,7 +250,7 @@ fn suns_and_height_fog_never_give_nan() {
             p.medium.base_extinction = beta;
             p.medium.height_falloff = k;
             p.medium.height_origin = y0;
-            p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5) });
+            p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5), ..Ground::default() });
             p.render.width = 24;
             p.render.height = 16;
             gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
@@ -276,7 +276,7 @@ fn height_fog_image_matches_reference() {
     p.medium.base_extinction = 0.15;
     p.medium.height_falloff = 1.2;
     p.medium.height_origin = -1.0;
-    p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5) });
+    p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5), ..Ground::default() });
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
