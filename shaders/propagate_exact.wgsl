@@ -27,10 +27,10 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     let len = length(s - x);
     let dir = (s - x) / max(len, 1e-30);
     // Beyond the grid only base fog remains: march to where the segment leaves the grid and
-    // add the rest analytically, so the cost stays O(N) however far the light is.
+    // add the rest in closed form (exact for height fog too), so the cost stays O(N) however far the light is.
     let ta = (grid.min - x) / dir;
     let tb = (grid.max - x) / dir;
     let inside = clamp(min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z)), 0.0, len);
-    let t = integrate_segment(x, x + dir * inside, f32(exact.steps_per_cell)) + grid.base_extinction * (len - inside);
+    let t = integrate_segment(x, x + dir * inside, f32(exact.steps_per_cell)) + base_fog_depth(x + dir * inside, dir, len - inside);
     opv_store(exact.light * cell_count() + linear_index(id), t);
 }

@@ -17,7 +17,7 @@
 
 fn sigma_at(c: vec3i) -> f32 {
     if any(c < vec3i(0)) || any(c >= vec3i(grid.dims)) {
-        return grid.base_extinction;
+        return base_fog_at(grid.min.y + (f32(c.y) + 0.5) * grid.cell.y);
     }
     return textureLoad(ev, c, 0).r;
 }
@@ -51,7 +51,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: ve
         let ndist = length(nx - s);
         var tn: f32;
         if any(n < vec3i(0)) || any(n >= vec3i(grid.dims)) {
-            tn = grid.base_extinction * ndist;
+            tn = base_fog_depth(nx, (s - nx) / max(ndist, 1e-30), ndist);
         } else {
             tn = src_load(base + linear_index(vec3u(n)));
         }

@@ -1,7 +1,7 @@
 // Opacity propagation, upwind "short characteristics" sweep (physics.md §5, upwind variant).
 //
 // The optical depth from cell X to the light S splits at the point E where the segment leaves
-// the grid box: T(X) = T_in(X) + β_base·|E − S|, with T_in the integral of the grid's medium
+// the grid box: T(X) = T_in(X) + the base fog's over [E, S] (closed form), with T_in the integral of the grid's medium
 // over [X, E] (E = S for a light inside the box). Along with T, each cell stores its mean
 // in-box extinction m = T_in / |X − E| in a second buffer.
 //
@@ -238,7 +238,7 @@ fn solve(c: vec3i, light: u32) {
         t_rest = layer_mean(light, e, layer, u) * (inside - to_plane);
     }
     let t_in = integrate_pieces(x + dir * near, x) + t_rest;
-    store(light, c, t_in + grid.base_extinction * (len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
+    store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
 @compute @workgroup_size(64, 1, 1)
