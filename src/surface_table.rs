@@ -1,7 +1,7 @@
-//! Sun et al. 2005's surface term for a diffuse surface (their §4, the "G0" function): the
-//! light that homogeneous fog scatters onto a surface point from an isotropic point light,
-//! and the 2D table the GPU reads (appended to the F table in `shaders/march.wgsl`'s
-//! `sun_table`, read by `shaders/surface_glow.wgsl`).
+//! Sun et al. 2005's surface term (their §4, the G functions): the light that homogeneous fog
+//! scatters onto a surface point from an isotropic point light, for a diffuse surface and for
+//! a Phong-specular one, and the tables the GPU reads (appended to the F table in
+//! `shaders/march.wgsl`'s `sun_table`, read by `shaders/surface_glow.wgsl`).
 //!
 //! With T = β·D the optical distance from the surface point to the light and θ_s the angle
 //! between the normal and the direction to the light, integrating the airlight L_a(γ, D, ∞)
@@ -19,6 +19,25 @@
 //! form. G is the paper's G0 scaled by e^{T}; the exponent in B is ≤ 0, so G is bounded and
 //! nothing overflows. The table holds G on x = (T / T_MAX)^{1/4}, y = θ_s / π: near T = 0, G
 //! varies like T·ln T, which the fourth root makes smooth enough for bilinear interpolation.
+//!
+//! **Specular.** With the Phong BRDF written as BRDF·cosθ_i = k_s (n + 1)/(2π) max(cos α, 0)^n,
+//! α the angle between the incoming direction and the view's mirror direction (k_s is then the
+//! reflectance of a uniformly bright sky), the same integral with the lobe in place of the
+//! clamped cosine gives
+//!
+//! ```text
+//! L_p,a = k_s · β I e^{−T} / (2π D) · S_n(T, θ_r)
+//! S_n(T, θ_r) = (n + 1)/(2π) ∫_0^π C_n(θ_r, γ) B(T, γ) dγ
+//! C_n(θ_r, γ) = ∫_0^{2π} max(cosθ_r cosγ + sinθ_r sinγ cosφ, 0)^n dφ
+//! ```
+//!
+//! θ_r the angle between the mirror direction and the direction to the light. S_1 = G/π: the
+//! diffuse case is the lobe n = 1 around the normal. As in the paper the lobe is integrated over
+//! the whole sphere (the cosθ_i of the BRDF and the surface's horizon are not applied to the
+//! airlight), so that S depends on T, θ_r and n alone; the table therefore has a third axis, n from 0 to [`SPEC_N_MAX`] uniform in ln(1 + n),
+//! linear between nodes. S peaks like 1/w_n (w_n = 1/sqrt(n + 1), the lobe's width) at
+//! θ_r = 0 and falls like 1/θ_r beyond the lobe, so each exponent node stores
+//! S·sqrt(θ_r² + w_n²) on an angle axis that is linear within w_n and logarithmic beyond.
 
 use crate::quad;
 use std::f64::consts::{FRAC_PI_2, PI};

@@ -352,3 +352,38 @@ fn specular_fields_default_and_are_validated() {
         assert_eq!(e.field, field.replace("ground", "boxes[0]"), "{e}");
     }
 }
+
+/// Specular surfaces never give NaN: lights on the ground and on a box's face, cameras
+/// grazing the ground and looking straight down (the light at the mirror direction), for the
+/// exponent's ends, in thin and thick fog and without fog.
+#[test]
+fn specular_surfaces_never_give_nan() {
+    let mut gpu = pipeline();
+    for beta in [0.0f32, 0.3, 5.0] {
+        for exponent in [0.0f32, 1e-3, 1.0, 1000.0] {
+            for (light, camera) in [
+                (Vec3::new(0.0, 0.0, 0.0), Vec3::new(2.0, 1e-4, 0.0)),
+                (Vec3::new(0.3, 2.0, 0.0), Vec3::new(-0.3, 2.0, 0.0)),
+                (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1e-3)),
+            ] {
+                let mut p = shadow_scene(LightKind::Point, beta, true);
+                p.lights[0].position = light;
+                p.camera.position = camera;
+                p.camera.target = Vec3::new(0.0, 0.0, 0.01);
+                let g = p.surfaces.ground.as_mut().unwrap();
+                g.specular = 1.0;
+                g.phong_exponent = exponent;
+                p.surfaces.boxes[0].specular = 0.5;
+                p.surfaces.boxes[0].phong_exponent = exponent;
+                p.render.width = 24;
+                p.render.height = 18;
+                gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
+                let image = gpu.read_image().unwrap();
+                assert!(
+                    image.rgba.iter().flatten().all(|v| v.is_finite() && *v >= 0.0),
+                    "β {beta} n {exponent} light {light} camera {camera}: NaN, infinity or negative"
+                );
+            }
+        }
+    }
+}
