@@ -33,9 +33,9 @@
 //!
 //! θ_r the angle between the mirror direction and the direction to the light. S_1 = G/π: the
 //! diffuse case is the lobe n = 1 around the normal. As in the paper the lobe is integrated over
-//! the whole sphere (the cosθ_i of the BRDF and the surface's horizon are not applied to the
-//! airlight), so that S depends on T, θ_r and n alone; the table therefore has a third axis, n from 0 to [`SPEC_N_MAX`] uniform in ln(1 + n),
-//! linear between nodes. S peaks like 1/w_n (w_n = 1/sqrt(n + 1), the lobe's width) at
+//! the whole sphere: airlight from below the surface's horizon, which a lobe reaches when the
+//! view grazes the surface, is counted. So S depends on T, θ_r and n alone, and the table has
+//! a third axis, n from 0 to [`SPEC_N_MAX`] uniform in ln(1 + n), linear between nodes. S peaks like 1/w_n (w_n = 1/sqrt(n + 1), the lobe's width) at
 //! θ_r = 0 and falls like 1/θ_r beyond the lobe, so each exponent node stores
 //! S·sqrt(θ_r² + w_n²) on an angle axis that is linear within w_n and logarithmic beyond.
 
