@@ -312,7 +312,7 @@ fn point_lights_outside_the_box_in_height_fog_match_quadrature() {
         p.medium.base_extinction = rng.range(0.05, 0.4);
         p.medium.height_falloff = rng.range(0.3, 2.5);
         p.medium.height_origin = rng.range(-1.5, 0.5);
-        let m = p.medium.clone();
+        let m = p.medium;
         let beta = |y: f64| {
             let e = (-(m.height_falloff as f64) * (y - m.height_origin as f64)).min(fogsmith::scene::MAX_HEIGHT_EXPONENT);
             m.base_extinction as f64 * e.exp()

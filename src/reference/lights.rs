@@ -226,7 +226,6 @@ mod tests {
             let y = (y0 as f64 + (r() * 16.0 - 8.0) / k as f64) as f32;
             let zenith = r() * std::f64::consts::PI;
             let d = DVec3::new(zenith.sin(), zenith.cos(), 0.0);
-            let o = DVec3::new(0.0, y as f64, 0.0);
             let infinite = r() < 0.3;
             if infinite && d.y <= 0.0 {
                 continue;
