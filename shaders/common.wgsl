@@ -100,8 +100,9 @@ fn base_fog_depth(o: vec3f, d: vec3f, len: f32) -> f32 {
         log_f = -log(c);
     } else {
         let x = c * len;
-        if abs(x) < 1e-3 {
-            log_f = log(max(len, 1e-30)) + log(1.0 - x * (0.5 - x / 6.0));
+        if abs(x) < 0.1 {
+            // The series of φ (error below x⁵/720): 1 − e^{−x} would cancel in f32 here.
+            log_f = log(max(len, 1e-30)) + log(1.0 - x * (0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0))));
         } else if x > 0.0 {
             log_f = log((1.0 - exp(-x)) / c);
         } else {

@@ -57,9 +57,9 @@ struct Surface {
     min: vec3f,
     kind: u32,
     max: vec3f,
-    _pad0: f32,
+    specular: f32,
     albedo: vec3f,
-    _pad1: f32,
+    phong_exponent: f32,
 }
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
@@ -500,6 +500,8 @@ struct Hit {
     t: f32,
     normal: vec3f,
     albedo: vec3f,
+    specular: f32,
+    phong_exponent: f32,
 }
 
 fn first_surface(o: vec3f, dir: vec3f) -> Hit {
@@ -514,6 +516,8 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
                     hit.t = t;
                     hit.normal = vec3f(0.0, 1.0, 0.0);
                     hit.albedo = s.albedo;
+                    hit.specular = s.specular;
+                    hit.phong_exponent = s.phong_exponent;
                 }
             }
         } else {
@@ -527,6 +531,8 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
             if t_in > 0.0 && t_in <= t_out && t_in < hit.t {
                 hit.t = t_in;
                 hit.albedo = s.albedo;
+                hit.specular = s.specular;
+                hit.phong_exponent = s.phong_exponent;
                 if t_in == tn.x {
                     hit.normal = vec3f(-sign(dir.x), 0.0, 0.0);
                 } else if t_in == tn.y {
@@ -570,12 +576,17 @@ fn shadowed(x: vec3f, n: vec3f, u: vec3f, t_max: f32) -> bool {
     return false;
 }
 
-// Lambertian radiance leaving x: every light's direct light through the fog unless a surface
-// shadows it, plus, in homogeneous base fog (no height falloff), Sun et al.'s surface term
-// for point and spot lights (shaders/surface_glow.wgsl): isotropic scattering, the spot's
-// cone factor towards x, the grid's extra optical depth on the direct path, no occlusion of
-// the glow. A sun adds none: homogeneous fog without end extinguishes it.
-fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
+// Radiance leaving x towards the camera (view direction `dir`), Lambertian plus the surface's
+// Phong-specular part: every light's direct light through the fog unless a surface shadows
+// it, plus, in homogeneous base fog (no height falloff), Sun et al.'s surface term for point
+// and spot lights (shaders/surface_glow.wgsl), diffuse and specular: isotropic scattering,
+// the spot's cone factor towards x, the grid's extra optical depth on the direct path, no
+// occlusion of the glow. A sun adds none: homogeneous fog without end extinguishes it.
+fn shade_surface(x: vec3f, hit: Hit, dir: vec3f) -> vec3f {
+    let n = hit.normal;
+    let albedo = hit.albedo;
+    let ks = hit.specular;
+    let mirror = reflect(dir, n);
     var l_out = vec3f(0.0);
     let beta = grid.base_extinction;
     let glow = beta > 0.0 && grid.height_falloff == 0.0;
@@ -587,7 +598,8 @@ fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
         if light.kind == LIGHT_DIRECTIONAL {
             let cos_sun = dot(n, -light.direction);
             if cos_sun > 0.0 && !shadowed(x, n, -light.direction, OPAQUE) {
-                l_out += albedo / PI * light.rgb * (cos_sun * exp(-sun_depth(x, l)));
+                let brdf = albedo / PI * cos_sun + ks * phong_lobe(dot(mirror, -light.direction), hit.phong_exponent);
+                l_out += brdf * light.rgb * exp(-sun_depth(x, l));
             }
             continue;
         }
@@ -603,10 +615,16 @@ fn shade_surface(x: vec3f, n: vec3f, albedo: vec3f) -> vec3f {
         if glow {
             let theta_s = acos(clamp(cos_i, -1.0, 1.0));
             let extra = exp(-max(depth - beta * d, 0.0));
-            l_out += albedo * light.rgb * (params.albedo * cone * extra * glow_radiance(beta, d, theta_s));
+            var rho = albedo * glow_radiance(beta, d, theta_s);
+            if ks > 0.0 {
+                let theta_r = acos(clamp(dot(mirror, to_light / d), -1.0, 1.0));
+                rho += vec3f(ks * spec_radiance(beta, d, theta_r, hit.phong_exponent));
+            }
+            l_out += rho * light.rgb * (params.albedo * cone * extra);
         }
         if cos_i > 0.0 && !shadowed(x, n, to_light / d, d) {
-            l_out += albedo / PI * light.rgb * (cone * cos_i / d2 * exp(-depth));
+            let brdf = albedo / PI * cos_i + ks * phong_lobe(dot(mirror, to_light / d), hit.phong_exponent);
+            l_out += brdf * light.rgb * (cone / d2 * exp(-depth));
         }
     }
     return l_out;
@@ -659,7 +677,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     }
     if hit.t < 3.4e38 && transmittance >= params.tr_cutoff {
         let x = o + dir * hit.t;
-        radiance += transmittance * shade_surface(x, hit.normal, hit.albedo);
+        radiance += transmittance * shade_surface(x, hit, dir);
     }
     let terminated = select(0u, 1u, transmittance < params.tr_cutoff);
 

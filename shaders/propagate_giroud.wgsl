@@ -17,7 +17,7 @@
 
 fn sigma_at(c: vec3i) -> f32 {
     if any(c < vec3i(0)) || any(c >= vec3i(grid.dims)) {
-        return grid.base_extinction;
+        return base_fog_at(grid.min.y + (f32(c.y) + 0.5) * grid.cell.y);
     }
     return textureLoad(ev, c, 0).r;
 }

@@ -54,11 +54,11 @@ fn random_project(seed: u64) -> Project {
     p.render.width = 16 + (r.f() * 100.0) as u32;
     p.render.height = 16 + (r.f() * 100.0) as u32;
     if r.f() < 0.7 {
-        p.surfaces.ground = Some(Ground { height: r.range(-3.0, 0.0), albedo: r.v(0.0, 1.0) });
+        p.surfaces.ground = Some(Ground { height: r.range(-3.0, 0.0), albedo: r.v(0.0, 1.0), ..Ground::default() });
     }
     for _ in 0..(r.f() * 3.0) as usize {
         let a = r.v(-2.0, 2.0);
-        p.surfaces.boxes.push(SurfaceBox { min: a, max: a + r.v(0.1, 1.5), albedo: r.v(0.0, 1.0) });
+        p.surfaces.boxes.push(SurfaceBox { min: a, max: a + r.v(0.1, 1.5), albedo: r.v(0.0, 1.0), ..SurfaceBox::default() });
     }
     p
 }

@@ -78,9 +78,9 @@ pub struct SurfaceGpu {
     pub min: [f32; 3],
     pub kind: u32,
     pub max: [f32; 3],
-    pub _pad0: f32,
+    pub specular: f32,
     pub albedo: [f32; 3],
-    pub _pad1: f32,
+    pub phong_exponent: f32,
 }
 
 #[repr(C)]

@@ -110,7 +110,11 @@ pub fn shared_constants() -> String {
          const SUN_SHORT_RATIO: f32 = {:?};\n\
          const GLOW_NT: u32 = {}u;\n\
          const GLOW_NTHETA: u32 = {}u;\n\
-         const GLOW_T_MAX: f32 = {:?};\n",
+         const GLOW_T_MAX: f32 = {:?};\n\
+         const SPEC_NT: u32 = {}u;\n\
+         const SPEC_NTHETA: u32 = {}u;\n\
+         const SPEC_NN: u32 = {}u;\n\
+         const SPEC_N_MAX: f32 = {:?};\n",
         super::binning::BRICK,
         sun::GPU_TABLE_SIZE,
         sun::GPU_TABLE_SIZE,
@@ -122,6 +126,10 @@ pub fn shared_constants() -> String {
         crate::surface_table::GLOW_NT,
         crate::surface_table::GLOW_NTHETA,
         crate::surface_table::GLOW_T_MAX,
+        crate::surface_table::SPEC_NT,
+        crate::surface_table::SPEC_NTHETA,
+        crate::surface_table::SPEC_NN,
+        crate::surface_table::SPEC_N_MAX,
     )
 }
 

@@ -126,7 +126,8 @@ impl Marcher {
         );
         let mut tables = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE).data;
         tables.extend_from_slice(crate::surface_table::glow_table());
-        let sun_table = super::pipeline::storage_buffer(device, "sun F and G tables", bytemuck::cast_slice(&tables));
+        tables.extend_from_slice(crate::surface_table::spec_table());
+        let sun_table = super::pipeline::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::pipeline::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::pipeline::storage_buffer(device, "surfaces", &[]);
         Self { layout, pipeline, sun_table, counters_buf, surfaces_buf }

@@ -1382,9 +1382,9 @@ fn surfaces_gpu(project: &Project) -> Vec<SurfaceGpu> {
             min: b.min.to_array(),
             kind: 0,
             max: b.max.to_array(),
-            _pad0: 0.0,
+            specular: b.specular,
             albedo: b.albedo.to_array(),
-            _pad1: 0.0,
+            phong_exponent: b.phong_exponent,
         })
         .collect();
     if let Some(g) = &project.surfaces.ground {
@@ -1392,9 +1392,9 @@ fn surfaces_gpu(project: &Project) -> Vec<SurfaceGpu> {
             min: [0.0, g.height, 0.0],
             kind: 1,
             max: [0.0; 3],
-            _pad0: 0.0,
+            specular: g.specular,
             albedo: g.albedo.to_array(),
-            _pad1: 0.0,
+            phong_exponent: g.phong_exponent,
         });
     }
     out

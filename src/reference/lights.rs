@@ -4,6 +4,26 @@
 //!   closed form, to a finite length or to infinity.
 //! - [`sun_optical_depth`]: from a point towards a directional light: the gaussians clipped to
 //!   the grid box (erf integrals, §3) plus the height fog all the way to infinity.
+//!
+//! ## Why the renderer has no table of optical depth against height and zenith angle
+//!
+//! Tan et al. tabulate the optical depth towards the sun against height and zenith angle
+//! because their atmosphere is spherical: along a ray the height is not linear in the
+//! distance, and the integral (a Chapman function) has no closed form. Fogsmith's height fog
+//! is planar, β(y) = β₀·exp(−k(y − y₀)): along any straight line y is linear in the distance,
+//! so the integral is elementary, exact for a finite segment and to infinity, for every height
+//! and zenith angle (physics.md §9). Outside the grid there is only this base fog, and every
+//! optical depth the renderer takes there is along a straight line: camera-ray steps, the
+//! path from a point or spot light to where it meets the grid box (the propagation schemes'
+//! seeds, and the march's light paths outside the box), and a sun's path beyond the box. All
+//! of them use the closed form (`base_fog_depth` in `shaders/common.wgsl`, in log space so that
+//! nothing overflows), so a table could only add interpolation error. What Sun et al.'s closed
+//! form stops covering in height fog is not an optical depth but the in-scattering integral
+//! along the camera ray (their F function assumes a constant β): the march integrates it step
+//! by step, each step's light-path optical depth from the closed form. The tests below state
+//! the closed form's error against quadrature in f64 and in the shader's f32 arithmetic, and
+//! `tests/lights.rs` states the pipeline's optical depth towards point lights outside the box
+//! against quadrature.
 
 use super::{clip_to_box, Medium64};
 use crate::scene::{GridSpec, Medium, Project, MAX_HEIGHT_EXPONENT};
@@ -147,5 +167,98 @@ mod tests {
         let t = height_fog_depth(&m, DVec3::new(0.0, 0.01, 0.0), DVec3::Y, f64::INFINITY);
         let want = 0.5 * (-10.0f64).exp() / 1e3;
         assert!((t - want).abs() <= 1e-12 * want, "{t} vs {want}");
+    }
+
+    /// An f32 transliteration of `base_fog_depth` in shaders/common.wgsl.
+    fn base_fog_depth32(beta: f32, k: f32, y0: f32, o_y: f32, d_y: f32, len: f32) -> f32 {
+        const OPAQUE: f32 = 1e30;
+        if beta <= 0.0 {
+            return 0.0;
+        }
+        if k == 0.0 && len >= 0.0 {
+            return (beta * len).min(OPAQUE);
+        }
+        let c = k * d_y;
+        let a = (-k * (o_y - y0)).min(MAX_HEIGHT_EXPONENT as f32);
+        let log_f = if len < 0.0 {
+            if c <= 0.0 {
+                return OPAQUE;
+            }
+            -c.ln()
+        } else {
+            let x = c * len;
+            if x.abs() < 0.1 {
+                len.max(1e-30).ln() + (1.0 - x * (0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0)))).ln()
+            } else if x > 0.0 {
+                ((1.0 - (-x).exp()) / c).ln()
+            } else {
+                -x + ((1.0 - x.exp()) / -c).ln()
+            }
+        };
+        let log_t = beta.ln() + a + log_f;
+        if log_t > 69.0 {
+            OPAQUE
+        } else {
+            log_t.exp()
+        }
+    }
+
+    /// The closed form as the shaders evaluate it (f32) against adaptive quadrature of β(y)
+    /// along the line, over heights from far below y₀ to far above, every zenith angle, finite
+    /// segments and paths to infinity: what a table of optical depth against height and zenith
+    /// angle would have held. Depths beyond 100 (transmittance below f32's range) need only be
+    /// opaque. The bound is 50 f32 ulps (the logarithm of a term of size ~10 loses about 10
+    /// ulps to the exponential).
+    #[test]
+    fn shader_closed_form_matches_quadrature_over_height_and_zenith() {
+        let mut s = 0x0014_7a11_u64;
+        let mut r = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut worst_finite, mut worst_infinite, mut n) = (0.0f64, 0.0f64, 0);
+        for _ in 0..2000 {
+            let (beta, k, y0) = ((0.01 + r()) as f32, (0.05 + r() * 4.0) as f32, (r() * 4.0 - 2.0) as f32);
+            let m = medium(beta, k, y0);
+            // Heights within ±8/k of y₀: from 3000× to 1/3000 of β₀.
+            let y = (y0 as f64 + (r() * 16.0 - 8.0) / k as f64) as f32;
+            let zenith = r() * std::f64::consts::PI;
+            let d = DVec3::new(zenith.sin(), zenith.cos(), 0.0);
+            let infinite = r() < 0.3;
+            if infinite && d.y <= 0.0 {
+                continue;
+            }
+            let len = if infinite { f64::INFINITY } else { 10f64.powf(r() * 4.0 - 2.0) };
+            let want = if infinite {
+                // Substituting t = s/(1 − s) maps [0, ∞) onto [0, 1).
+                let f = |u: f64| m.base_at(y as f64 + d.y * u / (1.0 - u)) / ((1.0 - u) * (1.0 - u));
+                crate::quad::integrate(f, &crate::quad::breakpoints((1..12).map(|i| 1.0 - 0.5f64.powi(i)).collect(), 0.0, 1.0), 1e-12, 0.0, 10_000).0
+            } else {
+                let f = |t: f64| m.base_at(y as f64 + d.y * t);
+                crate::quad::integrate(f, &[0.0, len], 1e-12, 0.0, 10_000).0
+            };
+            let got = base_fog_depth32(beta, k, y0, y, d.y as f32, if infinite { -1.0 } else { len as f32 }) as f64;
+            if want > 100.0 {
+                // Opaque in f32 (e^{−100} < the smallest f32); the exponent's clamp far below y₀
+                // differs between the closed form and β(y) beyond that.
+                assert!(got > 100.0, "y {y} zenith {zenith} len {len}: {got} vs {want}");
+                continue;
+            }
+            let rel = (got - want).abs() / want;
+            if infinite {
+                worst_infinite = worst_infinite.max(rel);
+            } else {
+                worst_finite = worst_finite.max(rel);
+            }
+            n += 1;
+        }
+        println!(
+            "height fog optical depth, shader's f32 closed form vs quadrature over {n} (height, zenith, length): \
+             max relative error {worst_finite:.2e} for segments, {worst_infinite:.2e} to infinity"
+        );
+        let bound = 50.0 * f32::EPSILON as f64;
+        assert!(worst_finite < bound && worst_infinite < bound, "{worst_finite:e} {worst_infinite:e}");
     }
 }

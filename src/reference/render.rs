@@ -336,21 +336,25 @@ pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRe
         let mut l = DVec3::from(radiance_along_ray(&medium, project, origin, dir, t_max, opts));
         if let Some(h) = hit {
             let x = origin + dir * h.t;
-            l += (-medium.optical_depth(origin, x)).exp() * surface_radiance(&medium, project, &lights, x, h.normal, h.albedo);
+            l += (-medium.optical_depth(origin, x)).exp() * surface_radiance(&medium, project, &lights, x, dir, &h);
         }
         l.to_array()
     });
     out
 }
 
-/// Lambertian radiance leaving a surface point lit by every light through the fog, by the
-/// rules of the GPU march's `shade_surface`: direct light unless another surface blocks the
-/// straight path to the light ([`shadowed`]), plus, in homogeneous base fog, Sun et al.'s
-/// surface term for point and spot lights from the exact G function
-/// ([`crate::surface_table::g_exact`], itself checked against hemisphere quadrature in
-/// [`super::surface_glow`]), times the medium's albedo, the spot's cone factor at x and the
-/// transmittance of the medium's optical depth beyond the base fog's on the direct path.
-fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x: DVec3, normal: DVec3, albedo: DVec3) -> DVec3 {
+/// Radiance leaving a surface point towards the camera (view direction `dir`), Lambertian plus
+/// Phong specular, lit by every light through the fog, by the rules of the GPU march's
+/// `shade_surface`: direct light unless another surface blocks the straight path to the light
+/// ([`shadowed`]), plus, in homogeneous base fog, Sun et al.'s surface term for point and spot
+/// lights from the exact G and S functions ([`crate::surface_table::g_exact`] and
+/// [`crate::surface_table::s_exact`], themselves checked against quadrature over the
+/// directions in [`super::surface_glow`]), times the medium's albedo, the spot's cone factor
+/// at x and the transmittance of the medium's optical depth beyond the base fog's on the
+/// direct path.
+fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x: DVec3, dir: DVec3, hit: &crate::scene::SurfaceHit) -> DVec3 {
+    let (normal, albedo, ks, n) = (hit.normal, hit.albedo, hit.specular, hit.phong_exponent);
+    let mirror = dir - 2.0 * dir.dot(normal) * normal;
     let beta = project.medium.base_extinction as f64;
     let glow = beta > 0.0 && project.medium.height_falloff == 0.0;
     lights
@@ -365,14 +369,20 @@ fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x:
                     let theta = normal.dot(to_light / d).clamp(-1.0, 1.0).acos();
                     let extra = (-(medium.optical_depth(x, l.position) - beta * d).max(0.0)).exp();
                     let g = crate::surface_table::glow_radiance(beta, d, theta, crate::surface_table::g_exact);
-                    out += albedo * l.rgb * (project.medium.albedo as f64 * cone * extra * g);
+                    let mut rho = albedo * g;
+                    if ks > 0.0 {
+                        let theta_r = mirror.dot(to_light / d).clamp(-1.0, 1.0).acos();
+                        rho += DVec3::splat(ks * crate::surface_table::spec_radiance(beta, d, theta_r, n, crate::surface_table::s_exact));
+                    }
+                    out += rho * l.rgb * (project.medium.albedo as f64 * cone * extra);
                 }
             }
             if let Some((travel, geometry, tr)) = arriving(medium, project, l, x) {
                 let cos = normal.dot(-travel);
                 let reach = if l.sun.is_some() { f64::INFINITY } else { (l.position - x).length() };
                 if cos > 0.0 && !shadowed(project, x, normal, -travel, reach) {
-                    out += albedo / PI * l.rgb * (geometry * cos * tr);
+                    let brdf = albedo / PI * cos + DVec3::splat(ks * crate::surface_table::phong_lobe(mirror.dot(-travel), n));
+                    out += brdf * l.rgb * (geometry * tr);
                 }
             }
             out

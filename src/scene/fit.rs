@@ -235,9 +235,9 @@ mod tests {
         // Default grid: (-2, 0, -2) .. (2, 4, 2). One particle through the floor, one through -x.
         p.particles = vec![Particle::new(Vec3::new(0.0, 0.1, 0.0), 0.3, 1.0), Particle::new(Vec3::new(-1.9, 2.0, 0.0), 0.3, 1.0)];
         assert_eq!(p.particles_crossing_grid(), [0, 1]);
-        p.surfaces.ground = Some(Ground { height: 0.0, albedo: Vec3::splat(0.5) });
+        p.surfaces.ground = Some(Ground { height: 0.0, albedo: Vec3::splat(0.5), ..Ground::default() });
         assert_eq!(p.particles_crossing_grid(), [1], "the ground hides the floor face");
-        let wall = SurfaceBox { min: Vec3::new(-2.1, -0.1, -2.1), max: Vec3::new(-2.0, 4.1, 2.1), albedo: Vec3::splat(0.5) };
+        let wall = SurfaceBox { min: Vec3::new(-2.1, -0.1, -2.1), max: Vec3::new(-2.0, 4.1, 2.1), albedo: Vec3::splat(0.5), ..SurfaceBox::default() };
         p.surfaces.boxes.push(SurfaceBox { max: Vec3::new(-2.0, 4.1, 1.0), ..wall });
         assert_eq!(p.particles_crossing_grid(), [1], "a wall that covers part of the face does not seal it");
         p.surfaces.boxes.push(wall);

@@ -520,7 +520,8 @@ impl Default for RenderSettings {
     }
 }
 
-/// Opaque diffuse surfaces that stop camera rays and receive light through the fog.
+/// Opaque surfaces (diffuse, optionally with a Phong-specular part) that stop camera rays and
+/// receive light through the fog.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Surfaces {
@@ -538,6 +539,9 @@ pub struct SurfaceHit {
     pub t: f64,
     pub normal: glam::DVec3,
     pub albedo: glam::DVec3,
+    /// Phong specular reflectance and exponent.
+    pub specular: f64,
+    pub phong_exponent: f64,
 }
 
 impl Surfaces {
@@ -558,7 +562,13 @@ impl Surfaces {
         if let Some(g) = &self.ground {
             let h = g.height as f64;
             if dir.y < 0.0 && origin.y > h {
-                consider(SurfaceHit { t: (h - origin.y) / dir.y, normal: DVec3::Y, albedo: g.albedo.as_dvec3() });
+                consider(SurfaceHit {
+                    t: (h - origin.y) / dir.y,
+                    normal: DVec3::Y,
+                    albedo: g.albedo.as_dvec3(),
+                    specular: g.specular as f64,
+                    phong_exponent: g.phong_exponent as f64,
+                });
             }
         }
         for b in &self.boxes {
@@ -572,7 +582,13 @@ impl Surfaces {
                 let axis = if t_in == tn.x { 0 } else if t_in == tn.y { 1 } else { 2 };
                 let mut normal = DVec3::ZERO;
                 normal[axis] = -dir[axis].signum();
-                consider(SurfaceHit { t: t_in, normal, albedo: b.albedo.as_dvec3() });
+                consider(SurfaceHit {
+                    t: t_in,
+                    normal,
+                    albedo: b.albedo.as_dvec3(),
+                    specular: b.specular as f64,
+                    phong_exponent: b.phong_exponent as f64,
+                });
             }
         }
         best
@@ -586,6 +602,21 @@ pub struct Ground {
     /// Diffuse albedo per channel in [0, 1]. Default 0.5 grey.
     #[serde(default = "grey")]
     pub albedo: Vec3,
+    /// Phong specular reflectance k_s in [0, 1], added to the diffuse part: the surface
+    /// reflects k_s·(n + 1)/(2π)·cos^n α times the incoming radiance per steradian, α the angle
+    /// between the incoming direction and the mirror direction of the view, both for the
+    /// lights' direct light and for the fog's glow (Sun et al.'s surface term). Default 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub specular: f32,
+    /// Phong exponent n in [0, 1000]: larger is a sharper highlight. Default 32.
+    #[serde(default = "default_phong_exponent", skip_serializing_if = "is_default_phong_exponent")]
+    pub phong_exponent: f32,
+}
+
+impl Default for Ground {
+    fn default() -> Self {
+        Self { height: 0.0, albedo: grey(), specular: 0.0, phong_exponent: default_phong_exponent() }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -595,10 +626,30 @@ pub struct SurfaceBox {
     /// Diffuse albedo per channel in [0, 1]. Default 0.5 grey.
     #[serde(default = "grey")]
     pub albedo: Vec3,
+    /// Phong specular reflectance in [0, 1], as [`Ground::specular`]. Default 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub specular: f32,
+    /// Phong exponent in [0, 1000], as [`Ground::phong_exponent`]. Default 32.
+    #[serde(default = "default_phong_exponent", skip_serializing_if = "is_default_phong_exponent")]
+    pub phong_exponent: f32,
+}
+
+impl Default for SurfaceBox {
+    fn default() -> Self {
+        Self { min: Vec3::ZERO, max: Vec3::ONE, albedo: grey(), specular: 0.0, phong_exponent: default_phong_exponent() }
+    }
 }
 
 fn grey() -> Vec3 {
     Vec3::splat(0.5)
+}
+
+fn default_phong_exponent() -> f32 {
+    32.0
+}
+
+fn is_default_phong_exponent(v: &f32) -> bool {
+    *v == default_phong_exponent()
 }
 
 /// How optical depth towards each light is propagated through the grid.

@@ -263,6 +263,16 @@ impl Project {
             ));
         }
         let albedo_ok = |v: Vec3| v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= 1.0;
+        let phong = |at: &str, specular: f32, exponent: f32| {
+            if !(0.0..=1.0).contains(&specular) {
+                return Err(err(format!("{at}.specular"), format!("must be within [0, 1], got {specular}")));
+            }
+            let max = crate::surface_table::SPEC_N_MAX as f32;
+            if !(0.0..=max).contains(&exponent) {
+                return Err(err(format!("{at}.phong_exponent"), format!("must be within [0, {max}], got {exponent}")));
+            }
+            Ok(())
+        };
         if let Some(g) = &self.surfaces.ground {
             finite("surfaces.ground.height", g.height)?;
             if g.height.abs() > MAX_COORDINATE {
@@ -271,6 +281,7 @@ impl Project {
             if !albedo_ok(g.albedo) {
                 return Err(err("surfaces.ground.albedo", "components must be within [0, 1]"));
             }
+            phong("surfaces.ground", g.specular, g.phong_exponent)?;
         }
         for (i, b) in self.surfaces.boxes.iter().enumerate() {
             position(&format!("surfaces.boxes[{i}].min"), b.min)?;
@@ -281,6 +292,7 @@ impl Project {
             if !albedo_ok(b.albedo) {
                 return Err(err(format!("surfaces.boxes[{i}].albedo"), "components must be within [0, 1]"));
             }
+            phong(&format!("surfaces.boxes[{i}]"), b.specular, b.phong_exponent)?;
         }
         if let Some(b) = &self.base_volume {
             at_least("base_volume.scale", b.scale, 0.0)?;
