@@ -271,3 +271,31 @@ fn render_warns_about_dropped_octaves() {
         }
     }
 }
+
+/// The OPV of a noisy scene: its reference through the analytic medium includes the noise
+/// (the GPU is far closer to it than to the same scene's reference without noise), and the
+/// propagation's own error, against the grid's medium, is what it is without noise.
+#[test]
+fn opv_of_a_noisy_scene_matches_the_reference_with_noise() {
+    use fogsmith::measure::{opv_errors, sample_cells};
+    use fogsmith::scene::{Light, Scheme};
+    let mut gpu = pipeline();
+    let grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::splat(32) };
+    let particles = vec![Particle::new(Vec3::new(0.1, 0.0, -0.1), 0.6, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.3), 0.35, 5.0)];
+    let mut p = scene(grid, 0.05, particles, Some(Noise { amplitude: 1.5, frequency: 2.0, octaves: 5, seed: 21 }));
+    p.lights = vec![Light::new(Vec3::new(0.8, 0.9, -0.7), 5.0, Vec3::ONE)];
+    p.propagation.scheme = Scheme::Exact;
+    let (ev, _) = bake(&mut gpu, &p);
+    let opv = gpu.read_opv(0).unwrap();
+    let cells = sample_cells(&p.grid, 600);
+    let with = opv_errors(&p, 0, &ev, &opv, &cells);
+    let mut smooth = p.clone();
+    smooth.medium.noise = None;
+    let without = opv_errors(&smooth, 0, &ev, &opv, &cells);
+    let (scheme, total, wrong) =
+        (with.scheme.transmittance_max_abs_error, with.total.transmittance_max_abs_error, without.total.transmittance_max_abs_error);
+    println!("noisy OPV (exact scheme, 32³, {} octaves kept): scheme error {scheme:.2e}, total against the noisy reference {total:.2e}, against the noise-free one {wrong:.2e}", p.medium.noise.unwrap().effective_octaves(&grid));
+    assert!(!with.scheme.nan_or_inf);
+    assert!(scheme <= 1e-3, "scheme error {scheme:e}");
+    assert!(total * 4.0 < wrong, "the reference holds the noise: {total:e} vs {wrong:e} without it");
+}
