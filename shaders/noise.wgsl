@@ -25,7 +25,8 @@ fn value_noise(p: vec3f, seed: u32) -> f32 {
     let f = floor(p);
     let t = p - f;
     let w = t * t * (3.0 - 2.0 * t);
-    let c = vec3i(f);
+    // Clamped to what i32 holds (2147483520 is the largest f32 below 2³¹), as on the CPU.
+    let c = vec3i(clamp(f, vec3f(-2147483648.0), vec3f(2147483520.0)));
     let d = vec3i(1, 1, 1) + c;
     let x00 = mix_exact(noise_lattice(c, seed), noise_lattice(vec3i(d.x, c.y, c.z), seed), w.x);
     let x10 = mix_exact(noise_lattice(vec3i(c.x, d.y, c.z), seed), noise_lattice(vec3i(d.x, d.y, c.z), seed), w.x);

@@ -59,12 +59,13 @@ pub fn lattice_value(i: i32, j: i32, k: i32, seed: u32) -> f64 {
 }
 
 /// 3D value noise at lattice coordinates `p`: trilinear with smoothstep weights. Lattice
-/// indices saturate at the i32 range and their neighbours wrap, as on the GPU.
+/// indices are clamped to [−2³¹, 2³¹ − 128] (the f32 values i32 holds) and their neighbours
+/// wrap, as on the GPU.
 pub fn value_noise(p: DVec3, seed: u32) -> f64 {
     let f = p.floor();
     let t = p - f;
     let w = t * t * (DVec3::splat(3.0) - 2.0 * t);
-    let c = [f.x as i32, f.y as i32, f.z as i32];
+    let c = [f.x, f.y, f.z].map(|v| v.clamp(-2_147_483_648.0, 2_147_483_520.0) as i32);
     let d = c.map(|v| v.wrapping_add(1));
     let h = |x: i32, y: i32, z: i32| lattice_value(x, y, z, seed);
     let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;

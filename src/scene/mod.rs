@@ -203,7 +203,7 @@ fn is_zero(v: &f32) -> bool {
 /// the grid's Nyquist limit) are dropped: see [`Noise::effective_octaves`].
 /// Only particles whose `noise` flag is set (the default) are modulated; the base fog and an
 /// imported base volume never are. The hash works on wrapping 32-bit integers (lattice
-/// indices saturate at the i32 range), so huge seeds and coordinates stay finite.
+/// indices are clamped to [−2³¹, 2³¹ − 128]), so huge seeds and coordinates stay finite.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(from = "(f32, f32, u32, u32)", into = "(f32, f32, u32, u32)")]
 pub struct Noise {
