@@ -19,10 +19,7 @@ fn bake(gpu: &mut FogPipeline, p: &Project) -> (Volume, u64) {
 
 /// A project with no lights (only the EV is compared) on `grid`.
 fn scene(grid: GridSpec, base: f32, particles: Vec<Particle>, noise: Option<Noise>) -> Project {
-    let mut p = Project::default();
-    p.grid = grid;
-    p.medium = Medium { base_extinction: base, noise, ..Medium::default() };
-    p.particles = particles;
+    let mut p = Project { grid, medium: Medium { base_extinction: base, noise, ..Medium::default() }, particles, ..Project::default() };
     p.render.width = 8;
     p.render.height = 8;
     p

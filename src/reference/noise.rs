@@ -120,9 +120,11 @@ mod tests {
     fn noisy_optical_depth_matches_fine_quadrature() {
         use crate::reference::Medium64;
         use crate::scene::{Particle, Project};
-        let mut p = Project::default();
-        p.grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::splat(32) };
-        p.particles = vec![Particle::new(Vec3::new(0.1, 0.0, -0.2), 0.5, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.2), 0.2, 6.0)];
+        let mut p = Project {
+            grid: GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::splat(32) },
+            particles: vec![Particle::new(Vec3::new(0.1, 0.0, -0.2), 0.5, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.2), 0.2, 6.0)],
+            ..Project::default()
+        };
         p.particles[1].noise = false;
         p.medium.base_extinction = 0.1;
         for amplitude in [0.5f32, 4.0] {
