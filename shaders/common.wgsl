@@ -15,6 +15,11 @@ struct GridParams {
     height_origin: f32,
     _pad_h0: u32,
     _pad_h1: u32,
+    // Fractal noise on the particles (shaders/noise.wgsl); noise_octaves = 0: none.
+    noise_amplitude: f32,
+    noise_frequency: f32,
+    noise_octaves: u32,
+    noise_seed: u32,
 }
 
 // A light (kind LIGHT_POINT, LIGHT_SPOT or LIGHT_DIRECTIONAL): position, intensity per RGB

@@ -7,9 +7,10 @@
 struct ParticleGpu {
     center: vec3f,
     inv_r2: f32,
-    density: f32,
+    // Peak extinction as (plain, noisy): noisy particles are modulated by the medium's noise.
+    density: vec2f,
     cutoff2: f32,
-    _pad: vec2f,
+    _pad: f32,
 }
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
@@ -35,7 +36,7 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
     let ndims = (grid.dims + grid.bin_size - 1u) / grid.bin_size;
     let nb = id / grid.bin_size;
     let bin = nb.x + ndims.x * (nb.y + ndims.y * nb.z);
-    var sum = 0.0;
+    var sum = vec2f(0.0);
     for (var n = bin_offsets[bin]; n < bin_offsets[bin + 1u]; n++) {
         let p = particles[bin_items[n]];
         let d = x - p.center;
@@ -48,5 +49,5 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
     if grid.has_base_layer != 0u {
         layer = base_layer[linear_index(id)];
     }
-    textureStore(ev, id, vec4f(base_fog_at(x.y) + layer + sum, 0.0, 0.0, 0.0));
+    textureStore(ev, id, vec4f(base_fog_at(x.y) + layer + particle_sum(sum, x), 0.0, 0.0, 0.0));
 }

@@ -818,7 +818,7 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let wisp = project.particles.last().unwrap().clone();
     let pos = screen_of(&h, wisp.center);
     h.state_mut().set_tool(Tool::Paint);
-    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.05, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Fog };
+    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.05, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Fog, noise: true };
     let ev = read_ev(&h);
     let expected = fog_depth_point(&ev, vp.position, vp.ray(pos), FOG_DEPTH_TAU).expect("the ray through the puff reaches τ = 0.5");
     let cam = project.camera.position;
@@ -869,4 +869,40 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let depth = |p: glam::Vec3| (p - vp.position).dot(vp.forward);
     assert!((depth(on_plane) - depth(centre)).abs() < 1e-4, "on the working plane: {on_plane:?} (plane through {centre:?})");
     assert!((depth(on_plane) - depth(painted)).abs() > 0.05, "not at the fog depth");
+}
+
+/// The Inspector's noise: the checkbox turns it on (the EV changes), dragging its amplitude
+/// changes the EV live, and undo restores first the amplitude, then the noise-free EV.
+#[test]
+fn inspector_noise_amplitude_changes_the_ev_and_undo_restores_it() {
+    let mut h = harness(demo());
+    let plain = read_ev(&h);
+    assert_eq!(h.state().session().project().medium.noise, None, "the demo starts without noise");
+    h.get_by_label("noise detail").click();
+    h.run_steps(3);
+    let noise = h.state().session().project().medium.noise.expect("the checkbox turns noise on");
+    let noisy = read_ev(&h);
+    assert!(max_diff(&plain, &noisy) > 1e-3, "noise changes the EV");
+
+    let label = h.get_by_label("amplitude").rect();
+    let field = h
+        .get_all_by_role(egui::accesskit::Role::SpinButton)
+        .map(|n| n.rect())
+        .find(|r| (r.center().y - label.center().y).abs() < 6.0 && r.left() > label.right())
+        .expect("an amplitude field beside its label");
+    drag(&mut h, field.center(), field.center() + Vec2::new(60.0, 0.0), 6);
+    h.run_steps(3);
+    let edited = h.state().session().project().medium.noise.expect("still on").amplitude;
+    assert!(edited > noise.amplitude + 0.1, "the drag raised the amplitude: {} → {edited}", noise.amplitude);
+    let stronger = read_ev(&h);
+    assert!(max_diff(&noisy, &stronger) > 1e-3, "the live preview's EV follows the amplitude");
+
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(3);
+    assert_eq!(h.state().session().project().medium.noise, Some(noise), "one undo restores the amplitude");
+    assert!(max_diff(&noisy, &read_ev(&h)) < 1e-6, "and the EV");
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(3);
+    assert_eq!(h.state().session().project().medium.noise, None, "a second undo turns the noise off");
+    assert!(max_diff(&plain, &read_ev(&h)) < 1e-6, "the EV is back to the noise-free one");
 }

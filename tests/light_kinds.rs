@@ -41,9 +41,14 @@ fn new_fields_round_trip_in_the_documented_syntax() {
     assert_eq!(p.lights[0].kind, LightKind::Spot { direction: Vec3::new(0.0, -1.0, 0.0), angle_deg: 25.0, blend: 0.2 });
     assert_eq!(p.lights[1].kind, LightKind::Directional { direction: Vec3::new(1.0, -1.0, 0.0) });
     assert_eq!(p.lights[2].kind, LightKind::Point);
-    // Noise parses in the documented syntax but is refused, by name, until it is rendered.
-    let e = parse("Project(version: 1, medium: (noise: Some((0.8, 1.5, 4, 7))))").unwrap_err();
-    assert!(e.contains("medium.noise") && e.contains("not rendered"), "{e}");
+    // Noise parses in the documented syntax and round-trips; a particle's noise flag is
+    // written only when it is off.
+    let q = parse("Project(version: 1, medium: (noise: Some((0.8, 1.5, 4, 7))), particles: [(center: (0, 0, 0), radius: 1, density: 1), (center: (0, 0, 0), radius: 1, density: 1, noise: false)])").unwrap();
+    assert_eq!(q.medium.noise, Some(Noise { amplitude: 0.8, frequency: 1.5, octaves: 4, seed: 7 }));
+    assert!(q.particles[0].noise && !q.particles[1].noise);
+    let text = to_ron_string(&q).unwrap();
+    assert_eq!(text.matches("noise").count(), 2, "{text}");
+    assert_eq!(parse(&text).unwrap(), q);
     let n: Noise = ron::from_str("(0.8, 1.5, 4, 7)").unwrap();
     assert_eq!(n, Noise { amplitude: 0.8, frequency: 1.5, octaves: 4, seed: 7 });
     assert_eq!(p.medium.height_falloff, 0.5);

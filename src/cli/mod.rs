@@ -158,6 +158,9 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
             return Err(format!("{name} must be within 1..=16384, got {v}").into());
         }
     }
+    if let Some(note) = project.medium.noise.and_then(|n| n.nyquist_note(&project.grid)) {
+        eprintln!("warning: medium.noise: {note}");
+    }
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let mut pipeline = FogPipeline::new(ctx);

@@ -413,6 +413,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             }
             ui.end_row();
         });
+        noise_inspector(state, ui);
     });
     egui::CollapsingHeader::new("Grid").default_open(true).show(ui, |ui| {
         let g = state.session.project().grid;
@@ -506,6 +507,66 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
     });
 }
 
+/// The medium's noise: on/off (remembering the last settings), its four numbers, the
+/// note on octaves the grid drops, and the brush's noise toggle.
+fn noise_inspector(state: &mut EditorState, ui: &mut Ui) {
+    use crate::scene::{Noise, MAX_NOISE_AMPLITUDE, MAX_NOISE_OCTAVES};
+    let project = state.session.project();
+    let (noise, grid) = (project.medium.noise, project.grid);
+    let remembered = egui::Id::new("noise-off");
+    let mut on = noise.is_some();
+    let toggle = ui
+        .checkbox(&mut on, "noise detail")
+        .on_hover_text("Fractal value noise modulating the particles' extinction: σ·max(0, 1 + amplitude·n(x)). Base fog and imported volumes are not modulated.");
+    if toggle.changed() {
+        let last: Option<Noise> = ui.data(|d| d.get_temp(remembered));
+        if let Some(n) = noise {
+            ui.data_mut(|d| d.insert_temp(remembered, n));
+        }
+        let size = grid.size().min_element().max(1e-3);
+        let fresh = Noise { amplitude: 0.8, frequency: 4.0 / size, octaves: 4, seed: 1 };
+        state.session.edit(NEW_STEP).medium.noise = on.then(|| last.unwrap_or(fresh));
+    }
+    if let Some(n) = noise {
+        egui::Grid::new("noise").num_columns(2).show(ui, |ui| {
+            let set = |state: &mut EditorState, tag: u64, f: &dyn Fn(&mut Noise)| {
+                if let Some(m) = state.session.edit(tag).medium.noise.as_mut() {
+                    f(m);
+                }
+            };
+            ui.label("amplitude");
+            if let Some((v, t)) = drag(ui, n.amplitude, 0.01, 0.0..=MAX_NOISE_AMPLITUDE, "", "a in max(0, 1 + a·n(x)): 0 leaves the particles smooth, above 1 carves holes") {
+                set(state, t, &|m| m.amplitude = v);
+            }
+            ui.end_row();
+            ui.label("frequency");
+            if let Some((v, t)) = drag(ui, n.frequency, 0.01, 1e-3..=1e6, " 1/m", "Lattice frequency of the first octave: its features are 1/frequency metres") {
+                set(state, t, &|m| m.frequency = v);
+            }
+            ui.end_row();
+            ui.label("octaves");
+            let mut o = n.octaves;
+            let r = ui.add(DragValue::new(&mut o).range(1..=MAX_NOISE_OCTAVES).speed(0.05)).on_hover_text("Octaves, each at twice the frequency and half the weight of the one before");
+            if r.changed() && o != n.octaves {
+                set(state, r.id.value(), &|m| m.octaves = o);
+            }
+            ui.end_row();
+            ui.label("seed");
+            let mut s = n.seed;
+            let r = ui.add(DragValue::new(&mut s).range(0..=u32::MAX).speed(1.0)).on_hover_text("Picks another noise pattern");
+            if r.changed() && s != n.seed {
+                set(state, r.id.value(), &|m| m.seed = s);
+            }
+            ui.end_row();
+        });
+        if let Some(note) = n.nyquist_note(&grid) {
+            ui.colored_label(Color32::from_rgb(230, 160, 60), note);
+        }
+    }
+    ui.checkbox(&mut state.view.brush.noise, "paint with noise")
+        .on_hover_text("Whether particles the Paint brush deposits take the medium's noise (each particle's own switch is in the Selection section)");
+}
+
 fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
     let sel = state.session.selection.clone();
     if sel.is_empty() {
@@ -538,6 +599,7 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
             }
             ui.end_row();
         });
+        particles_noise(state, ui, &[i]);
         return;
     }
     if sel.lights.len() == 1 && sel.particles.is_empty() {
@@ -590,6 +652,28 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
             }
             ui.end_row();
         });
+        let selected: Vec<usize> = sel.particles.iter().copied().collect();
+        particles_noise(state, ui, &selected);
+    }
+}
+
+/// Whether the medium's noise modulates the particles `indices` (one undo step per click);
+/// a mixed selection shows unchecked and is set as a whole.
+fn particles_noise(state: &mut EditorState, ui: &mut Ui, indices: &[usize]) {
+    let particles = &state.session.project().particles;
+    let mut on = indices.iter().filter_map(|&i| particles.get(i)).all(|p| p.noise);
+    let tip = if state.session.project().medium.noise.is_some() {
+        "Whether the medium's noise modulates this particle"
+    } else {
+        "Whether the medium's noise modulates this particle (the medium has no noise now: see Medium › noise detail)"
+    };
+    if ui.checkbox(&mut on, "takes noise").on_hover_text(tip).changed() {
+        let project = state.session.edit(NEW_STEP);
+        for &i in indices {
+            if let Some(p) = project.particles.get_mut(i) {
+                p.noise = on;
+            }
+        }
     }
 }
 

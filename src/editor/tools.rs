@@ -112,11 +112,13 @@ pub struct Brush {
     pub jitter: f32,
     /// Where Paint puts a stroke along the view ray.
     pub depth: PaintDepth,
+    /// Whether painted particles take the medium's noise (their `noise` flag).
+    pub noise: bool,
 }
 
 impl Default for Brush {
     fn default() -> Self {
-        Self { radius: 0.15, density: 2.0, spacing: 0.5, jitter: 0.3, depth: PaintDepth::Fog }
+        Self { radius: 0.15, density: 2.0, spacing: 0.5, jitter: 0.3, depth: PaintDepth::Fog, noise: true }
     }
 }
 
@@ -173,7 +175,9 @@ impl Stroke {
             let a = self.rng.next_f32() * std::f32::consts::TAU;
             let r = self.rng.next_f32().sqrt() * brush.jitter.max(0.0) * brush.radius;
             let center = p + (right * a.cos() + up * a.sin()) * r;
-            out.push(Particle::new(center, brush.radius.max(1e-4), brush.density.max(0.0)));
+            let mut dab = Particle::new(center, brush.radius.max(1e-4), brush.density.max(0.0));
+            dab.noise = brush.noise;
+            out.push(dab);
             self.last = Some(p);
         }
         out
@@ -272,7 +276,7 @@ mod tests {
 
     #[test]
     fn a_stroke_follows_the_spacing() {
-        let brush = Brush { radius: 0.1, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Plane };
+        let brush = Brush { radius: 0.1, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Plane, noise: true };
         let mut s = Stroke::new(3);
         assert_eq!(s.dabs_to(Vec3::ZERO, Vec3::X, Vec3::Y, &brush).len(), 1);
         let dabs = s.dabs_to(Vec3::new(0.52, 0.0, 0.0), Vec3::X, Vec3::Y, &brush);
@@ -283,11 +287,12 @@ mod tests {
 
     #[test]
     fn jitter_stays_within_the_brush() {
-        let brush = Brush { radius: 0.2, density: 1.0, spacing: 0.1, jitter: 0.5, depth: PaintDepth::Plane };
+        let brush = Brush { radius: 0.2, density: 1.0, spacing: 0.1, jitter: 0.5, depth: PaintDepth::Plane, noise: false };
         let mut s = Stroke::new(9);
         s.dabs_to(Vec3::ZERO, Vec3::X, Vec3::Y, &brush);
         for d in s.dabs_to(Vec3::new(1.0, 0.0, 0.0), Vec3::X, Vec3::Y, &brush) {
             assert!(d.center.y.abs() <= 0.1 + 1e-5 && d.center.z == 0.0);
+            assert!(!d.noise, "the brush's noise toggle reaches its dabs");
         }
     }
 }

@@ -225,9 +225,9 @@ pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64
 /// by particles in one list and not the other, counted with multiplicity and compared by
 /// value, so reordering or renaming costs nothing.
 pub fn dirty_bricks(grid: &GridSpec, old: &[Particle], new: &[Particle]) -> Vec<u32> {
-    type Key = ([u32; 3], u32, u32, bool);
+    type Key = ([u32; 3], u32, u32, bool, bool);
     let key = |p: &Particle| -> Key {
-        (p.center.to_array().map(f32::to_bits), p.radius.to_bits(), p.density.to_bits(), p.hidden)
+        (p.center.to_array().map(f32::to_bits), p.radius.to_bits(), p.density.to_bits(), p.hidden, p.noise)
     };
     let sorted = |list: &[Particle]| {
         let mut v: Vec<(Key, usize)> = list.iter().enumerate().map(|(i, p)| (key(p), i)).collect();

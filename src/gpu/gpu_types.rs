@@ -16,6 +16,11 @@ pub struct GridParams {
     pub height_falloff: f32,
     pub height_origin: f32,
     pub _pad_h: [u32; 2],
+    /// The medium's noise (the octaves kept on the grid; 0: none).
+    pub noise_amplitude: f32,
+    pub noise_frequency: f32,
+    pub noise_octaves: u32,
+    pub noise_seed: u32,
 }
 
 #[repr(C)]
@@ -37,9 +42,11 @@ pub struct LightGpu {
 pub struct ParticleGpu {
     pub center: [f32; 3],
     pub inv_r2: f32,
-    pub density: f32,
+    /// Peak extinction, split by whether the medium's noise modulates the particle:
+    /// (plain, noisy); one of them is 0.
+    pub density: [f32; 2],
     pub cutoff2: f32,
-    pub _pad: [f32; 2],
+    pub _pad: f32,
 }
 
 #[repr(C)]
@@ -163,7 +170,7 @@ mod tests {
         let opv = OpvLayout { segment: 1 << 20, segments: 2 };
         let (opv_read, opv_rw) = (opv.wgsl("opv", 4, EXTRA_BINDING, false), opv.wgsl("opv", 4, EXTRA_BINDING, true));
         let opv_mean = opv_rw.clone() + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
-        let inject = [include_str!("../../shaders/inject.wgsl")];
+        let inject = [include_str!("../../shaders/noise.wgsl"), include_str!("../../shaders/inject.wgsl")];
         let march = [&opv_read, include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/surface_glow.wgsl"), include_str!("../../shaders/march.wgsl")];
         let sweep = [&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/sweep_sigma_filtered.wgsl"), include_str!("../../shaders/propagate_sweep.wgsl")];
         let exact = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];

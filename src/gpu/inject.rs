@@ -1,6 +1,7 @@
-//! The injection stage: particles (binned on the CPU, see `binning`) and the base fog and
-//! layer into the extinction volume (`shaders/inject.wgsl`), then the brick occupancy the
-//! march skips empty space with (`shaders/occupancy.wgsl`).
+//! The injection stage: particles (binned on the CPU, see `binning`; the noisy ones modulated
+//! by `shaders/noise.wgsl`) and the base fog and layer into the extinction volume
+//! (`shaders/inject.wgsl`), then the brick occupancy the march skips empty space with
+//! (`shaders/occupancy.wgsl`).
 //!
 //! The dirty 8³ bricks are cut into memory chunks whose particle–bin lists fit the chunk
 //! limit (at most one storage binding); each chunk's lists and particles are built and
@@ -109,7 +110,7 @@ impl Injector {
                 Slot::StorageRead,
             ],
         );
-        let pipeline = compute_pipeline(device, "inject", &[include_str!("../../shaders/inject.wgsl")], &layout);
+        let pipeline = compute_pipeline(device, "inject", &[include_str!("../../shaders/noise.wgsl"), include_str!("../../shaders/inject.wgsl")], &layout);
         let occupancy_layout = bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
         let occupancy =
             compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);

@@ -159,6 +159,8 @@ struct EvKey {
     height: [f32; 2],
     layer_generation: u64,
     brute_force: bool,
+    /// The medium's noise, when it modulates anything (see [`noise_of`]).
+    noise: Option<crate::scene::Noise>,
 }
 
 /// What a light's optical-depth volume was propagated from.
@@ -827,6 +829,7 @@ impl FogPipeline {
             height: [project.medium.height_falloff, project.medium.height_origin],
             layer_generation: self.base_layer_generation,
             brute_force: self.brute_force_injection,
+            noise: noise_of(project),
         };
         let mut bricks: Vec<u32> = match &self.baked.ev {
             Some((k, particles)) if *k == key => {
@@ -860,7 +863,7 @@ impl FogPipeline {
             self.bin_size = counts.bin_size;
             self.write_scene_uniforms(project);
         }
-        let particles: Vec<ParticleGpu> = project.particles.iter().map(particle_gpu).collect();
+        let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
         let job = Injector::begin(&project.grid, project.particles.clone(), particles, counts, bricks, max_items);
         self.jobs.inject = Some((job, region));
         self.baked.ev = Some((key, project.particles.clone()));
@@ -1146,6 +1149,10 @@ impl FogPipeline {
             height_falloff: project.medium.height_falloff,
             height_origin: project.medium.height_origin,
             _pad_h: [0; 2],
+            noise_amplitude: noise_of(project).map_or(0.0, |n| n.amplitude),
+            noise_frequency: noise_of(project).map_or(0.0, |n| n.frequency),
+            noise_octaves: noise_of(project).map_or(0, |n| n.effective_octaves(&spec)),
+            noise_seed: noise_of(project).map_or(0, |n| n.seed),
         }
     }
 
@@ -1361,14 +1368,22 @@ pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
     bound * project.render.exposure.max(1e-6) < CULL_RADIANCE
 }
 
-fn particle_gpu(p: &Particle) -> ParticleGpu {
+/// The medium's noise when it changes the EV (amplitude above 0), else None.
+fn noise_of(project: &Project) -> Option<crate::scene::Noise> {
+    project.medium.noise.filter(|n| n.amplitude > 0.0)
+}
+
+/// A particle in the injection's layout: its density counts as noisy when the medium has
+/// noise and the particle takes it.
+fn particle_gpu(p: &Particle, noise: bool) -> ParticleGpu {
     let r = binning::cutoff_radius(p);
+    let density = if p.hidden { 0.0 } else { p.density };
     ParticleGpu {
         center: p.center.to_array(),
         inv_r2: 1.0 / (p.radius * p.radius),
-        density: if p.hidden { 0.0 } else { p.density },
+        density: if noise && p.noise { [0.0, density] } else { [density, 0.0] },
         cutoff2: r * r,
-        _pad: [0.0; 2],
+        _pad: 0.0,
     }
 }
 

@@ -87,7 +87,7 @@ pub fn sun_optical_depth(project: &Project, gaussians: &Medium64, x: DVec3, dire
 
 /// The gaussians of `project` without base fog (the base fog is integrated separately).
 pub fn gaussians_only(project: &Project) -> Medium64 {
-    Medium64::new(0.0, Medium64::from_project(project).gaussians().to_vec())
+    Medium64::from_project(project).without_base()
 }
 
 /// [`sun_optical_depth`] of light `light` (a directional light) at the centres of `cells`.

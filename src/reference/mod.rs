@@ -13,9 +13,11 @@
 //! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
 //! - [`surface_glow`]: Sun et al.'s surface term by hemisphere quadrature (§9).
 //! - [`lights`]: directional lights' optical depths and the height fog's closed form (§9).
+//! - [`noise`]: the medium's fractal noise on the particles, by the GPU's own hash.
 
 mod grid;
 pub mod lights;
+pub mod noise;
 pub use crate::quad;
 mod render;
 pub mod sun;
@@ -54,24 +56,46 @@ pub struct Medium64 {
     gaussians: Vec<Gaussian64>,
     /// Per gaussian, the d²/r² beyond which it adds less than [`NEGLIGIBLE_DEPTH`].
     cull: Vec<f64>,
+    /// Per gaussian, whether `noise` modulates it (all false without noise).
+    noisy: Vec<bool>,
+    noise: Option<noise::Noise64>,
 }
 
 impl Medium64 {
     pub fn new(base: f64, gaussians: Vec<Gaussian64>) -> Self {
         let cull = gaussians.iter().map(|g| (g.density * g.radius * SQRT_PI / NEGLIGIBLE_DEPTH).ln()).collect();
-        Self { base, height: (0.0, 0.0), gaussians, cull }
+        let noisy = vec![false; gaussians.len()];
+        Self { base, height: (0.0, 0.0), gaussians, cull, noisy, noise: None }
     }
 
     /// Visible particles with positive radius and density; hidden ones contribute nothing.
+    /// The medium's noise (with the octaves the grid keeps) modulates the particles that
+    /// take it.
     pub fn from_project(project: &Project) -> Self {
-        let gaussians = project
-            .visible_particles()
-            .filter(|p| p.radius > 0.0 && p.density > 0.0)
+        let kept: Vec<&crate::scene::Particle> =
+            project.visible_particles().filter(|p| p.radius > 0.0 && p.density > 0.0).collect();
+        let gaussians = kept
+            .iter()
             .map(|p| Gaussian64 { center: p.center.as_dvec3(), radius: p.radius as f64, density: p.density as f64 })
             .collect();
         let mut m = Self::new(project.medium.base_extinction.max(0.0) as f64, gaussians);
         m.height = (project.medium.height_falloff as f64, project.medium.height_origin as f64);
+        m.noise = project.medium.noise.filter(|n| n.amplitude > 0.0).map(|n| noise::Noise64::new(&n, &project.grid));
+        if m.noise.is_some() {
+            m.noisy = kept.iter().map(|p| p.noise).collect();
+        }
         m
+    }
+
+    /// The same particles (and noise) without any base fog.
+    pub fn without_base(mut self) -> Self {
+        self.base = 0.0;
+        self
+    }
+
+    /// The noise modulating some of the gaussians, if any.
+    pub fn noise(&self) -> Option<&noise::Noise64> {
+        self.noise.as_ref()
     }
 
     /// Base-fog extinction at height `y` (the height fog's exponent clamped as on the GPU).
@@ -109,12 +133,20 @@ impl Medium64 {
 
     /// σ_t at `x`.
     pub fn extinction(&self, x: DVec3) -> f64 {
-        self.base_at(x.y)
-            + self
-                .gaussians
-                .iter()
-                .map(|g| g.density * (-(x - g.center).length_squared() / (g.radius * g.radius)).exp())
-                .sum::<f64>()
+        let (mut plain, mut noisy) = (0.0, 0.0);
+        for (g, &n) in self.gaussians.iter().zip(&self.noisy) {
+            let v = g.density * (-(x - g.center).length_squared() / (g.radius * g.radius)).exp();
+            if n {
+                noisy += v;
+            } else {
+                plain += v;
+            }
+        }
+        let noisy = match &self.noise {
+            Some(n) if noisy > 0.0 => noisy * n.modulation(x),
+            _ => noisy,
+        };
+        self.base_at(x.y) + plain + noisy
     }
 
     /// Exact optical depth ∫ σ_t along the segment from `a` to `b` (physics.md §3); both ends
@@ -126,18 +158,85 @@ impl Medium64 {
         }
         let dir = (b - a) / len;
         self.base_depth(a, dir, len)
-            + self.gaussians.iter().zip(&self.cull).map(|(g, &cull)| g.segment_depth(cull, a, dir, len)).sum::<f64>()
+            + self
+                .gaussians
+                .iter()
+                .zip(&self.cull)
+                .zip(&self.noisy)
+                .filter(|(_, &n)| !n)
+                .map(|((g, &cull), _)| g.segment_depth(cull, a, dir, len))
+                .sum::<f64>()
+            + self.noisy_depth(a, dir, len)
+    }
+
+    /// ∫ of the noisy gaussians times the noise's modulation along `a + t·dir`, t in
+    /// [0, len]: no closed form, so adaptive Gauss–Kronrod split where each gaussian matters
+    /// and at the crossings of the finest octave's lattice planes (where the noise's second
+    /// derivative jumps), to relative tolerance 1e-10.
+    fn noisy_depth(&self, a: DVec3, dir: DVec3, len: f64) -> f64 {
+        let Some(noise) = &self.noise else { return 0.0 };
+        let mut active = Vec::new();
+        let mut points = Vec::new();
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for ((g, &cull), _) in self.gaussians.iter().zip(&self.cull).zip(&self.noisy).filter(|(_, &n)| n) {
+            let ob = g.center - a;
+            let t_star = dir.dot(ob);
+            let q = (ob - dir * t_star).length_squared() / (g.radius * g.radius);
+            if q > cull {
+                continue;
+            }
+            let w = g.radius * (cull - q).sqrt();
+            let (t0, t1) = ((t_star - w).max(0.0), (t_star + w).min(len));
+            if t0 >= t1 {
+                continue;
+            }
+            active.push(*g);
+            lo = lo.min(t0);
+            hi = hi.max(t1);
+            points.extend([t0, t1]);
+            points.extend((-4..=4).map(|k| t_star + k as f64 * 0.5 * g.radius));
+        }
+        if active.is_empty() {
+            return 0.0;
+        }
+        let spacing = noise.finest_spacing();
+        let crossings: f64 = (0..3).map(|ax| (dir[ax] * (hi - lo)).abs() / spacing).sum();
+        if crossings < 20_000.0 {
+            for ax in 0..3 {
+                if dir[ax] == 0.0 {
+                    continue;
+                }
+                let (u0, u1) = ((a[ax] + dir[ax] * lo) / spacing, (a[ax] + dir[ax] * hi) / spacing);
+                let mut k = u0.min(u1).ceil();
+                while k <= u0.max(u1) {
+                    points.push((k * spacing - a[ax]) / dir[ax]);
+                    k += 1.0;
+                }
+            }
+        }
+        let points = quad::breakpoints(points, lo, hi);
+        let f = |t: f64| {
+            let x = a + dir * t;
+            let sum: f64 = active.iter().map(|g| g.density * (-(x - g.center).length_squared() / (g.radius * g.radius)).exp()).sum();
+            if sum > 0.0 {
+                sum * noise.modulation(x)
+            } else {
+                0.0
+            }
+        };
+        quad::integrate(f, &points, 1e-10, 1e-14, points.len() * 4 + 2_000).0
     }
 
     /// The gaussians that can contribute anywhere along the line `origin + t·dir` (unit `dir`).
     pub fn along_line(&self, origin: DVec3, dir: DVec3) -> Self {
-        let mut kept = Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new() };
-        for (g, &cull) in self.gaussians.iter().zip(&self.cull) {
+        let mut kept = Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new(), noisy: Vec::new(), noise: self.noise };
+        for ((g, &cull), &noisy) in self.gaussians.iter().zip(&self.cull).zip(&self.noisy) {
             let ob = g.center - origin;
             let perp = ob - dir * dir.dot(ob);
             if perp.length_squared() / (g.radius * g.radius) <= cull {
                 kept.gaussians.push(*g);
                 kept.cull.push(cull);
+                kept.noisy.push(noisy);
             }
         }
         kept

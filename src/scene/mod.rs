@@ -201,6 +201,9 @@ fn is_zero(v: &f32) -> bool {
 /// [`noise_hash`]. So n lies in [−1, 1], and its smallest feature at octave o has the size
 /// 1 / (2^o · frequency) metres. Octaves whose lattice is finer than two grid cells (above
 /// the grid's Nyquist limit) are dropped: see [`Noise::effective_octaves`].
+/// Only particles whose `noise` flag is set (the default) are modulated; the base fog and an
+/// imported base volume never are. The hash works on wrapping 32-bit integers (lattice
+/// indices are clamped to [−2³¹, 2³¹ − 128]), so huge seeds and coordinates stay finite.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(from = "(f32, f32, u32, u32)", into = "(f32, f32, u32, u32)")]
 pub struct Noise {
@@ -240,6 +243,31 @@ impl Noise {
         }
         kept
     }
+
+    /// What the grid's Nyquist limit does to this noise, in words, or None when every octave
+    /// is kept and the first one is no finer than two cells: the note `render`, `export` and
+    /// the editor show.
+    pub fn nyquist_note(&self, grid: &GridSpec) -> Option<String> {
+        let kept = self.effective_octaves(grid);
+        let cell = grid.cell_size().min_element() as f64;
+        let first_too_fine = 1.0 / (self.frequency as f64) < 2.0 * cell;
+        let mut notes = Vec::new();
+        if kept < self.octaves {
+            let dropped = self.octaves - kept;
+            notes.push(format!(
+                "{dropped} of {} octaves above the grid's Nyquist limit are dropped; raise the resolution to keep them",
+                self.octaves
+            ));
+        }
+        if first_too_fine {
+            notes.push(format!(
+                "the first octave (frequency {} /m) is finer than two cells ({:.4} m) and aliases; lower the frequency or raise the resolution",
+                self.frequency,
+                2.0 * cell
+            ));
+        }
+        (!notes.is_empty()).then(|| notes.join("; "))
+    }
 }
 
 /// The integer hash behind [`Noise`]: a PCG output permutation applied in turn to the seed
@@ -275,11 +303,22 @@ pub struct Particle {
     /// Hidden particles are kept in the file but contribute nothing. Default false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub hidden: bool,
+    /// Whether the medium's noise (see [`Noise`]) modulates this particle. Default true.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub noise: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 impl Particle {
     pub fn new(center: Vec3, radius: f32, density: f32) -> Self {
-        Self { id: 0, center, radius, density, name: None, hidden: false }
+        Self { id: 0, center, radius, density, name: None, hidden: false, noise: true }
     }
 
     /// Distance beyond which this particle's extinction is below `epsilon` (physics.md §2):

@@ -186,8 +186,6 @@ impl Project {
                     format!("must be within 1..={}, got {}", super::MAX_NOISE_OCTAVES, n.octaves),
                 ));
             }
-            // Refused rather than silently ignored until the pipeline injects it.
-            return Err(err("medium.noise", "noise detail is not rendered by this version yet; remove medium.noise"));
         }
         for (i, p) in self.particles.iter().enumerate() {
             position(&format!("particles[{i}].center"), p.center)?;
