@@ -1159,9 +1159,13 @@ impl EditorState {
         }
         self.view.slice.exact_pending = Some(key);
         let project = self.session.project().clone();
+        let path = self.session.path().map(Path::to_owned);
         self.spawn("Computing the exact optical depth", move || JobResult::Exact {
             key,
-            result: super::slices::exact_optical_depth(&project, key.light, &cells),
+            result: project
+                .load_base_volume(path.as_deref())
+                .map_err(|e| format!("The base volume cannot be loaded for the exact reference: {e}"))
+                .and_then(|layer| super::slices::exact_optical_depth(&project, layer.as_ref(), key.light, &cells)),
         });
     }
 

@@ -6,7 +6,8 @@
 //!
 //! - [`Medium64`]: the analytic medium of `physics.md` §2 and its exact optical depth (§3).
 //! - [`GridMedium64`]: the medium a grid represents (trilinear between cell centres, base fog
-//!   outside the box), for separating a propagation scheme's error from the grid's.
+//!   outside the box), for separating a propagation scheme's error from the grid's. It also
+//!   models a project's imported base volume inside [`Medium64`], as the injection adds it.
 //! - [`optical_depth_volume`], [`optical_depth_cells`]: exact optical-depth volumes (OPVs).
 //! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
 //!   (§4) with exact transmittance.
@@ -23,12 +24,13 @@ pub mod surface_glow;
 
 pub use grid::{clip_to_box, clipped_optical_depth, GridMedium64};
 pub use render::{
-    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, shadowed, RefRenderOptions,
+    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, render_reference_with, shadowed,
+    RefRenderOptions,
 };
 
-use crate::scene::{GridSpec, Project};
+use crate::scene::{GridSpec, Project, Volume};
 use glam::DVec3;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// A particle is skipped on a segment where its whole line integral, c·r·√π·exp(−d²/r²) with
 /// d its distance to the segment, is below this: an absolute optical depth that changes any
@@ -45,7 +47,8 @@ pub struct Gaussian64 {
     pub density: f64,
 }
 
-/// The medium of a project in f64: base fog plus gaussians.
+/// The medium of a project in f64: base fog plus gaussians, plus the imported base volume
+/// when one is given.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Medium64 {
     base: f64,
@@ -54,12 +57,49 @@ pub struct Medium64 {
     gaussians: Vec<Gaussian64>,
     /// Per gaussian, the d²/r² beyond which it adds less than [`NEGLIGIBLE_DEPTH`].
     cull: Vec<f64>,
+    /// The base volume as the injection adds it: its values at the cell centres, trilinear
+    /// between them, constant out to the box faces and nothing outside the box.
+    layer: Option<Arc<GridMedium64>>,
 }
 
 impl Medium64 {
     pub fn new(base: f64, gaussians: Vec<Gaussian64>) -> Self {
         let cull = gaussians.iter().map(|g| (g.density * g.radius * SQRT_PI / NEGLIGIBLE_DEPTH).ln()).collect();
-        Self { base, height: (0.0, 0.0), gaussians, cull }
+        Self { base, height: (0.0, 0.0), gaussians, cull, layer: None }
+    }
+
+    /// [`from_project`](Self::from_project) plus the project's base volume `layer` as
+    /// [`Project::load_base_volume`] returns it (already scaled, on the project's grid).
+    ///
+    /// # Panics
+    /// If `layer` is not on `project.grid`.
+    pub fn for_project(project: &Project, layer: Option<&Volume>) -> Self {
+        let m = Self::from_project(project);
+        match layer {
+            Some(v) => m.with_layer(&project.grid, v),
+            None => m,
+        }
+    }
+
+    /// This medium plus `layer`, σ_t at the centres of `grid`'s cells (see [`Medium64::layer`]).
+    ///
+    /// # Panics
+    /// If `layer` is not on `grid`.
+    pub fn with_layer(mut self, grid: &GridSpec, layer: &Volume) -> Self {
+        assert_eq!(layer.grid, *grid, "the base volume must be resampled into the project's grid");
+        self.layer = Some(Arc::new(GridMedium64::from_volume(grid, layer, 0.0)));
+        self
+    }
+
+    /// The same medium without its base (height) fog: the gaussians and the base volume, which
+    /// a sun's optical depth integrates inside the box only.
+    pub fn without_base(&self) -> Self {
+        Self { base: 0.0, height: (0.0, 0.0), ..self.clone() }
+    }
+
+    /// Whether a base volume is part of this medium.
+    pub fn has_layer(&self) -> bool {
+        self.layer.is_some()
     }
 
     /// Visible particles with positive radius and density; hidden ones contribute nothing.
@@ -105,6 +145,7 @@ impl Medium64 {
     /// σ_t at `x`.
     pub fn extinction(&self, x: DVec3) -> f64 {
         self.base_at(x.y)
+            + self.layer.as_ref().map_or(0.0, |l| l.extinction(x))
             + self
                 .gaussians
                 .iter()
@@ -121,12 +162,14 @@ impl Medium64 {
         }
         let dir = (b - a) / len;
         self.base_depth(a, dir, len)
+            + self.layer.as_ref().map_or(0.0, |l| l.optical_depth(a, b))
             + self.gaussians.iter().zip(&self.cull).map(|(g, &cull)| g.segment_depth(cull, a, dir, len)).sum::<f64>()
     }
 
     /// The gaussians that can contribute anywhere along the line `origin + t·dir` (unit `dir`).
     pub fn along_line(&self, origin: DVec3, dir: DVec3) -> Self {
-        let mut kept = Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new() };
+        let mut kept =
+            Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new(), layer: self.layer.clone() };
         for (g, &cull) in self.gaussians.iter().zip(&self.cull) {
             let ob = g.center - origin;
             let perp = ob - dir * dir.dot(ob);
@@ -241,10 +284,17 @@ pub fn grid_optical_depth_cells(grid: &GridSpec, medium: &GridMedium64, source: 
 /// # Panics
 /// If `light` is not an index into `project.lights`.
 pub fn clipped_optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    clipped_optical_depth_cells_with(project, &Medium64::from_project(project), light, cells)
+}
+
+/// [`clipped_optical_depth_cells`] through `medium` (the project's, with its base volume).
+///
+/// # Panics
+/// If `light` is not an index into `project.lights`.
+pub fn clipped_optical_depth_cells_with(project: &Project, medium: &Medium64, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
     if matches!(project.lights[light].kind, crate::scene::LightKind::Directional { .. }) {
-        return lights::sun_optical_depth_cells(project, light, cells);
+        return lights::sun_optical_depth_cells_with(project, &medium.without_base(), light, cells);
     }
-    let medium = Medium64::from_project(project);
     let source = project.lights[light].position.as_dvec3();
     let mut out = vec![0.0; cells.len()];
     par_fill(&mut out, 64, |n| {
