@@ -364,6 +364,36 @@ mod tests {
         }
     }
 
+    /// The base volume adds its cell values at the cell centres, trilinear between them and
+    /// nothing outside the box, to σ_t and to every optical depth (against fine quadrature).
+    #[test]
+    fn a_base_volume_adds_as_injected() {
+        let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -0.5), max: Vec3::new(1.0, 1.0, 0.5), resolution: UVec3::new(5, 4, 3) };
+        let mut s = 11;
+        let layer = crate::scene::Volume::new(grid, (0..grid.cell_count()).map(|_| lcg(&mut s) as f32 * 3.0).collect());
+        let g = Gaussian64 { center: DVec3::new(0.2, 0.5, 0.0), radius: 0.3, density: 2.0 };
+        let m = Medium64::new(0.1, vec![g]).with_layer(&grid, &layer);
+        let plain = Medium64::new(0.1, vec![g]);
+        for idx in [0usize, 7, 59] {
+            let [i, j, k] = grid.cell_of(idx);
+            let x = cell_center64(&grid, i, j, k);
+            assert!((m.extinction(x) - plain.extinction(x) - layer.data[idx] as f64).abs() < 1e-12);
+        }
+        assert_eq!(m.extinction(DVec3::new(1.5, 0.5, 0.0)), plain.extinction(DVec3::new(1.5, 0.5, 0.0)), "nothing outside the box");
+        for _ in 0..10 {
+            let p = |s: &mut u64| DVec3::new(lcg(s) * 3.0 - 1.5, lcg(s) * 1.6 - 0.3, lcg(s) * 1.6 - 0.8);
+            let (a, b) = (p(&mut s), p(&mut s));
+            let n = 100_000;
+            let fine = (0..n).map(|i| m.extinction(a + (b - a) * ((i as f64 + 0.5) / n as f64))).sum::<f64>() * (b - a).length() / n as f64;
+            let exact = m.optical_depth(a, b);
+            // Midpoint quadrature errs by up to a step times the jump at the box faces.
+            assert!((exact - fine).abs() < 1e-4 * fine.max(1.0), "{exact} vs {fine}");
+            assert!(exact > plain.optical_depth(a, b) || clip_to_box(grid.min.as_dvec3(), grid.max.as_dvec3(), a, (b - a).normalize(), (b - a).length()).is_none());
+        }
+        let outside = DVec3::new(1.5, 0.5, 2.0);
+        assert!(m.without_base().extinction(outside) < 1e-20, "without base fog nothing is left outside the box");
+    }
+
     #[test]
     fn optical_depth_of_extreme_particles_is_finite_and_accurate() {
         let a = DVec3::new(-3.0, 0.2, 0.1);
