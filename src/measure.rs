@@ -5,7 +5,7 @@
 
 use crate::gpu::Image;
 use crate::reference::{
-    clipped_optical_depth_cells, grid_light_depth_cells, optical_depth_cells, GridMedium64, Medium64,
+    clipped_optical_depth_cells_with, grid_light_depth_cells, optical_depth_cells, GridMedium64, Medium64,
 };
 use crate::scene::{GridSpec, Project, Volume};
 use serde::Serialize;
@@ -98,9 +98,21 @@ pub struct OpvErrors {
 /// [`OpvErrors`] of `light` at `cells`; `ev` is the extinction volume the OPV was propagated
 /// through.
 pub fn opv_errors(project: &Project, light: usize, ev: &Volume, opv: &Volume, cells: &[[u32; 3]]) -> OpvErrors {
+    opv_errors_with(project, &Medium64::from_project(project), light, ev, opv, cells)
+}
+
+/// [`opv_errors`] with the exact medium given: the project's, with its base volume.
+pub fn opv_errors_with(
+    project: &Project,
+    exact: &Medium64,
+    light: usize,
+    ev: &Volume,
+    opv: &Volume,
+    cells: &[[u32; 3]],
+) -> OpvErrors {
     let medium = GridMedium64::for_project(project, ev);
     let grid_depth = grid_light_depth_cells(project, &medium, light, cells);
-    let clipped = clipped_optical_depth_cells(project, light, cells);
+    let clipped = clipped_optical_depth_cells_with(project, exact, light, cells);
     let got: Vec<f64> = cells.iter().map(|c| opv.get(c[0], c[1], c[2]) as f64).collect();
     OpvErrors {
         light,
@@ -117,7 +129,11 @@ pub const EV_REL_THRESHOLD: f64 = 1e-3;
 /// The EV against the analytic σ_t: largest relative error where σ_t ≥ [`EV_REL_THRESHOLD`]
 /// and largest absolute error everywhere (both infinite if the EV holds a NaN or infinity).
 pub fn ev_error(project: &Project, ev: &Volume, cells: &[[u32; 3]]) -> (f64, f64) {
-    let medium = Medium64::from_project(project);
+    ev_error_with(&Medium64::from_project(project), project, ev, cells)
+}
+
+/// [`ev_error`] against `medium`: the project's, with its base volume.
+pub fn ev_error_with(medium: &Medium64, project: &Project, ev: &Volume, cells: &[[u32; 3]]) -> (f64, f64) {
     let (mut rel, mut abs) = (0.0f64, 0.0f64);
     for c in cells {
         let got = ev.get(c[0], c[1], c[2]) as f64;

@@ -1,5 +1,7 @@
 //! The `fogsmith` binary end to end: render, verify, export, and its errors.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -193,4 +195,83 @@ fn render_and_info_report_gpu_memory() {
     let plain = fogsmith().arg("info").output().unwrap();
     let text = String::from_utf8_lossy(&plain.stdout);
     assert!(plain.status.success() && text.contains("optical-depth storage:") && text.contains("GPU memory"), "{text}");
+}
+
+/// A project with an imported base volume: a smooth, lumpy density written as a VDB on its
+/// own grid (coarser, shifted, partly outside the project's box), under `seed`'s particles.
+fn base_volume_project(dir: &Path, seed: u64) -> PathBuf {
+    use fogsmith::export::vdb::{write_vdb, VdbGrid, VdbOptions};
+    use fogsmith::scene::{BaseVolume, GridSpec, Particle, Volume};
+    use glam::{UVec3, Vec3};
+    let mut rng = common::Rng(seed);
+    let mut p = common::small_scene(20, &[Vec3::new(rng.range(-1.5, 1.5), 1.6, rng.range(-1.5, 1.5))]);
+    p.particles = (0..5).map(|_| Particle::new(rng.v(-0.35, 0.35), rng.range(0.2, 0.3), rng.range(1.0, 5.0))).collect();
+    let layer_grid = GridSpec { min: Vec3::new(-1.3, -0.9, -1.1), max: Vec3::new(0.9, 1.4, 1.2), resolution: UVec3::new(7, 6, 9) };
+    let (c, w) = (rng.v(-0.4, 0.4), rng.range(0.3, 0.6));
+    let data = (0..layer_grid.cell_count() as usize)
+        .map(|n| {
+            let [i, j, k] = layer_grid.cell_of(n);
+            let x = layer_grid.min + (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * layer_grid.cell_size();
+            (-(x - c).length_squared() / (w * w)).exp() * 2.0 + 0.3 * rng.f()
+        })
+        .collect();
+    let volume = Volume::new(layer_grid, data);
+    write_vdb(&dir.join("layer.vdb"), &[VdbGrid::from_volume("density", &volume)], &VdbOptions::default()).unwrap();
+    p.base_volume = Some(BaseVolume { path: "layer.vdb".into(), grid: "density".into(), scale: 1.7 });
+    let path = dir.join("fog.ron");
+    fogsmith::scene::save_project(&path, &p).unwrap();
+    path
+}
+
+#[test]
+fn verify_includes_the_base_volume_in_the_reference() {
+    for seed in [3, 11] {
+        let dir = tempfile::tempdir().unwrap();
+        let path = base_volume_project(dir.path(), seed);
+        let out = fogsmith().args(["verify", path.to_str().unwrap(), "--width", "32", "--json"]).output().unwrap();
+        let v = json_of(&out);
+        assert_eq!(v["base_volume"], true, "{v}");
+        assert!(v["ev_max_rel_error"].as_f64().unwrap() < 1e-4, "seed {seed}: {v}");
+        for o in v["opv"].as_array().unwrap() {
+            assert!(o["scheme"]["transmittance_max_abs_error"].as_f64().unwrap() < 5e-3, "seed {seed}: {v}");
+            assert!(o["resolution"]["transmittance_max_abs_error"].as_f64().unwrap() < 0.02, "seed {seed}: {v}");
+        }
+        assert!(v["image_rel_rmse"].as_f64().unwrap() < 0.05, "seed {seed}: {v}");
+    }
+}
+
+/// The same measures as `verify`, with the reference's base volume wrong: left out, or at a
+/// scale 5 % off. Each must show up as error far above the honest figures.
+#[test]
+fn a_wrong_base_volume_in_the_reference_is_detected() {
+    use fogsmith::gpu::FrameRequest;
+    use fogsmith::measure::{ev_error_with, image_error, opv_errors_with, sample_cells};
+    use fogsmith::reference::{render_reference_with, Medium64, RefRenderOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let path = base_volume_project(dir.path(), 5);
+    let project = fogsmith::scene::load_project(&path).unwrap();
+    let layer = project.load_base_volume(Some(&path)).unwrap().expect("the project has a base volume");
+    assert!(layer.data.iter().any(|&v| v > 1.0), "the layer is substantial");
+    let mut gpu = common::pipeline();
+    gpu.set_base_layer(Some(layer.clone()));
+    let mut request = FrameRequest::for_project(&project);
+    (request.width, request.height) = (24, 18);
+    gpu.update(&project, &request).unwrap();
+    let (ev, opv, image) = (gpu.read_ev().unwrap(), gpu.read_opv(0).unwrap(), gpu.read_image().unwrap());
+    let cells = sample_cells(&project.grid, 4096);
+    let mut off = layer.clone();
+    off.data.iter_mut().for_each(|v| *v *= 1.05);
+    let measure = |exact: &Medium64| {
+        let (ev_rel, _) = ev_error_with(exact, &project, &ev, &cells);
+        let opv = opv_errors_with(&project, exact, 0, &ev, &opv, &cells).total.transmittance_max_abs_error;
+        let img = image_error(&image, &render_reference_with(&project, exact, 24, 18, &RefRenderOptions::default())).rel_rmse;
+        (ev_rel, opv, img)
+    };
+    let honest = measure(&Medium64::for_project(&project, Some(&layer)));
+    let scaled = measure(&Medium64::for_project(&project, Some(&off)));
+    let without = measure(&Medium64::for_project(&project, None));
+    println!("honest {honest:?}, scale 5% off {scaled:?}, left out {without:?}");
+    assert!(honest.0 < 1e-4 && honest.1 < 0.01 && honest.2 < 0.01, "{honest:?}");
+    assert!(scaled.0 > 0.02 && scaled.1 > 2.0 * honest.1 && scaled.2 > 2.0 * honest.2, "a 5% scale error: {scaled:?} vs {honest:?}");
+    assert!(without.0 > 0.5 && without.1 > 0.05 && without.2 > 0.1 && without.2 > 3.0 * honest.2, "{without:?} vs {honest:?}");
 }

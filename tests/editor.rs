@@ -906,3 +906,167 @@ fn inspector_noise_amplitude_changes_the_ev_and_undo_restores_it() {
     assert_eq!(h.state().session().project().medium.noise, None, "a second undo turns the noise off");
     assert!(max_diff(&plain, &read_ev(&h)) < 1e-6, "the EV is back to the noise-free one");
 }
+
+/// Particle 24 selected with the Select tool, seen from the front (along −z) from 6 m (so
+/// the gizmo's arrows reach past its outline):
+/// its centre, its screen position and the points per metre at its depth.
+fn gizmo_on_24(h: &mut Harness<'_, EditorApp>) -> (glam::Vec3, Pos2, f32) {
+    let p = h.state().session().project().particles[24].center;
+    let camera = fogsmith::scene::Camera {
+        position: p + glam::Vec3::new(0.0, 0.0, 6.0),
+        target: p,
+        up: glam::Vec3::Y,
+        ..h.state().session().project().camera
+    };
+    h.state_mut().session_mut().set_camera(camera);
+    h.state_mut().session_mut().selection.particles = [24].into();
+    h.state_mut().set_tool(Tool::Select);
+    h.run_steps(2);
+    let vp = ViewProjection::new(&camera, h.state().viewport_rect().expect("viewport"));
+    let (s, z) = vp.project(p).expect("in view");
+    (p, s, vp.points_per_metre(z))
+}
+
+fn centres(h: &Harness<'_, EditorApp>) -> Vec<glam::Vec3> {
+    h.state().session().project().particles.iter().map(|p| p.center).collect()
+}
+
+/// Whether a gizmo handle is drawn lit (under the pointer).
+fn lit(h: &Harness<'_, EditorApp>) -> bool {
+    h.output().shapes.iter().any(|s| matches!(&s.shape, egui::Shape::LineSegment { stroke, .. } if stroke.color == fogsmith::editor::gizmo::LIT))
+}
+
+fn texts(h: &Harness<'_, EditorApp>) -> Vec<String> {
+    h.output()
+        .shapes
+        .iter()
+        .filter_map(|c| match &c.shape {
+            egui::Shape::Text(t) => Some(t.galley.text().to_string()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Dragging the gizmo's x arrow moves the selection along x only, by the pointer's travel
+/// along the arrow, with the preview and the drag values following; the whole drag is one
+/// undo step. Hovering lights the arrow up.
+#[test]
+fn the_gizmo_x_arrow_moves_the_selection_along_x_as_one_undo_step() {
+    let mut h = harness(demo());
+    let (p0, c, ppm) = gizmo_on_24(&mut h);
+    let before = centres(&h);
+    let undo = h.state().session().undo_len();
+    let ev_before = read_ev(&h);
+    h.event(Event::PointerMoved(c + Vec2::new(-60.0, 40.0)));
+    h.run_steps(2);
+    assert!(!lit(&h), "no handle is lit away from the gizmo");
+    let grab = c + Vec2::new(60.0, 0.0);
+    h.event(Event::PointerMoved(grab));
+    h.run_steps(2);
+    assert!(lit(&h), "the x arrow lights up under the pointer");
+    press(&mut h, grab, PointerButton::Primary, true);
+    // The pointer wanders off the axis on the way; only its travel along x counts.
+    for off in [Vec2::new(20.0, 15.0), Vec2::new(50.0, -25.0)] {
+        h.event(Event::PointerMoved(grab + off));
+        h.step();
+    }
+    let mid = h.state().session().project().particles[24].center;
+    assert!(mid.x > p0.x && mid.y == p0.y && mid.z == p0.z, "mid-drag the particle has moved along x only: {p0} → {mid}");
+    let shown = texts(&h);
+    let values = shown.iter().find(|t| t.starts_with("Δx ")).unwrap_or_else(|| panic!("the drag values show: {shown:?}"));
+    let dx: f32 = values["Δx ".len()..].split(' ').next().and_then(|v| v.parse().ok()).expect("Δx is a number");
+    assert!((dx - (mid.x - p0.x)).abs() < 1e-3, "Δx reads {dx} m, moved {} m: {values}", mid.x - p0.x);
+    assert!(values.contains("Δy +0.000 m") && values.contains("Δz +0.000 m"), "{values}");
+    assert!(max_diff(&ev_before, &read_ev(&h)) > 1e-3, "the preview's EV follows the drag");
+    h.event(Event::PointerMoved(grab + Vec2::new(80.0, 0.0)));
+    h.step();
+    press(&mut h, grab + Vec2::new(80.0, 0.0), PointerButton::Primary, false);
+    h.step();
+    let after = centres(&h);
+    let d = after[24] - p0;
+    let expected = 80.0 / ppm;
+    assert!((d.x - expected).abs() < 1e-3 * expected, "moved {} m along x, expected {expected} m", d.x);
+    assert!(d.y == 0.0 && d.z == 0.0, "y and z untouched: {d}");
+    for (i, (a, b)) in before.iter().zip(&after).enumerate() {
+        assert!(i == 24 || a == b, "particle {i} is not selected and stays put");
+    }
+    assert_eq!(h.state().session().undo_len(), undo + 1, "the drag is one undo step");
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().session().project().particles[24].center, p0, "one undo puts it back");
+}
+
+/// Escape or a right click during a gizmo drag puts the selection back and leaves no undo
+/// step; Ctrl snaps the drag to the grid cell; a drag on empty space moves nothing.
+#[test]
+fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
+    let mut h = harness(demo());
+    let (p0, c, _) = gizmo_on_24(&mut h);
+    let undo = h.state().session().undo_len();
+    let grab = c + Vec2::new(60.0, 0.0);
+
+    for cancel in ["escape", "right click"] {
+        h.event(Event::PointerMoved(grab));
+        h.step();
+        press(&mut h, grab, PointerButton::Primary, true);
+        h.event(Event::PointerMoved(grab + Vec2::new(70.0, 0.0)));
+        h.step();
+        assert!(h.state().session().project().particles[24].center.x > p0.x + 0.05, "{cancel}: the drag moves the particle first");
+        if cancel == "escape" {
+            h.key_press(egui::Key::Escape);
+        } else {
+            press(&mut h, grab + Vec2::new(70.0, 0.0), PointerButton::Secondary, true);
+        }
+        h.step();
+        h.event(Event::PointerMoved(grab + Vec2::new(90.0, 10.0)));
+        h.step();
+        if cancel != "escape" {
+            press(&mut h, grab + Vec2::new(90.0, 10.0), PointerButton::Secondary, false);
+        }
+        press(&mut h, grab + Vec2::new(90.0, 10.0), PointerButton::Primary, false);
+        h.run_steps(2);
+        assert_eq!(h.state().session().project().particles[24].center, p0, "{cancel} puts the particle back");
+        assert_eq!(h.state().session().undo_len(), undo, "{cancel}: a cancelled drag leaves no undo step");
+        assert!(!h.state().session().can_redo(), "{cancel}: nor a redo step");
+        assert_eq!(h.state().session().selection.particles.iter().copied().collect::<Vec<_>>(), vec![24], "{cancel} keeps the selection");
+    }
+
+    // Ctrl held: the displacement is a whole number of grid cells along x.
+    let cell = h.state().session().project().grid.cell_size().x;
+    h.event(Event::PointerMoved(grab));
+    h.step();
+    press(&mut h, grab, PointerButton::Primary, true);
+    h.event(Event::ModifiersChanged(Modifiers::CTRL));
+    h.event(Event::PointerMoved(grab + Vec2::new(47.0, 3.0)));
+    h.step();
+    let shown = texts(&h);
+    assert!(shown.iter().any(|t| t.contains("snapped")), "the drag values say they are snapped: {shown:?}");
+    h.event(Event::PointerButton { pos: grab + Vec2::new(47.0, 3.0), button: PointerButton::Primary, pressed: false, modifiers: Modifiers::CTRL });
+    h.step();
+    h.event(Event::ModifiersChanged(Modifiers::NONE));
+    h.step();
+    let d = h.state().session().project().particles[24].center - p0;
+    let cells = d.x / cell;
+    assert!(d.x > 0.0 && (cells - cells.round()).abs() < 1e-3 && d.y == 0.0 && d.z == 0.0, "snapped to {cell} m cells: {d}");
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().session().project().particles[24].center, p0);
+
+    // View → Move gizmo off: no arrow lights up and a drag there moves nothing.
+    let before = centres(&h);
+    let undo = h.state().session().undo_len();
+    h.state_mut().set_show_gizmo(false);
+    h.event(Event::PointerMoved(grab));
+    h.run_steps(2);
+    assert!(!lit(&h), "the hidden gizmo is not drawn");
+    drag(&mut h, grab, grab + Vec2::new(80.0, 0.0), 4);
+    assert_eq!(centres(&h), before, "with the gizmo hidden its arrows do not move anything");
+    h.state_mut().set_show_gizmo(true);
+    h.state_mut().session_mut().selection.particles = [24].into();
+    h.run_steps(2);
+
+    // A drag that starts away from the gizmo (and from every particle) moves nothing.
+    drag(&mut h, c + Vec2::new(-120.0, -100.0), c + Vec2::new(-60.0, -140.0), 4);
+    assert_eq!(centres(&h), before, "a drag on empty space moves nothing");
+    assert_eq!(h.state().session().undo_len(), undo);
+}

@@ -1,8 +1,8 @@
 //! `fogsmith verify`: how far this project's bake and render are from the exact reference.
 
 use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
-use crate::measure::{ev_error, image_error, opv_errors, sample_cells, EV_REL_THRESHOLD};
-use crate::reference::{render_reference, RefRenderOptions};
+use crate::measure::{ev_error_with, image_error, opv_errors_with, sample_cells, EV_REL_THRESHOLD};
+use crate::reference::{render_reference_with, Medium64, RefRenderOptions};
 use crate::scene::{load_project, Scheme};
 use std::path::Path;
 use std::time::Instant;
@@ -21,15 +21,11 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let adapter = ctx.adapter_summary();
     let mut gpu = FogPipeline::new(ctx);
     gpu.check_limits(&project, width, height)?;
-    if project.load_base_volume(Some(path))?.is_some() {
-        // The base volume loads (so a bad file is reported), but the exact reference models
-        // only the particles and the base fog: comparing would report the layer as error.
-        return Err(format!(
-            "{}: verify compares with the exact reference, which does not model base_volume; remove base_volume from a copy of the project to verify its particles",
-            path.display()
-        )
-        .into());
-    }
+    // The base volume, resampled and scaled once: the GPU injects these values and the exact
+    // medium holds the same ones, trilinear between cell centres as the EV is read.
+    let layer = project.load_base_volume(Some(path))?;
+    let exact = Medium64::for_project(&project, layer.as_ref());
+    gpu.set_base_layer(layer);
     let mut bar = super::progress::Bar::new(quiet);
     let report = match gpu.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
         Err(crate::gpu::GpuError::Cancelled) => return Err(super::progress::Cancelled.into()),
@@ -40,19 +36,19 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let started = Instant::now();
     let cells = sample_cells(&project.grid, max_cells.max(8));
     let ev = gpu.read_ev()?;
-    let (ev_err, ev_abs) = ev_error(&project, &ev, &cells);
+    let (ev_err, ev_abs) = ev_error_with(&exact, &project, &ev, &cells);
     let mut opv = Vec::new();
     // Hidden, dark and culled lights have no optical-depth volume to compare.
     let mut without_opv = Vec::new();
     for (light, l) in project.lights.iter().enumerate() {
         if crate::gpu::light_has_opv(&project, l) {
-            opv.push(opv_errors(&project, light, &ev, &gpu.read_opv(light)?, &cells));
+            opv.push(opv_errors_with(&project, &exact, light, &ev, &gpu.read_opv(light)?, &cells));
         } else {
             without_opv.push(light);
         }
     }
     let image = gpu.read_image()?;
-    let reference = render_reference(&project, width, height, &RefRenderOptions::default());
+    let reference = render_reference_with(&project, &exact, width, height, &RefRenderOptions::default());
     let img_err = image_error(&image, &reference);
     let reference_ms = started.elapsed().as_secs_f64() * 1e3;
     let sampled = (cells.len() as u64) < project.grid.cell_count();
@@ -64,6 +60,7 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
             "project": path,
             "scheme": request.scheme.to_string(),
             "grid": project.grid.resolution.to_array(),
+            "base_volume": exact.has_layer(),
             "ev_max_rel_error": ev_err,
             "ev_rel_threshold": EV_REL_THRESHOLD,
             "ev_max_abs_error": ev_abs,
@@ -80,7 +77,13 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
         });
         println!("{}", serde_json::to_string(&v)?);
     } else {
-        println!("{} ({} scheme, {} grid) on {adapter}", path.display(), request.scheme, fmt_grid(&project));
+        println!(
+            "{} ({} scheme, {} grid{}) on {adapter}",
+            path.display(),
+            request.scheme,
+            fmt_grid(&project),
+            if exact.has_layer() { ", with its base volume" } else { "" }
+        );
         println!(
             "EV max relative error {ev_err:.3e} (where σ_t ≥ {EV_REL_THRESHOLD} /m), max absolute error {ev_abs:.3e} /m ({} cells{})",
             cells.len(),
@@ -101,7 +104,7 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
             println!("light {l}: no optical-depth volume (hidden, dark, or its light cannot reach the grid)");
         }
         println!("  scheme: the OPV against the line integral through the grid's trilinear medium (base fog outside the box)");
-        println!("  resolution: that grid medium against the analytic gaussians clipped to the box");
+        println!("  resolution: that grid medium against the analytic gaussians (and base volume) clipped to the box");
         println!("image {width}×{height}: relative RMSE {:.3e}, max abs error {:.3e}", img_err.rel_rmse, img_err.max_abs_error);
     }
     Ok(())

@@ -92,6 +92,7 @@ struct Persisted {
     slices: SliceSettings,
     quality: Quality,
     outline_all: Option<bool>,
+    show_gizmo: Option<bool>,
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
@@ -335,6 +336,12 @@ pub(crate) enum Gesture {
     SlicePaint(Stroke),
     Erase { tag: u64 },
     ScaleDrag { tag: u64, targets: std::collections::BTreeSet<usize>, last_x: f32 },
+    /// A drag on a move-gizmo handle: `center` where the gizmo stood and `grab` the point the
+    /// handle was grabbed at, both when the drag began; `applied`: the displacement applied;
+    /// `snap`: whether it was snapped to the grid cell (Ctrl held).
+    Gizmo { tag: u64, handle: super::gizmo::Handle, center: glam::Vec3, grab: glam::Vec3, applied: glam::Vec3, snap: bool },
+    /// A cancelled drag: the rest of it, until the buttons go up, does nothing (no orbit).
+    Cancelled,
 }
 
 /// G / S: the selection follows the pointer until a click confirms or Esc cancels.
@@ -411,6 +418,8 @@ pub(crate) struct ViewState {
     pub fit_keep: crate::scene::FitKeep,
     /// Draw the Slices panel's plane in the viewport.
     pub show_slice_plane: bool,
+    /// Show the move gizmo at the selection's centre (Select tool).
+    pub show_gizmo: bool,
     /// Where a Paint stroke would start under the pointer.
     pub brush_point: Option<glam::Vec3>,
     /// The pipeline's EV read back for painting at the fog's depth, with the epoch and
@@ -495,6 +504,7 @@ impl EditorApp {
                 outline_all: persisted.outline_all.unwrap_or(true),
                 fit_keep: crate::scene::FitKeep::default(),
                 show_slice_plane: true,
+                show_gizmo: persisted.show_gizmo.unwrap_or(true),
                 brush_point: None,
                 fog_ev: None,
             },
@@ -637,6 +647,10 @@ impl EditorApp {
     pub fn set_show_slice_plane(&mut self, show: bool) {
         self.state.view.show_slice_plane = show;
     }
+    /// View → Move gizmo.
+    pub fn set_show_gizmo(&mut self, show: bool) {
+        self.state.view.show_gizmo = show;
+    }
     /// The command run last, from a menu or a shortcut.
     pub fn last_command(&self) -> Option<Command> {
         self.state.last_command
@@ -686,6 +700,9 @@ impl EditorApp {
             .on_hover_text("Outline every particle in the viewport; when off, only the selection is outlined");
         ui.checkbox(&mut self.state.view.show_slice_plane, "Slice plane")
             .on_hover_text("Show the Slices panel's plane in the viewport, in its axis colour");
+        ui.checkbox(&mut self.state.view.show_gizmo, "Move gizmo").on_hover_text(
+            "With the Select tool, arrows and squares at the selection's centre: drag one to move along that axis or in that plane (Ctrl snaps to the grid cell; Esc or right click cancels)",
+        );
         ui.separator();
         ui.label("Camera");
         self.state.camera_menu(ui);
@@ -744,6 +761,7 @@ impl eframe::App for EditorApp {
             slices: self.state.view.slices,
             quality: self.state.view.quality,
             outline_all: Some(self.state.view.outline_all),
+            show_gizmo: Some(self.state.view.show_gizmo),
         };
         eframe::set_value(storage, STORAGE_KEY, &persisted);
     }
@@ -1159,9 +1177,13 @@ impl EditorState {
         }
         self.view.slice.exact_pending = Some(key);
         let project = self.session.project().clone();
+        let path = self.session.path().map(Path::to_owned);
         self.spawn("Computing the exact optical depth", move || JobResult::Exact {
             key,
-            result: super::slices::exact_optical_depth(&project, key.light, &cells),
+            result: project
+                .load_base_volume(path.as_deref())
+                .map_err(|e| format!("The base volume cannot be loaded for the exact reference: {e}"))
+                .and_then(|layer| super::slices::exact_optical_depth(&project, layer.as_ref(), key.light, &cells)),
         });
     }
 
@@ -1447,6 +1469,8 @@ impl EditorState {
             Command::Escape => {
                 if self.view.modal.is_some() {
                     self.cancel_modal();
+                } else if matches!(self.view.gesture, Some(Gesture::Gizmo { .. })) {
+                    self.cancel_gizmo();
                 } else {
                     self.session.selection.clear();
                 }
@@ -1490,6 +1514,14 @@ impl EditorState {
             if m.applied != glam::Vec3::ZERO || m.applied_factor != 1.0 {
                 self.session.undo();
             }
+        }
+    }
+
+    /// Ends a move-gizmo drag, putting the selection back where the drag began.
+    pub(crate) fn cancel_gizmo(&mut self) {
+        if let Some(Gesture::Gizmo { tag, .. }) = self.view.gesture {
+            self.session.cancel_edit(tag);
+            self.view.gesture = Some(Gesture::Cancelled);
         }
     }
 

@@ -234,6 +234,9 @@ pub const GESTURES: &[(&str, &str)] = &[
     ("Arrow keys (held)", "Orbit"),
     ("Alt (Scale tool)", "Change density instead of radius"),
     ("Shift / Ctrl + click", "Add to / toggle the selection"),
+    ("Drag a gizmo arrow / square", "Move the selection along that axis / in that plane"),
+    ("Ctrl (gizmo drag)", "Snap the move to the grid cell"),
+    ("Esc / right click (gizmo drag)", "Cancel the move"),
 ];
 
 /// The Help → Shortcuts sheet: (keys, what they do), every command with a shortcut first.

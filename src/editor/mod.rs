@@ -2,7 +2,7 @@
 //! pipeline's live preview beside slices of its volumes.
 //!
 //! - [`session`]: the project under edit, selection, undo/redo and file state (no UI).
-//! - [`tools`], [`view`], [`slices`]: the geometry and data behind tools, the viewport and
+//! - [`tools`], [`gizmo`], [`view`], [`slices`]: the geometry and data behind tools, the viewport and
 //!   the slice views (no UI either).
 //! - [`app`]: the eframe application (menus, shortcuts, files, dialogs, messages);
 //!   `viewport` and `panels` draw the dockable tabs.
@@ -13,6 +13,7 @@
 pub mod app;
 pub mod commands;
 pub mod files;
+pub mod gizmo;
 mod import;
 mod panels;
 pub mod session;

@@ -129,6 +129,17 @@ impl Session {
         self.next_tag
     }
 
+    /// Takes back the coalesced edit `tag` if it is the one in progress, leaving no undo or
+    /// redo step behind (a cancelled drag).
+    pub fn cancel_edit(&mut self, tag: EditTag) {
+        if tag != NEW_STEP && self.open_tag == Some(tag) {
+            if let Some(s) = self.undo.pop() {
+                self.swap_in(s);
+            }
+        }
+        self.open_tag = None;
+    }
+
     /// Ends the current coalesced edit: the next edit starts a new undo step.
     pub fn end_edit(&mut self) {
         self.open_tag = None;

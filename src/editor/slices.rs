@@ -341,14 +341,24 @@ pub fn colorize(slice: &Slice, colormap: Colormap, scale: &Scale) -> egui::Color
 /// references in one: the first `cells.len()` values through the grid's own trilinear medium
 /// (the analytic medium sampled at the cell centres, as the EV holds it), then as many through
 /// the analytic medium clipped to the grid box (base fog beyond it), the most any grid can
-/// hold, so neither view shows the particles' tails outside the box.
-pub fn exact_optical_depth(project: &Project, light: usize, cells: &[[u32; 3]]) -> Result<Vec<f64>, String> {
+/// hold, so neither view shows the particles' tails outside the box. `layer`: the project's
+/// base volume as [`Project::load_base_volume`] returns it, part of both references.
+pub fn exact_optical_depth(
+    project: &Project,
+    layer: Option<&crate::scene::Volume>,
+    light: usize,
+    cells: &[[u32; 3]],
+) -> Result<Vec<f64>, String> {
     if light >= project.lights.len() {
         return Err(format!("light {light} does not exist"));
     }
-    let medium = crate::reference::GridMedium64::sampled(&project.grid, &crate::reference::Medium64::from_project(project));
+    if layer.is_some_and(|v| v.grid != project.grid) {
+        return Err("the base volume is not on the project's grid".into());
+    }
+    let exact = crate::reference::Medium64::for_project(project, layer);
+    let medium = crate::reference::GridMedium64::sampled(&project.grid, &exact);
     let mut out = crate::reference::grid_light_depth_cells(project, &medium, light, cells);
-    out.extend(crate::reference::clipped_optical_depth_cells(project, light, cells));
+    out.extend(crate::reference::clipped_optical_depth_cells_with(project, &exact, light, cells));
     Ok(out)
 }
 
@@ -401,7 +411,7 @@ mod tests {
         let vol = Volume::new(p.grid, vec![0.0; 16]);
         let slice = extract(&vol, Axis::Z, 0);
         let cells = slice.cells();
-        let exact = exact_optical_depth(&p, 0, &cells).unwrap();
+        let exact = exact_optical_depth(&p, None, 0, &cells).unwrap();
         assert_eq!(exact.len(), 2 * cells.len());
         // Homogeneous fog: both references are β·distance, the OPV here is 0.
         let scheme = error_slice(&slice, &exact, Field::Error);
@@ -412,7 +422,7 @@ mod tests {
             assert!((scheme.values[n] as f64 - d).abs() < 1e-5, "{c:?}: {} vs {d}", scheme.values[n]);
             assert!(resolution.values[n].abs() < 1e-6, "{c:?}: {}", resolution.values[n]);
         }
-        assert!(exact_optical_depth(&p, 1, &cells).is_err());
+        assert!(exact_optical_depth(&p, None, 1, &cells).is_err());
     }
 
     #[test]

@@ -1,8 +1,10 @@
 //! The Viewport tab: the tool bar, the pipeline's preview, camera navigation, the tools'
-//! pointer handling and the overlays (grid box, particle outlines, light gizmos, selection).
+//! pointer handling and the overlays (grid box, particle outlines, light gizmos, selection,
+//! the move gizmo).
 
 use crate::scene::FitKeep;
 use super::app::{EditorState, Gesture};
+use super::gizmo::{self, Gizmo, Handle};
 use super::tools::{self, Hit, Stroke, Tool};
 use super::view::{self, ViewProjection};
 use egui::{Color32, Pos2, Rect, Sense, Stroke as Line, Ui};
@@ -51,6 +53,7 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
         }
     }
     overlays(state, &painter, rect, response.hover_pos());
+    gizmo_overlay(state, &painter, rect, response.hover_pos().or(ui.input(|i| i.pointer.latest_pos())));
 }
 
 /// A warning row while particles reach outside the grid box, with "Fit grid to particles".
@@ -191,7 +194,17 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
         state.session.set_camera(view::zoom(&camera, 1.0 / zoom));
     }
 
-    let nav = response.dragged_by(egui::PointerButton::Middle) || response.dragged_by(egui::PointerButton::Secondary);
+    // A right click during a gizmo drag cancels it, as Escape does.
+    let mut cancelled = false;
+    if matches!(state.view.gesture, Some(Gesture::Gizmo { .. }))
+        && events.iter().any(|e| matches!(e, egui::Event::PointerButton { button: egui::PointerButton::Secondary, pressed: true, .. }))
+    {
+        state.cancel_gizmo();
+        cancelled = true;
+    }
+    let nav = !cancelled
+        && !matches!(state.view.gesture, Some(Gesture::Gizmo { .. } | Gesture::Cancelled))
+        && (response.dragged_by(egui::PointerButton::Middle) || response.dragged_by(egui::PointerButton::Secondary));
     if nav {
         let delta = response.drag_delta();
         let c = if modifiers.shift {
@@ -219,13 +232,16 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
     let track = PrimaryTrack::from_events(&events, down_at_start);
     if pointer.primary_down() || track.released.is_some() {
         let points = if track.points.is_empty() { pos.filter(|_| primary_pressed).into_iter().collect() } else { track.points.clone() };
-        continue_gesture(state, &vp, &points, modifiers.alt);
+        continue_gesture(state, &vp, &points, modifiers);
     }
     if track.released.is_some() || response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.view.gesture.is_some()) {
         finish_gesture(state, &vp, track.released.or(pos), modifiers);
     }
     state.view.interacting = state.view.force_interacting
-        || matches!(state.view.gesture, Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. }));
+        || matches!(
+            state.view.gesture,
+            Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. } | Gesture::Gizmo { .. })
+        );
 }
 
 fn is_primary(e: &egui::Event, pressed: bool) -> bool {
@@ -322,7 +338,23 @@ fn wheel_scale(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, scroll: 
     state.session.scale_particles(tag, &targets, (scroll * 0.002).exp(), density);
 }
 
+/// The move gizmo, where it is shown: Select tool, a selection, no G / S under way.
+fn shown_gizmo(state: &EditorState, vp: &ViewProjection) -> Option<Gizmo> {
+    if !state.view.show_gizmo || state.view.tool != Tool::Select || state.view.modal.is_some() {
+        return None;
+    }
+    Gizmo::new(state.session.selection_center()?, vp)
+}
+
 fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifiers: egui::Modifiers) {
+    // A press on a handle of the move gizmo drags the selection along its axis or plane.
+    if let Some(g) = shown_gizmo(state, vp) {
+        if let Some((handle, grab)) = g.pick(vp, pos).and_then(|h| Some((h, gizmo::drag_point(h, g.center, vp, pos)?))) {
+            let tag = state.session.new_tag();
+            state.view.gesture = Some(Gesture::Gizmo { tag, handle, center: g.center, grab, applied: Vec3::ZERO, snap: false });
+            return;
+        }
+    }
     let project = state.session.project();
     state.view.gesture = match state.view.tool {
         Tool::Select => match tools::pick(project, vp, pos) {
@@ -414,8 +446,10 @@ fn paint_point(state: &mut EditorState, vp: &ViewProjection, pos: Pos2) -> Optio
     tools::working_plane_point(state.session.project(), vp, pos)
 }
 
-fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2], alt: bool) {
+fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2], modifiers: egui::Modifiers) {
+    let alt = modifiers.alt;
     let brush = state.view.brush;
+    let cell = state.session.project().grid.cell_size();
     let Some(&last) = points.last() else { return };
     match &mut state.view.gesture {
         Some(Gesture::Paint(stroke)) => {
@@ -454,6 +488,19 @@ fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2
                 if let Some(l) = state.session.edit(tag).lights.get_mut(light) {
                     l.position += step;
                 }
+            }
+        }
+        Some(Gesture::Gizmo { tag, handle, center, grab, applied, snap }) => {
+            // The pointer's last position decides (not the path it took): a point the handle
+            // cannot reach (its axis along the view ray) leaves the selection where it is.
+            let Some(point) = gizmo::drag_point(*handle, *center, vp, last) else { return };
+            *snap = modifiers.ctrl || modifiers.command;
+            let total = gizmo::displacement(*handle, *grab, point, snap.then_some(cell));
+            let step = total - *applied;
+            *applied = total;
+            let tag = *tag;
+            if step != Vec3::ZERO {
+                state.session.translate_selection(tag, step);
             }
         }
         Some(Gesture::ScaleDrag { tag, targets, last_x }) => {
@@ -594,5 +641,73 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
                 painter.circle_stroke(pos, r * 0.5, Line::new(1.0, color.gamma_multiply(0.5)));
             }
         }
+    }
+}
+
+/// The move gizmo: axis arrows and plane squares in the slice-plane colours, the handle under
+/// the pointer (or being dragged) lit up, and while dragging the axis line and the drag's
+/// values next to the pointer.
+fn gizmo_overlay(state: &EditorState, painter: &egui::Painter, rect: Rect, pointer: Option<Pos2>) {
+    let vp = ViewProjection::new(&state.session.project().camera, rect);
+    let Some(g) = shown_gizmo(state, &vp) else { return };
+    let (active, drag) = match &state.view.gesture {
+        Some(Gesture::Gizmo { handle, applied, snap, .. }) => (Some(*handle), Some((*applied, *snap))),
+        None => (pointer.filter(|p| rect.contains(*p)).and_then(|p| g.pick(&vp, p)), None),
+        _ => (None, None),
+    };
+    let colour = |a: usize, lit: bool| {
+        let c = super::slices::Axis::ALL[a].colour();
+        if lit {
+            gizmo::LIT
+        } else {
+            c
+        }
+    };
+    if let (Some(handle), Some(_)) = (active, drag) {
+        // The line (or the plane's two lines) the drag is held to, across the view.
+        let axes: Vec<usize> = match handle {
+            Handle::Axis(a) => vec![a],
+            Handle::Plane(n) => vec![(n + 1) % 3, (n + 2) % 3],
+        };
+        for a in axes {
+            let far = g.length * 40.0;
+            let ends = [g.center - Vec3::AXES[a] * far, g.center + Vec3::AXES[a] * far];
+            if let (Some((p, _)), Some((q, _))) = (vp.project(ends[0]), vp.project(ends[1])) {
+                painter.line_segment([p, q], Line::new(1.0, colour(a, false).gamma_multiply(0.6)));
+            } else if let Some((tip, _)) = vp.project(g.center + Vec3::AXES[a] * g.length) {
+                let d = (tip - g.screen).normalized() * 4000.0;
+                painter.line_segment([g.screen - d, g.screen + d], Line::new(1.0, colour(a, false).gamma_multiply(0.6)));
+            }
+        }
+    }
+    for n in 0..3 {
+        let Some(q) = g.square(&vp, n) else { continue };
+        let lit = active == Some(Handle::Plane(n));
+        let c = colour(n, lit);
+        let fill = Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), if lit { 150 } else { 70 });
+        painter.add(egui::Shape::convex_polygon(q.to_vec(), fill, Line::new(1.0, c)));
+    }
+    for a in 0..3 {
+        let Some((from, tip)) = g.arrow(&vp, a) else { continue };
+        let lit = active == Some(Handle::Axis(a));
+        let c = colour(a, lit);
+        let dir = (tip - from).normalized();
+        let side = egui::vec2(-dir.y, dir.x);
+        painter.line_segment([from + dir * 12.0, tip], Line::new(if lit { 4.0 } else { 2.5 }, c));
+        let head = if lit { 7.0 } else { 5.5 };
+        painter.add(egui::Shape::convex_polygon(vec![tip + dir * head * 2.2, tip + side * head, tip - side * head], c, Line::NONE));
+    }
+    painter.circle_stroke(g.screen, 5.0, Line::new(1.5, Color32::WHITE));
+    if let (Some((d, snap)), Some(p)) = (drag, pointer) {
+        let mut text = format!("Δx {:+.3} m   Δy {:+.3} m   Δz {:+.3} m", d.x, d.y, d.z);
+        if snap {
+            text.push_str("   (snapped to the grid cell)");
+        }
+        let galley = painter.layout_no_wrap(text, egui::FontId::proportional(13.0), Color32::WHITE);
+        let at = p + egui::vec2(18.0, 18.0);
+        let at = Pos2::new(at.x.min(rect.right() - galley.size().x - 8.0).max(rect.left()), at.y.min(rect.bottom() - 24.0));
+        let bg = Rect::from_min_size(at, galley.size()).expand(4.0);
+        painter.rect_filled(bg, 3.0, Color32::from_black_alpha(190));
+        painter.galley(at, galley, Color32::WHITE);
     }
 }

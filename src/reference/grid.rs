@@ -12,7 +12,7 @@ use glam::DVec3;
 /// trilinear medium is a cubic along a ray between two crossings of cell-centre planes.
 const GAUSS: [(f64, f64); 2] = [(0.211_324_865_405_187_1, 0.5), (0.788_675_134_594_812_9, 0.5)];
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct GridMedium64 {
     min: DVec3,
     max: DVec3,

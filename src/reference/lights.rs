@@ -92,15 +92,20 @@ pub fn gaussians_only(project: &Project) -> Medium64 {
 
 /// [`sun_optical_depth`] of light `light` (a directional light) at the centres of `cells`.
 pub fn sun_optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    sun_optical_depth_cells_with(project, &gaussians_only(project), light, cells)
+}
+
+/// [`sun_optical_depth_cells`] with the medium inside the box given (without base fog, such
+/// as [`Medium64::without_base`] of a medium with a base volume).
+pub fn sun_optical_depth_cells_with(project: &Project, gaussians: &Medium64, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
     let crate::scene::LightKind::Directional { direction } = project.lights[light].kind else {
         panic!("light {light} is not directional");
     };
-    let gaussians = gaussians_only(project);
     let grid: &GridSpec = &project.grid;
     let mut out = vec![0.0; cells.len()];
     super::par_fill(&mut out, 64, |n| {
         let [i, j, k] = cells[n];
-        sun_optical_depth(project, &gaussians, super::cell_center64(grid, i, j, k), direction.as_dvec3())
+        sun_optical_depth(project, gaussians, super::cell_center64(grid, i, j, k), direction.as_dvec3())
     });
     out
 }

@@ -6,7 +6,8 @@
 //!
 //! - [`Medium64`]: the analytic medium of `physics.md` §2 and its exact optical depth (§3).
 //! - [`GridMedium64`]: the medium a grid represents (trilinear between cell centres, base fog
-//!   outside the box), for separating a propagation scheme's error from the grid's.
+//!   outside the box), for separating a propagation scheme's error from the grid's. It also
+//!   models a project's imported base volume inside [`Medium64`], as the injection adds it.
 //! - [`optical_depth_volume`], [`optical_depth_cells`]: exact optical-depth volumes (OPVs).
 //! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
 //!   (§4) with exact transmittance.
@@ -25,12 +26,13 @@ pub mod surface_glow;
 
 pub use grid::{clip_to_box, clipped_optical_depth, GridMedium64};
 pub use render::{
-    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, shadowed, RefRenderOptions,
+    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, render_reference_with, shadowed,
+    RefRenderOptions,
 };
 
-use crate::scene::{GridSpec, Project};
+use crate::scene::{GridSpec, Project, Volume};
 use glam::DVec3;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// A particle is skipped on a segment where its whole line integral, c·r·√π·exp(−d²/r²) with
 /// d its distance to the segment, is below this: an absolute optical depth that changes any
@@ -47,7 +49,8 @@ pub struct Gaussian64 {
     pub density: f64,
 }
 
-/// The medium of a project in f64: base fog plus gaussians.
+/// The medium of a project in f64: base fog plus gaussians, plus the imported base volume
+/// when one is given.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Medium64 {
     base: f64,
@@ -59,13 +62,50 @@ pub struct Medium64 {
     /// Per gaussian, whether `noise` modulates it (all false without noise).
     noisy: Vec<bool>,
     noise: Option<noise::Noise64>,
+    /// The base volume as the injection adds it: its values at the cell centres, trilinear
+    /// between them, constant out to the box faces and nothing outside the box.
+    layer: Option<Arc<GridMedium64>>,
 }
 
 impl Medium64 {
     pub fn new(base: f64, gaussians: Vec<Gaussian64>) -> Self {
         let cull = gaussians.iter().map(|g| (g.density * g.radius * SQRT_PI / NEGLIGIBLE_DEPTH).ln()).collect();
         let noisy = vec![false; gaussians.len()];
-        Self { base, height: (0.0, 0.0), gaussians, cull, noisy, noise: None }
+        Self { base, height: (0.0, 0.0), gaussians, cull, noisy, noise: None, layer: None }
+    }
+
+    /// [`from_project`](Self::from_project) plus the project's base volume `layer` as
+    /// [`Project::load_base_volume`] returns it (already scaled, on the project's grid).
+    ///
+    /// # Panics
+    /// If `layer` is not on `project.grid`.
+    pub fn for_project(project: &Project, layer: Option<&Volume>) -> Self {
+        let m = Self::from_project(project);
+        match layer {
+            Some(v) => m.with_layer(&project.grid, v),
+            None => m,
+        }
+    }
+
+    /// This medium plus `layer`, σ_t at the centres of `grid`'s cells (see [`Medium64::layer`]).
+    ///
+    /// # Panics
+    /// If `layer` is not on `grid`.
+    pub fn with_layer(mut self, grid: &GridSpec, layer: &Volume) -> Self {
+        assert_eq!(layer.grid, *grid, "the base volume must be resampled into the project's grid");
+        self.layer = Some(Arc::new(GridMedium64::from_volume(grid, layer, 0.0)));
+        self
+    }
+
+    /// The same medium without its base (height) fog: the gaussians (with their noise) and the
+    /// base volume, which a sun's optical depth integrates inside the box only.
+    pub fn without_base(&self) -> Self {
+        Self { base: 0.0, height: (0.0, 0.0), ..self.clone() }
+    }
+
+    /// Whether a base volume is part of this medium.
+    pub fn has_layer(&self) -> bool {
+        self.layer.is_some()
     }
 
     /// Visible particles with positive radius and density; hidden ones contribute nothing.
@@ -85,12 +125,6 @@ impl Medium64 {
             m.noisy = kept.iter().map(|p| p.noise).collect();
         }
         m
-    }
-
-    /// The same particles (and noise) without any base fog.
-    pub fn without_base(mut self) -> Self {
-        self.base = 0.0;
-        self
     }
 
     /// The noise modulating some of the gaussians, if any.
@@ -146,7 +180,7 @@ impl Medium64 {
             Some(n) if noisy > 0.0 => noisy * n.modulation(x),
             _ => noisy,
         };
-        self.base_at(x.y) + plain + noisy
+        self.base_at(x.y) + self.layer.as_ref().map_or(0.0, |l| l.extinction(x)) + plain + noisy
     }
 
     /// Exact optical depth ∫ σ_t along the segment from `a` to `b` (physics.md §3); both ends
@@ -167,6 +201,7 @@ impl Medium64 {
                 .map(|((g, &cull), _)| g.segment_depth(cull, a, dir, len))
                 .sum::<f64>()
             + self.noisy_depth(a, dir, len)
+            + self.layer.as_ref().map_or(0.0, |l| l.optical_depth(a, b))
     }
 
     /// ∫ of the noisy gaussians times the noise's modulation along `a + t·dir`, t in
@@ -229,7 +264,9 @@ impl Medium64 {
 
     /// The gaussians that can contribute anywhere along the line `origin + t·dir` (unit `dir`).
     pub fn along_line(&self, origin: DVec3, dir: DVec3) -> Self {
-        let mut kept = Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new(), noisy: Vec::new(), noise: self.noise };
+        let mut kept = Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new(), noisy: Vec::new(), noise: self.noise,
+            layer: self.layer.clone(),
+        };
         for ((g, &cull), &noisy) in self.gaussians.iter().zip(&self.cull).zip(&self.noisy) {
             let ob = g.center - origin;
             let perp = ob - dir * dir.dot(ob);
@@ -367,10 +404,17 @@ pub fn grid_light_depth_cells(project: &Project, medium: &GridMedium64, light: u
 /// # Panics
 /// If `light` is not an index into `project.lights`.
 pub fn clipped_optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+    clipped_optical_depth_cells_with(project, &Medium64::from_project(project), light, cells)
+}
+
+/// [`clipped_optical_depth_cells`] through `medium` (the project's, with its base volume).
+///
+/// # Panics
+/// If `light` is not an index into `project.lights`.
+pub fn clipped_optical_depth_cells_with(project: &Project, medium: &Medium64, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
     if matches!(project.lights[light].kind, crate::scene::LightKind::Directional { .. }) {
-        return lights::sun_optical_depth_cells(project, light, cells);
+        return lights::sun_optical_depth_cells_with(project, &medium.without_base(), light, cells);
     }
-    let medium = Medium64::from_project(project);
     let source = project.lights[light].position.as_dvec3();
     let mut out = vec![0.0; cells.len()];
     par_fill(&mut out, 64, |n| {
@@ -438,6 +482,36 @@ mod tests {
             let brute = brute_force(&m, a, b);
             assert!((exact - brute).abs() <= 1e-9 * brute, "{exact} vs {brute}");
         }
+    }
+
+    /// The base volume adds its cell values at the cell centres, trilinear between them and
+    /// nothing outside the box, to σ_t and to every optical depth (against fine quadrature).
+    #[test]
+    fn a_base_volume_adds_as_injected() {
+        let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -0.5), max: Vec3::new(1.0, 1.0, 0.5), resolution: UVec3::new(5, 4, 3) };
+        let mut s = 11;
+        let layer = crate::scene::Volume::new(grid, (0..grid.cell_count()).map(|_| lcg(&mut s) as f32 * 3.0).collect());
+        let g = Gaussian64 { center: DVec3::new(0.2, 0.5, 0.0), radius: 0.3, density: 2.0 };
+        let m = Medium64::new(0.1, vec![g]).with_layer(&grid, &layer);
+        let plain = Medium64::new(0.1, vec![g]);
+        for idx in [0usize, 7, 59] {
+            let [i, j, k] = grid.cell_of(idx);
+            let x = cell_center64(&grid, i, j, k);
+            assert!((m.extinction(x) - plain.extinction(x) - layer.data[idx] as f64).abs() < 1e-12);
+        }
+        assert_eq!(m.extinction(DVec3::new(1.5, 0.5, 0.0)), plain.extinction(DVec3::new(1.5, 0.5, 0.0)), "nothing outside the box");
+        for _ in 0..10 {
+            let p = |s: &mut u64| DVec3::new(lcg(s) * 3.0 - 1.5, lcg(s) * 1.6 - 0.3, lcg(s) * 1.6 - 0.8);
+            let (a, b) = (p(&mut s), p(&mut s));
+            let n = 100_000;
+            let fine = (0..n).map(|i| m.extinction(a + (b - a) * ((i as f64 + 0.5) / n as f64))).sum::<f64>() * (b - a).length() / n as f64;
+            let exact = m.optical_depth(a, b);
+            // Midpoint quadrature errs by up to a step times the jump at the box faces.
+            assert!((exact - fine).abs() < 1e-4 * fine.max(1.0), "{exact} vs {fine}");
+            assert!(exact > plain.optical_depth(a, b) || clip_to_box(grid.min.as_dvec3(), grid.max.as_dvec3(), a, (b - a).normalize(), (b - a).length()).is_none());
+        }
+        let outside = DVec3::new(1.5, 0.5, 2.0);
+        assert!(m.without_base().extinction(outside) < 1e-20, "without base fog nothing is left outside the box");
     }
 
     #[test]

@@ -78,7 +78,7 @@ fn arriving(medium: &Medium64, project: &Project, l: &Light64, x: DVec3) -> Opti
     Some((to_x / d2.sqrt(), cone / d2, (-medium.optical_depth(x, l.position)).exp()))
 }
 
-fn lights64(project: &Project) -> Vec<Light64> {
+fn lights64(project: &Project, medium: &Medium64) -> Vec<Light64> {
     project
         .visible_lights()
         .map(|l| Light64 {
@@ -90,7 +90,7 @@ fn lights64(project: &Project) -> Vec<Light64> {
                 _ => None,
             },
             gaussians: matches!(l.kind, crate::scene::LightKind::Directional { .. })
-                .then(|| super::lights::gaussians_only(project)),
+                .then(|| medium.without_base()),
         })
         .filter(|l| l.rgb.max_element() > 0.0)
         .collect()
@@ -179,7 +179,7 @@ pub fn radiance_along_ray(
     opts: &RefRenderOptions,
 ) -> [f64; 3] {
     let dir = dir.normalize();
-    let lights = lights64(project);
+    let lights = lights64(project, medium);
     let Some(dom) = domain(project, medium.base(), origin, dir, t_max) else { return [0.0; 3] };
     if lights.is_empty() || !dir.is_finite() {
         return [0.0; 3];
@@ -259,7 +259,7 @@ pub fn in_scatter_adaptive(
     rel_tol: f64,
 ) -> [f64; 3] {
     let dir = dir.normalize();
-    let lights = lights64(project);
+    let lights = lights64(project, medium);
     let Some(dom) = domain(project, medium.base(), origin, dir, t_max) else { return [0.0; 3] };
     if !dir.is_finite() {
         return [0.0; 3];
@@ -324,8 +324,12 @@ pub fn camera_ray64(camera: &Camera, px: u32, py: u32, width: u32, height: u32) 
 /// [`Surfaces::first_hit`](crate::scene::Surfaces::first_hit)), which adds its Lambertian
 /// radiance lit through the fog, attenuated by the exact view transmittance.
 pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRenderOptions) -> Vec<[f64; 3]> {
-    let medium = Medium64::from_project(project);
-    let lights = lights64(project);
+    render_reference_with(project, &Medium64::from_project(project), width, height, opts)
+}
+
+/// [`render_reference`] through `medium` (the project's, with its base volume).
+pub fn render_reference_with(project: &Project, medium: &Medium64, width: u32, height: u32, opts: &RefRenderOptions) -> Vec<[f64; 3]> {
+    let lights = lights64(project, medium);
     let origin = project.camera.position.as_dvec3();
     let mut out = vec![[0.0; 3]; width as usize * height as usize];
     par_fill(&mut out, width as usize, |n| {
@@ -333,10 +337,10 @@ pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRe
         let dir = camera_ray64(&project.camera, px, py, width, height);
         let hit = project.surfaces.first_hit(origin, dir);
         let t_max = hit.map_or(f64::INFINITY, |h| h.t);
-        let mut l = DVec3::from(radiance_along_ray(&medium, project, origin, dir, t_max, opts));
+        let mut l = DVec3::from(radiance_along_ray(medium, project, origin, dir, t_max, opts));
         if let Some(h) = hit {
             let x = origin + dir * h.t;
-            l += (-medium.optical_depth(origin, x)).exp() * surface_radiance(&medium, project, &lights, x, dir, &h);
+            l += (-medium.optical_depth(origin, x)).exp() * surface_radiance(medium, project, &lights, x, dir, &h);
         }
         l.to_array()
     });
