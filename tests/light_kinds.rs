@@ -22,7 +22,7 @@ fn files_without_the_new_fields_load_as_before() {
     for word in ["kind", "height_falloff", "height_origin", "noise"] {
         assert!(!text.contains(word), "{word} written for a default project:\n{text}");
     }
-    for demo in ["cloud", "cornell", "street"] {
+    for demo in ["cloud", "cornell", "street", "room"] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("projects").join(format!("{demo}.ron"));
         fogsmith::scene::load_project(&path).unwrap_or_else(|e| panic!("{demo}: {e}"));
     }

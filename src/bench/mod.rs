@@ -9,6 +9,8 @@
 //! - `scaling`: update time vs resolution × lights and vs particle count, for a dynamic
 //!   scene (everything recomputed) and a static one (camera only), with the stage split;
 //!   plus binned vs brute-force injection and empty-space skipping on / off.
+//! - `kinds`: light kinds (point, spot, sun) and medium features (height fog, noise,
+//!   surfaces) on one small scene, bake-and-render time against OPV and image error.
 //! - `scale`: time and peak memory (GPU resources, process RSS) against particles (10³ to
 //!   10⁶, small ones), grid resolution (32³ to 384³) and lights (1 to 16), with fitted
 //!   growth exponents; run on request only.

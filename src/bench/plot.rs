@@ -111,6 +111,13 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
                 (num(r, "time_ms"), num(r, "error_max"))
             }),
         ),
+        Suite::Kinds => loglog(
+            &dir.join("kinds_pareto.png"),
+            "Light kinds and medium features: bake and render time vs image error",
+            "inject + propagate + march (ms)",
+            "relative RMSE vs reference",
+            &group(records, |r| Some(text(r, "scene")), |r| (num(r, "time_ms"), num(r, "error_mean"))),
+        ),
         Suite::March => loglog(
             &dir.join("march_pareto.png"),
             "Ray march: samples per pixel vs image error",

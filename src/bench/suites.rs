@@ -9,7 +9,7 @@ use crate::reference::sun::{f_exact, table_error, table_error_paper_metric, FTab
 use crate::reference::{
     clipped_optical_depth_cells, grid_light_depth_cells, render_reference, GridMedium64, RefRenderOptions,
 };
-use crate::scene::{Light, Particle, Project, Scheme, StepPolicy};
+use crate::scene::{Ground, Light, LightKind, Noise, Particle, Project, Scheme, StepPolicy, SurfaceBox};
 use glam::{UVec3, Vec3};
 use serde_json::{json, Value};
 use std::time::Instant;
@@ -26,6 +26,9 @@ pub enum Suite {
     /// The editor under scripted input (not part of the default run: it needs the editor's
     /// frame loop and takes about a minute per quality mode).
     Interaction,
+    /// Light kinds (point, spot, sun) and medium features (height fog, noise, surfaces) on one
+    /// small scene: bake-and-render time against OPV and image error, per grid resolution.
+    Kinds,
 }
 
 pub struct Context {
@@ -61,6 +64,7 @@ pub fn run(suite: Suite, ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn 
             Ok(())
         }
         Suite::Scaling => scaling(ctx, out, log),
+        Suite::Kinds => kinds(ctx, out, log),
         Suite::Scale => super::scale::run(ctx, out, log),
         Suite::Interaction => {
             use crate::editor::app::Quality;
@@ -72,6 +76,15 @@ pub fn run(suite: Suite, ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn 
             Ok(())
         }
     }
+}
+
+/// The demo without its noise: the exact optical depth of noisy particles is an adaptive
+/// quadrature, too slow for the scheme and step-policy sweeps over whole demos (the `kinds`
+/// suite measures noise on a small scene).
+fn smooth_demo(name: &str) -> Result<Project, BenchError> {
+    let mut p = demo(name)?;
+    p.medium.noise = None;
+    Ok(p)
 }
 
 /// The project with its grid's longest axis at `longest` cells, the others in proportion.
@@ -104,7 +117,7 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
     };
     let max_cells = if ctx.quick { 20_000 } else { 100_000 };
     for name in scenes {
-        let base = demo(name)?;
+        let base = smooth_demo(name)?;
         for &res in &resolutions {
             let project = with_resolution(&base, res);
             let cells = sample_cells(&project.grid, max_cells);
@@ -160,7 +173,7 @@ fn march(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> 
     let two_level = pick(&[6.0, 12.0, 24.0, 48.0, 96.0]);
     let adaptive = pick(&[0.4, 0.2, 0.1, 0.05, 0.025]);
     for name in scenes {
-        let mut project = with_resolution(&demo(name)?, res);
+        let mut project = with_resolution(&smooth_demo(name)?, res);
         project.propagation.scheme = Scheme::Sweep;
         let (w, h) = image_size(&project, width);
         let t = Instant::now();
@@ -432,6 +445,80 @@ fn scaling(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
             off.timings_ms.march,
             on.timings_ms.march
         ));
+    }
+    Ok(())
+}
+
+/// The variants of the `kinds` suite: one scene of 27 particles and one light, changed in one
+/// respect each.
+fn kind_variants(res: u32) -> Vec<(&'static str, Project)> {
+    let base = particle_scene(27, 1, res);
+    let towards = (Vec3::ZERO - base.lights[0].position).normalize();
+    let mut out = vec![("point", base.clone())];
+    let mut p = base.clone();
+    p.lights[0].kind = LightKind::Spot { direction: towards, angle_deg: 20.0, blend: 0.3 };
+    p.lights[0].intensity = 8.0;
+    out.push(("spot", p));
+    let mut p = base.clone();
+    p.lights[0].kind = LightKind::Directional { direction: Vec3::new(-0.5, -1.0, -0.3) };
+    out.push(("sun", p));
+    let mut p = base.clone();
+    p.medium.base_extinction = 0.3;
+    p.medium.height_falloff = 1.5;
+    p.medium.height_origin = -1.0;
+    out.push(("height fog", p));
+    let mut p = base.clone();
+    // Octaves coarse enough for every resolution of the suite, so one exact image serves all.
+    p.medium.noise = Some(Noise { amplitude: 1.5, frequency: 1.5, octaves: 2, seed: 1 });
+    out.push(("noise", p));
+    let mut p = base;
+    p.surfaces.ground = Some(Ground { height: -1.0, specular: 0.3, ..Default::default() });
+    p.surfaces.boxes.push(SurfaceBox { min: Vec3::new(-0.3, -1.0, -0.9), max: Vec3::new(0.3, -0.5, -0.4), ..Default::default() });
+    out.push(("surfaces", p));
+    out
+}
+
+fn kinds(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+    let resolutions: Vec<u32> = if !ctx.resolutions.is_empty() {
+        ctx.resolutions.clone()
+    } else if ctx.quick {
+        vec![24, 48]
+    } else {
+        vec![24, 48, 96]
+    };
+    let (w, h) = if ctx.quick { (48, 27) } else { (96, 54) };
+    let max_cells = if ctx.quick { 4_000 } else { 20_000 };
+    let mut references: Vec<Vec<[f64; 3]>> = Vec::new();
+    for (i, &res) in resolutions.iter().enumerate() {
+        for (v, (name, p)) in kind_variants(res).into_iter().enumerate() {
+            if i == 0 {
+                // The exact image does not depend on the grid's resolution.
+                let t = Instant::now();
+                references.push(render_reference(&p, w, h, &RefRenderOptions::default()));
+                log(&format!("kinds  {name:10} reference {w}×{h} in {:.1} s", t.elapsed().as_secs_f64()));
+            }
+            let report = ctx.full(&p, w, h)?;
+            let cells = sample_cells(&p.grid, max_cells);
+            let ev = ctx.gpu.read_ev()?;
+            let e = crate::measure::opv_errors(&p, 0, &ev, &ctx.gpu.read_opv(0)?, &cells);
+            let img = image_error(&ctx.gpu.read_image()?, &references[v]);
+            log(&format!(
+                "kinds  {name:10} {res:>3}³ {:8.1} ms (inject {:.1}, propagate {:.1}, march {:.1})  OPV error max {:.2e} (scheme {:.2e})  image rel RMSE {:.2e}",
+                total_ms(&report),
+                report.timings_ms.inject,
+                report.timings_ms.propagate,
+                report.timings_ms.march,
+                e.total.transmittance_max_abs_error,
+                e.scheme.transmittance_max_abs_error,
+                img.rel_rmse
+            ));
+            out.push(json!({
+                "suite": "kinds", "scene": name, "resolution": res, "image": [w, h],
+                "time_ms": total_ms(&report), "stages_ms": stage_json(&report),
+                "error_max": e.total.transmittance_max_abs_error, "scheme_error_max": e.scheme.transmittance_max_abs_error,
+                "error_mean": img.rel_rmse, "image_error_max": img.max_abs_error, "cells_compared": cells.len(),
+            }));
+        }
     }
     Ok(())
 }

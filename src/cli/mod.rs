@@ -229,7 +229,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
                 return Err(format!("--resolution must be within 1..=1024, got {bad}").into());
             }
             use crate::bench::Suite;
-            let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling] } else { suite };
+            let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling, Suite::Kinds] } else { suite };
             let started = std::time::Instant::now();
             let mut bar = progress::Bar::new(quiet);
             let mut lines = 0usize;

@@ -585,7 +585,7 @@ mod timings {
     #[test]
     #[ignore]
     fn demo_project_timings() {
-        for name in ["cloud", "cornell", "street"] {
+        for name in ["cloud", "cornell", "street", "room"] {
             let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("projects/{name}.ron"));
             let project = match crate::scene::load_project(&path) {
                 Ok(p) => p,
