@@ -21,8 +21,9 @@ fn json_of(out: &std::process::Output) -> serde_json::Value {
 #[test]
 fn render_every_demo_prints_json_and_writes_the_image() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["cornell.ron", "cloud.ron", "street.ron"] {
-        let png = dir.path().join(name.replace(".ron", ".png"));
+    for (stem, _) in fogsmith::demos::DEMOS {
+        let name = &format!("{stem}.ron");
+        let png = dir.path().join(format!("{stem}.png"));
         let out = fogsmith()
             .args(["render", demo(name).to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "64", "--height", "36", "--json"])
             .output()
@@ -72,7 +73,9 @@ fn export_writes_vdb_and_exr_files() {
     assert_eq!(names, ["density", "optical_depth_0", "optical_depth_1"]);
     let grid = fogsmith::export::vdb_read::read_vdb_grid(&vdb, Some("density")).unwrap();
     assert!(grid.active_voxel_count() > 0);
-    assert!(v["exr_atlas"]["layout"].as_str().unwrap().contains("64 slices of 64×58"), "{v}");
+    let r = fogsmith::scene::load_project(&demo("cloud.ron")).unwrap().grid.resolution;
+    let layout = format!("{} slices of {}×{}", r.z, r.x, r.y);
+    assert!(v["exr_atlas"]["layout"].as_str().unwrap().contains(&layout), "{v} lacks {layout:?}");
     assert!(atlas.exists());
 }
 
