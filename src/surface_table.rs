@@ -97,27 +97,48 @@ pub fn g_exact(t: f64, theta_s: f64) -> f64 {
 }
 
 /// The G table the GPU reads: entry (i, j) at `data[j * GLOW_NT + i]`, T_i = T_MAX (i/(NT−1))⁴,
-/// θ_j = π j/(NΘ−1). Built once per process.
+/// θ_j = π j/(NΘ−1). Embedded from [`GLOW_TABLE_FILE`]: [`compute_glow_table`] takes seconds
+/// of quadrature, which every start of the program would pay.
 pub fn glow_table() -> &'static [f32] {
     static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
-    TABLE.get_or_init(|| {
-        let mut data = vec![0.0f32; GLOW_NT * GLOW_NTHETA];
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let rows_per = GLOW_NTHETA.div_ceil(threads);
-        std::thread::scope(|s| {
-            for (c, rows) in data.chunks_mut(rows_per * GLOW_NT).enumerate() {
-                s.spawn(move || {
-                    for (n, v) in rows.iter_mut().enumerate() {
-                        let (i, j) = (n % GLOW_NT, c * rows_per + n / GLOW_NT);
-                        let x = i as f64 / (GLOW_NT - 1) as f64;
-                        let theta = PI * j as f64 / (GLOW_NTHETA - 1) as f64;
-                        *v = g_exact(GLOW_T_MAX * (x * x) * (x * x), theta) as f32;
-                    }
-                });
-            }
-        });
-        data
-    })
+    TABLE.get_or_init(|| decode_table(include_bytes!("../assets/tables/glow_g.f32"), GLOW_NT * GLOW_NTHETA))
+}
+
+/// Where the embedded G table lives in the source tree.
+pub const GLOW_TABLE_FILE: &str = "assets/tables/glow_g.f32";
+/// Where the embedded specular table lives in the source tree.
+pub const SPEC_TABLE_FILE: &str = "assets/tables/spec_s.f32";
+
+/// An embedded table: little-endian f32 values, `len` of them (the build's own file, so a
+/// wrong length is a defect of the tree, caught by the tests).
+fn decode_table(bytes: &[u8], len: usize) -> Vec<f32> {
+    assert_eq!(bytes.len(), 4 * len, "an embedded surface table has the wrong size: regenerate it (see `tables_file_bytes`)");
+    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+/// A table as the bytes of its file in `assets/tables/`.
+pub fn tables_file_bytes(table: &[f32]) -> Vec<u8> {
+    table.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// The G table by hemisphere quadrature, the source of [`glow_table`].
+pub fn compute_glow_table() -> Vec<f32> {
+    let mut data = vec![0.0f32; GLOW_NT * GLOW_NTHETA];
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let rows_per = GLOW_NTHETA.div_ceil(threads);
+    std::thread::scope(|s| {
+        for (c, rows) in data.chunks_mut(rows_per * GLOW_NT).enumerate() {
+            s.spawn(move || {
+                for (n, v) in rows.iter_mut().enumerate() {
+                    let (i, j) = (n % GLOW_NT, c * rows_per + n / GLOW_NT);
+                    let x = i as f64 / (GLOW_NT - 1) as f64;
+                    let theta = PI * j as f64 / (GLOW_NTHETA - 1) as f64;
+                    *v = g_exact(GLOW_T_MAX * (x * x) * (x * x), theta) as f32;
+                }
+            });
+        }
+    });
+    data
 }
 
 /// G from the table, bilinear: the f64 transliteration of `glow_g` in
@@ -260,73 +281,76 @@ fn spec_theta(j: usize, w: f64) -> f64 {
 
 /// The specular table the GPU reads: H = S_n(T, θ_r)·sqrt(θ_r² + w_n²) (bounded: S peaks like
 /// 1/w_n at θ_r = 0 and falls like 1/θ_r), at T_i = T_MAX (i/(NT−1))⁴, θ_j as [`spec_theta`],
-/// n_k as [`spec_node_exponent`]. The γ integral uses one fixed Gauss–Legendre rule, so B is
-/// computed once per T. Built once per process.
+/// n_k as [`spec_node_exponent`]. Embedded from [`SPEC_TABLE_FILE`], as [`glow_table`] is.
 pub fn spec_table() -> &'static [f32] {
     static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
-    TABLE.get_or_init(|| {
-        let (fine, coarse) = (table_gamma_rule(256), table_gamma_rule(64));
-        let rule: Vec<(f64, f64)> = fine.iter().chain(&coarse).copied().collect();
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let ts: Vec<f64> = (0..SPEC_NT)
-            .map(|i| {
-                let x = i as f64 / (SPEC_NT - 1) as f64;
-                GLOW_T_MAX * (x * x) * (x * x)
-            })
-            .collect();
-        // B(T_i, γ_q)·weight_q, T fastest per γ node.
-        let mut bw = vec![0.0f64; rule.len() * SPEC_NT];
-        let per = rule.len().div_ceil(threads);
-        std::thread::scope(|s| {
-            for (c, chunk) in bw.chunks_mut(per * SPEC_NT).enumerate() {
-                let (rule, ts) = (&rule, &ts);
-                s.spawn(move || {
-                    for (n, v) in chunk.iter_mut().enumerate() {
-                        let (q, i) = (c * per + n / SPEC_NT, n % SPEC_NT);
-                        *v = b_with_tolerance(ts[i], rule[q].0, 1e-10) * rule[q].1;
-                    }
-                });
-            }
-        });
-        let mut data = vec![0.0f32; SPEC_NT * SPEC_NTHETA * SPEC_NN];
-        let rows = SPEC_NTHETA * SPEC_NN;
-        let rows_per = rows.div_ceil(threads);
-        std::thread::scope(|s| {
-            for (c, block) in data.chunks_mut(rows_per * SPEC_NT).enumerate() {
-                let (rule, bw, fine) = (&rule, &bw, &fine);
-                s.spawn(move || {
-                    for (r, row) in block.chunks_mut(SPEC_NT).enumerate() {
-                        let row_index = c * rows_per + r;
-                        let (j, k) = (row_index % SPEC_NTHETA, row_index / SPEC_NTHETA);
-                        let n = spec_node_exponent(k);
-                        let w = lobe_width(n);
-                        let theta = spec_theta(j, w);
-                        let mut g = vec![0.0f64; SPEC_NT];
-                        // Beyond δ from the mirror direction the lobe is below 1e-12 of its peak.
-                        let delta = if n > 0.0 { (1e-12f64.powf(1.0 / n)).acos() + 1e-3 } else { PI };
-                        let range = if n >= FINE_RULE_FROM { 0..fine.len() } else { fine.len()..rule.len() };
-                        for q in range {
-                            let gamma = rule[q].0;
-                            if (gamma - theta).abs() > delta {
-                                continue;
-                            }
-                            let cn = lobe_azimuth(theta, gamma, n);
-                            if cn != 0.0 {
-                                for (i, gi) in g.iter_mut().enumerate() {
-                                    *gi += cn * bw[q * SPEC_NT + i];
-                                }
+    TABLE.get_or_init(|| decode_table(include_bytes!("../assets/tables/spec_s.f32"), SPEC_NT * SPEC_NTHETA * SPEC_NN))
+}
+
+/// The specular table by quadrature, the source of [`spec_table`]. The γ integral uses one
+/// fixed Gauss–Legendre rule, so B is computed once per T.
+pub fn compute_spec_table() -> Vec<f32> {
+    let (fine, coarse) = (table_gamma_rule(256), table_gamma_rule(64));
+    let rule: Vec<(f64, f64)> = fine.iter().chain(&coarse).copied().collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let ts: Vec<f64> = (0..SPEC_NT)
+        .map(|i| {
+            let x = i as f64 / (SPEC_NT - 1) as f64;
+            GLOW_T_MAX * (x * x) * (x * x)
+        })
+        .collect();
+    // B(T_i, γ_q)·weight_q, T fastest per γ node.
+    let mut bw = vec![0.0f64; rule.len() * SPEC_NT];
+    let per = rule.len().div_ceil(threads);
+    std::thread::scope(|s| {
+        for (c, chunk) in bw.chunks_mut(per * SPEC_NT).enumerate() {
+            let (rule, ts) = (&rule, &ts);
+            s.spawn(move || {
+                for (n, v) in chunk.iter_mut().enumerate() {
+                    let (q, i) = (c * per + n / SPEC_NT, n % SPEC_NT);
+                    *v = b_with_tolerance(ts[i], rule[q].0, 1e-10) * rule[q].1;
+                }
+            });
+        }
+    });
+    let mut data = vec![0.0f32; SPEC_NT * SPEC_NTHETA * SPEC_NN];
+    let rows = SPEC_NTHETA * SPEC_NN;
+    let rows_per = rows.div_ceil(threads);
+    std::thread::scope(|s| {
+        for (c, block) in data.chunks_mut(rows_per * SPEC_NT).enumerate() {
+            let (rule, bw, fine) = (&rule, &bw, &fine);
+            s.spawn(move || {
+                for (r, row) in block.chunks_mut(SPEC_NT).enumerate() {
+                    let row_index = c * rows_per + r;
+                    let (j, k) = (row_index % SPEC_NTHETA, row_index / SPEC_NTHETA);
+                    let n = spec_node_exponent(k);
+                    let w = lobe_width(n);
+                    let theta = spec_theta(j, w);
+                    let mut g = vec![0.0f64; SPEC_NT];
+                    // Beyond δ from the mirror direction the lobe is below 1e-12 of its peak.
+                    let delta = if n > 0.0 { (1e-12f64.powf(1.0 / n)).acos() + 1e-3 } else { PI };
+                    let range = if n >= FINE_RULE_FROM { 0..fine.len() } else { fine.len()..rule.len() };
+                    for q in range {
+                        let gamma = rule[q].0;
+                        if (gamma - theta).abs() > delta {
+                            continue;
+                        }
+                        let cn = lobe_azimuth(theta, gamma, n);
+                        if cn != 0.0 {
+                            for (i, gi) in g.iter_mut().enumerate() {
+                                *gi += cn * bw[q * SPEC_NT + i];
                             }
                         }
-                        let scale = (n + 1.0) / (2.0 * PI) * (theta * theta + w * w).sqrt();
-                        for (v, gi) in row.iter_mut().zip(&g) {
-                            *v = (gi * scale) as f32;
-                        }
                     }
-                });
-            }
-        });
-        data
-    })
+                    let scale = (n + 1.0) / (2.0 * PI) * (theta * theta + w * w).sqrt();
+                    for (v, gi) in row.iter_mut().zip(&g) {
+                        *v = (gi * scale) as f32;
+                    }
+                }
+            });
+        }
+    });
+    data
 }
 
 /// S_n from the table: bilinear in (T, θ_r) at the two exponent nodes around n (each with its
@@ -410,5 +434,28 @@ mod tests {
         }
         // Lights below the horizon still light the surface through the fog.
         assert!(g_exact(1.0, 2.5) > 0.0);
+    }
+
+    /// The embedded tables are what the quadrature gives today (to f32 rounding, whatever the
+    /// platform's libm): a change to the quadrature or a table's layout fails here until the
+    /// files are regenerated with `FOGSMITH_WRITE_TABLES=1 cargo test --release --lib
+    /// embedded_tables`.
+    #[test]
+    fn embedded_tables_match_the_quadrature() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        for (name, file, embedded, computed) in [
+            ("G", GLOW_TABLE_FILE, glow_table(), compute_glow_table()),
+            ("specular", SPEC_TABLE_FILE, spec_table(), compute_spec_table()),
+        ] {
+            if std::env::var_os("FOGSMITH_WRITE_TABLES").is_some() {
+                std::fs::write(root.join(file), tables_file_bytes(&computed)).unwrap();
+                continue;
+            }
+            assert_eq!(embedded.len(), computed.len(), "{name} table ({file}): size");
+            let peak = computed.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            for (n, (a, b)) in embedded.iter().zip(&computed).enumerate() {
+                assert!(b.is_finite() && (a - b).abs() <= 1e-6 * peak, "{name} table ({file}) entry {n}: embedded {a}, quadrature {b}");
+            }
+        }
     }
 }
