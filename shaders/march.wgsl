@@ -446,11 +446,18 @@ fn brick_max_at(b: vec3u) -> f32 {
     return brick_max[b.x + bdims.x * (b.y + bdims.y * b.z)];
 }
 
+// 1/d for the slab tests, with components below 1e-30 in magnitude taken as 1e-30: a ray
+// parallel to a slab then gets finite distances, never 0·∞ = NaN when its origin lies on the
+// slab's plane.
+fn safe_inverse(d: vec3f) -> vec3f {
+    return 1.0 / select(d, vec3f(1e-30), abs(d) < vec3f(1e-30));
+}
+
 // Distance along the ray from o + dir·t to the exit of brick b.
 fn brick_exit(o: vec3f, dir: vec3f, b: vec3u) -> f32 {
     let lo = grid.min + vec3f(b * BRICK) * grid.cell;
     let hi = min(grid.min + vec3f((b + 1u) * BRICK) * grid.cell, grid.max);
-    let inv = 1.0 / dir;
+    let inv = safe_inverse(dir);
     let t_lo = (lo - o) * inv;
     let t_hi = (hi - o) * inv;
     let t_far = max(t_lo, t_hi);
@@ -521,7 +528,7 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
                 }
             }
         } else {
-            let inv = 1.0 / dir;
+            let inv = safe_inverse(dir);
             let ta = (s.min - o) * inv;
             let tb = (s.max - o) * inv;
             let tn = min(ta, tb);
@@ -554,7 +561,7 @@ fn shadowed(x: vec3f, n: vec3f, u: vec3f, t_max: f32) -> bool {
     let eps = 1e-5 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
     let o = x + n * eps;
     let reach = t_max * (1.0 - 1e-3);
-    let inv = 1.0 / select(u, vec3f(1e-30), abs(u) < vec3f(1e-30));
+    let inv = safe_inverse(u);
     for (var i = 0u; i < params.surface_count; i++) {
         let s = surfaces[i];
         if s.kind == 1u {
@@ -655,7 +662,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     skipped = 0u;
 
     let hit = first_surface(o, dir);
-    let inv = 1.0 / dir;
+    let inv = safe_inverse(dir);
     let ta = (grid.min - o) * inv;
     let tb = (grid.max - o) * inv;
     let t_enter = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), max(min(ta.z, tb.z), 0.0));

@@ -61,7 +61,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     let s = planes * grid.cell[a] / abs(towards[a]);
     var g: f32;
     if plane.previous == plane.plane || s >= e {
-        g = integrate_pieces(x, x + towards * e);
+        g = integrate_pieces(x, x + towards * e, true);
     } else {
         let u = x + towards * s;
         // Bilinear weights in the previous plane, clamped to its cell centres.
@@ -84,7 +84,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
         c[a1] = i1;
         let m01 = mean_extinction(c, towards, base);
         let m = mix(mix(m00, m10, w1), mix(m01, m11, w1), w2);
-        g = m * box_exit(u, towards) + integrate_pieces(x, u);
+        g = m * box_exit(u, towards) + integrate_pieces(x, u, true);
     }
     opv_store(base + linear_index(id), g + beyond);
 }

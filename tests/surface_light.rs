@@ -387,3 +387,22 @@ fn specular_surfaces_never_give_nan() {
         }
     }
 }
+
+/// Camera rays parallel to the faces of the grid box and of a surface box, starting on their
+/// planes (odd image sizes put the centre row and column exactly along the axes): the slab
+/// tests must not meet 0·∞, so the image holds no NaN and is not black.
+#[test]
+fn rays_along_box_faces_give_no_nan() {
+    let mut gpu = pipeline();
+    for beta in [0.0f32, 0.4] {
+        let mut p = shadow_scene(LightKind::Point, beta, false);
+        p.surfaces.boxes.push(SurfaceBox { min: Vec3::new(-1.0, 0.5, 0.0), max: Vec3::new(-0.5, 1.0, 0.5), albedo: Vec3::splat(0.5), ..SurfaceBox::default() });
+        p.camera = Camera { position: Vec3::new(-1.0, 0.5, -3.0), target: Vec3::new(-1.0, 0.5, 0.0), up: Vec3::Y, fov_y_deg: 40.0 };
+        p.render.width = 25;
+        p.render.height = 19;
+        gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
+        let image = gpu.read_image().unwrap();
+        assert!(image.rgba.iter().flatten().all(|v| v.is_finite() && *v >= 0.0), "β {beta}: NaN, infinity or negative");
+        assert!(image.rgba.iter().any(|v| v[0] > 0.0), "β {beta}: the image is black");
+    }
+}

@@ -43,6 +43,9 @@ pub struct Propagator {
 /// Simpson steps per cell edge of the `exact` scheme.
 pub const EXACT_STEPS_PER_CELL: u32 = 4;
 
+/// The segment integral the sweeps share (shaders/integrate_exact.wgsl).
+pub(crate) const INTEGRATE: &str = include_str!("../../shaders/integrate_exact.wgsl");
+
 impl Propagator {
     pub fn new(device: &wgpu::Device, opv: OpvLayout) -> Self {
         let two = |a: bool, b: bool| [opv.layout_entries(EXTRA_BINDING, a), opv.layout_entries(EXTRA_BINDING_2, b)].concat();
@@ -85,7 +88,7 @@ impl Propagator {
         let sweep = compute_pipeline(
             device,
             "propagate_sweep",
-            &[&opv_mean, VOLUME_LOOKUP, sigma, include_str!("../../shaders/propagate_sweep.wgsl")],
+            &[&opv_mean, VOLUME_LOOKUP, sigma, INTEGRATE, include_str!("../../shaders/propagate_sweep.wgsl")],
             &sweep_layout,
         );
         let sweep_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
@@ -119,7 +122,7 @@ impl Propagator {
                 &opv_rw,
                 VOLUME_LOOKUP,
                 include_str!("../../shaders/sweep_sigma_loads.wgsl"),
-                include_str!("../../shaders/integrate_exact.wgsl"),
+                INTEGRATE,
                 include_str!("../../shaders/propagate_directional.wgsl"),
             ],
             &exact_layout,
