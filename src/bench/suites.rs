@@ -110,10 +110,11 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
     } else {
         vec![32, 48, 64, 96, 128]
     };
-    let schemes: &[(Scheme, u32)] = if ctx.quick {
-        &[(Scheme::Giroud, 8), (Scheme::Sweep, 8), (Scheme::Exact, 8)]
+    // (scheme, sweep stride, sweep_refine)
+    let schemes: &[(Scheme, u32, bool)] = if ctx.quick {
+        &[(Scheme::Giroud, 8, false), (Scheme::Sweep, 8, false), (Scheme::Sweep, 8, true), (Scheme::Exact, 8, false)]
     } else {
-        &[(Scheme::Giroud, 4), (Scheme::Sweep, 4), (Scheme::Sweep, 8), (Scheme::Exact, 4)]
+        &[(Scheme::Giroud, 4, false), (Scheme::Sweep, 4, false), (Scheme::Sweep, 8, false), (Scheme::Sweep, 8, true), (Scheme::Exact, 4, false)]
     };
     let max_cells = if ctx.quick { 20_000 } else { 100_000 };
     for name in scenes {
@@ -133,10 +134,11 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
                 .enumerate()
                 .map(|(l, g)| depth_error(l, g, &clipped_optical_depth_cells(&project, l, &cells)).transmittance_max_abs_error)
                 .fold(0.0f64, f64::max);
-            for &(scheme, stride) in schemes {
+            for &(scheme, stride, refine) in schemes {
                 let mut p = project.clone();
                 p.propagation.scheme = scheme;
                 p.propagation.sweep_stride = stride;
+                p.propagation.sweep_refine = refine;
                 let report = ctx.full(&p, 8, 8)?;
                 let (mut max, mut mean) = (0.0f64, 0.0f64);
                 for (l, ex) in exact.iter().enumerate() {
@@ -144,7 +146,11 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
                     max = max.max(e.transmittance_max_abs_error);
                     mean += e.transmittance_mean_abs_error / exact.len() as f64;
                 }
-                let label = if scheme == Scheme::Sweep { format!("sweep{stride}") } else { scheme.to_string() };
+                let label = match (scheme, refine) {
+                    (Scheme::Sweep, false) => format!("sweep{stride}"),
+                    (Scheme::Sweep, true) => format!("sweep{stride}r"),
+                    _ => scheme.to_string(),
+                };
                 let r = project.grid.resolution;
                 log(&format!(
                     "opv    {name:8} {:>3}×{:>3}×{:>3} {label:8} {:9.1} ms  scheme error mean {mean:.2e} max {max:.2e}  resolution error max {resolution:.2e}  ({} passes)",

@@ -101,7 +101,9 @@ pub struct SweepStep {
     pub stride: u32,
     /// Index of the step's first thread among its batch's.
     pub offset: u32,
-    pub _pad: [u32; 3],
+    /// 1: cells with an unresolved stencil integrate directly (`sweep_refine`).
+    pub refine: u32,
+    pub _pad: [u32; 2],
 }
 
 /// One slab of cells a sweep dispatch may solve for one light (see `propagate_sweep.wgsl`).

@@ -26,6 +26,8 @@ pub struct PropagationInputs<'a> {
     pub directions: &'a [Option<Vec3>],
     /// Layers stepped back per interpolation by the `sweep` scheme (≥ 3).
     pub sweep_stride: u32,
+    /// The `sweep` scheme's direct integration of unresolved stencils.
+    pub sweep_refine: bool,
 }
 
 pub struct Propagator {
@@ -236,7 +238,9 @@ impl Propagator {
                         (l, position, first)
                     })
                     .collect();
-                let plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride, ITEM_THREADS);
+                let mut plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride, ITEM_THREADS);
+                let refine = inputs.sweep_refine as u32;
+                plan.steps.iter_mut().chain(plan.whole.iter_mut().map(|w| &mut w.1)).for_each(|s| s.refine = refine);
                 let units = plan
                     .steps
                     .iter()
@@ -676,7 +680,8 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
             row,
             stride,
             offset: offset as u32,
-            _pad: [0; 3],
+            refine: 0,
+            _pad: [0; 2],
         });
     };
     for batch in 0..batches {
@@ -714,7 +719,8 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
                 row,
                 stride,
                 offset: 0,
-                _pad: [0; 3],
+                refine: 0,
+                _pad: [0; 2],
             };
             plan.whole.push((batch_step..plan.steps.len(), step, groups));
         }
