@@ -18,15 +18,16 @@
 // case is exact. A larger stride means fewer interpolations along a ray, hence less numerical
 // diffusion.
 //
-// Interpolation cannot resolve the shadow of a particle of a cell or two: there the
-// optical depth varies over the stencil faster than any interpolant follows. With
-// `propagation.sweep_refine` (step.refine) a cell whose stencil shows it (the cubic and the bilinear interpolant disagree by more than REFINE_TOL
-// in transmittance, or the four nearest cells' transmittances spread by more than
-// SPREAD_TOL) integrates its whole in-box path directly instead, like the cells that start
-// the sweep. Its value is then as exact as the `exact` scheme's, and the cells behind it
-// interpolate from exact values. Smooth fog never triggers it; the cost grows with the
-// volume of under-resolved shadow edges in the grid. Whole in-box paths (and, with refine, every
-// segment) are split at every axis' cell-centre planes, which makes their integral exact.
+// Interpolation cannot resolve the shadow of a particle of a cell or two: there the optical
+// depth varies over the stencil faster than any interpolant follows. With
+// `propagation.sweep_refine` (step.refine) a cell whose stencil shows it (the cubic and the
+// bilinear interpolant disagree by more than REFINE_TOL in transmittance, or the four nearest
+// cells' transmittances spread by more than SPREAD_TOL) integrates its whole in-box path
+// directly instead, like the cells that start the sweep. Its value is then as exact as the
+// `exact` scheme's, and the cells behind it interpolate from exact values. Dense smooth fog
+// whose optical depth curves across the stencil triggers it too, so it costs time on every
+// scene, most where the fog is dense. Whole in-box paths (and, with refine, every segment) are
+// split at every axis' cell-centre planes, which makes their integral exact.
 //
 // Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
 // units, around the light, or around a far light's anchor on the same line) closer to the

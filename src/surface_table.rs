@@ -112,7 +112,7 @@ pub const SPEC_TABLE_FILE: &str = "assets/tables/spec_s.f32";
 /// An embedded table: little-endian f32 values, `len` of them (the build's own file, so a
 /// wrong length is a defect of the tree, caught by the tests).
 fn decode_table(bytes: &[u8], len: usize) -> Vec<f32> {
-    assert_eq!(bytes.len(), 4 * len, "an embedded surface table has the wrong size: regenerate it (see `tables_file_bytes`)");
+    assert_eq!(bytes.len(), 4 * len, "an embedded surface table has the wrong size: regenerate it with FOGSMITH_WRITE_TABLES=1 cargo test --release --lib embedded_tables");
     bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
 }
 

@@ -169,19 +169,20 @@ mod tests {
     #[test]
     fn every_gpu_struct_has_the_size_of_its_wgsl_twin() {
         use crate::gpu::opv_store::{OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
+        use crate::gpu::propagate::INTEGRATE;
         let opv = OpvLayout { segment: 1 << 20, segments: 2 };
         let (opv_read, opv_rw) = (opv.wgsl("opv", 4, EXTRA_BINDING, false), opv.wgsl("opv", 4, EXTRA_BINDING, true));
         let opv_mean = opv_rw.clone() + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
         let inject = [include_str!("../../shaders/noise.wgsl"), include_str!("../../shaders/inject.wgsl")];
         let march = [&opv_read, include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/surface_glow.wgsl"), include_str!("../../shaders/march.wgsl")];
-        let sweep = [&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/sweep_sigma_filtered.wgsl"), include_str!("../../shaders/integrate_exact.wgsl"), include_str!("../../shaders/propagate_sweep.wgsl")];
+        let sweep = [&opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/sweep_sigma_filtered.wgsl"), INTEGRATE, include_str!("../../shaders/propagate_sweep.wgsl")];
         let exact = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
         let slice = [&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")];
         let directional = [
             &opv_rw,
             VOLUME_LOOKUP,
             include_str!("../../shaders/sweep_sigma_loads.wgsl"),
-            include_str!("../../shaders/integrate_exact.wgsl"),
+            INTEGRATE,
             include_str!("../../shaders/propagate_directional.wgsl"),
         ];
         let cases: [(&[&str], &str, usize); 10] = [

@@ -727,8 +727,8 @@ pub struct PropagationSettings {
     pub sweep_stride: u32,
     /// Whether the `sweep` scheme integrates directly the cells whose interpolation stencil
     /// does not resolve the optical depth (the shadows of particles of a cell or two), for a
-    /// scheme error below 2e-3 whatever the particles' size, at about 2–3× the sweep's time
-    /// on scenes of large particles (`fogsmith bench --suite opv`). Default false: the live
+    /// scheme error below 2e-3 whatever the particles' size, at 1.2–2.7× the sweep's time on
+    /// the demos, most in dense fog (`fogsmith bench --suite opv`). Default false: the live
     /// preview's speed; turn it on for exports of finely painted fog.
     pub sweep_refine: bool,
 }
