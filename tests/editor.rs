@@ -5,7 +5,7 @@
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
 use egui_kittest::{Harness, SnapshotOptions};
-use fogsmith::editor::app::{Action, Export, Quality, StartProject};
+use fogsmith::editor::app::{Action, Export, PreviewScale, Quality, StartProject};
 use fogsmith::editor::slices::Axis;
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
@@ -21,13 +21,20 @@ fn harness(start: StartProject) -> Harness<'static, EditorApp> {
     harness_with(start, EditorOptions::default())
 }
 
+/// The editor at a quarter of the preview's resolution: the march's cost is per pixel, and
+/// what these tests check does not depend on it (the layout snapshot uses full resolution).
 fn harness_with(start: StartProject, options: EditorOptions) -> Harness<'static, EditorApp> {
+    harness_scaled(start, options, PreviewScale::Quarter)
+}
+
+fn harness_scaled(start: StartProject, options: EditorOptions, scale: PreviewScale) -> Harness<'static, EditorApp> {
     let mut h = Harness::builder()
         .with_size(Vec2::new(1280.0, 800.0))
         .wgpu_setup(fogsmith::editor::wgpu_setup())
         .build_eframe(|cc| {
             let mut app = EditorApp::new(cc, start, options);
             app.set_quality(Quality::Full);
+            app.set_preview_scale(scale);
             app
         });
     h.run_steps(3);
@@ -40,7 +47,11 @@ fn progressive_harness() -> Harness<'static, EditorApp> {
     Harness::builder()
         .with_size(Vec2::new(1280.0, 800.0))
         .wgpu_setup(fogsmith::editor::wgpu_setup())
-        .build_eframe(|cc| EditorApp::new(cc, demo(), EditorOptions::default()))
+        .build_eframe(|cc| {
+            let mut app = EditorApp::new(cc, demo(), EditorOptions::default());
+            app.set_preview_scale(PreviewScale::Quarter);
+            app
+        })
 }
 
 fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {
@@ -242,11 +253,29 @@ fn unsaved_changes_ask_before_they_are_discarded_and_errors_are_shown() {
 
 #[test]
 fn default_layout_snapshot() {
-    let mut h = harness(demo());
+    let mut h = harness_scaled(demo(), EditorOptions::default(), PreviewScale::Full);
     h.run_steps(4);
     // The preview comes from a software rasteriser or a GPU; small differences are allowed.
     let options = SnapshotOptions::new().threshold(6.0).max_failed_pixels(4000);
     h.snapshot_options("editor_layout", &options);
+}
+
+/// The toolbar's resolution control sets the preview's pixels per screen pixel.
+#[test]
+fn the_preview_resolution_follows_its_control() {
+    let mut h = harness(demo());
+    let rect = h.state().viewport_rect().expect("the viewport is shown");
+    let quarter = h.state().preview_size();
+    assert_eq!(quarter[0], (rect.width() * 0.25).round() as u32, "¼ res: {quarter:?} for {rect:?}");
+    h.get_by_label("preview res").click();
+    h.run_steps(2);
+    h.get_by_label("½").click();
+    h.run_steps(3);
+    let half = h.state().preview_size();
+    assert_eq!(half, [(rect.width() * 0.5).round() as u32, (rect.height() * 0.5).round() as u32]);
+    assert_eq!(h.state().gpu_error(), None);
+    let image = h.state().pipeline().unwrap().read_image().unwrap();
+    assert_eq!((image.width, image.height), (half[0], half[1]), "the preview renders at the chosen resolution");
 }
 
 #[test]

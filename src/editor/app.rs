@@ -91,6 +91,7 @@ struct Persisted {
     brush: Brush,
     slices: SliceSettings,
     quality: Quality,
+    preview_scale: PreviewScale,
     outline_all: Option<bool>,
     show_gizmo: Option<bool>,
 }
@@ -123,6 +124,34 @@ pub enum Quality {
     /// Every frame waits for the converged full-resolution image (the window freezes while
     /// it renders; for screenshots and comparisons).
     Full,
+}
+
+/// Preview pixels per screen pixel: a coarser preview renders in a fraction of the time
+/// (the march's cost is per pixel), for slow adapters and large windows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PreviewScale {
+    #[default]
+    Full,
+    Half,
+    Quarter,
+}
+
+impl PreviewScale {
+    pub const ALL: [PreviewScale; 3] = [PreviewScale::Full, PreviewScale::Half, PreviewScale::Quarter];
+    pub fn factor(self) -> f32 {
+        match self {
+            PreviewScale::Full => 1.0,
+            PreviewScale::Half => 0.5,
+            PreviewScale::Quarter => 0.25,
+        }
+    }
+    pub fn label(self) -> &'static str {
+        match self {
+            PreviewScale::Full => "full",
+            PreviewScale::Half => "½",
+            PreviewScale::Quarter => "¼",
+        }
+    }
 }
 
 const MAX_RECENT: usize = 10;
@@ -405,6 +434,7 @@ pub(crate) struct ViewState {
     pub preview_size: [u32; 2],
     pub interacting: bool,
     pub quality: Quality,
+    pub preview_scale: PreviewScale,
     /// Scripted camera motion counts as interaction (`--measure-fps`).
     pub force_interacting: bool,
     pub clock: FrameClock,
@@ -495,6 +525,7 @@ impl EditorApp {
                 preview_size: [640, 400],
                 interacting: false,
                 quality: if options.screenshot.is_some() { Quality::Full } else { persisted.quality },
+                preview_scale: persisted.preview_scale,
                 force_interacting: false,
                 clock: FrameClock::default(),
                 continuous: options.measure_fps.is_some(),
@@ -585,6 +616,13 @@ impl EditorApp {
     /// Full-resolution previews make frames independent of the adapter's speed (tests).
     pub fn set_quality(&mut self, quality: Quality) {
         self.state.view.quality = quality;
+    }
+    pub fn set_preview_scale(&mut self, scale: PreviewScale) {
+        self.state.view.preview_scale = scale;
+    }
+    /// Pixels of the preview image (the viewport's, times the preview scale).
+    pub fn preview_size(&self) -> [u32; 2] {
+        self.state.view.preview_size
     }
     pub fn brush_mut(&mut self) -> &mut Brush {
         &mut self.state.view.brush
@@ -760,6 +798,7 @@ impl eframe::App for EditorApp {
             brush: self.state.view.brush,
             slices: self.state.view.slices,
             quality: self.state.view.quality,
+            preview_scale: self.state.view.preview_scale,
             outline_all: Some(self.state.view.outline_all),
             show_gizmo: Some(self.state.view.show_gizmo),
         };

@@ -23,8 +23,8 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     }
     let response = ui.allocate_rect(rect, Sense::click_and_drag());
     state.view.viewport_rect = Some(rect);
-    let ppp = ui.ctx().pixels_per_point();
-    let size = [((rect.width() * ppp).round() as u32).clamp(16, 4096), ((rect.height() * ppp).round() as u32).clamp(16, 4096)];
+    let px = ui.ctx().pixels_per_point() * state.view.preview_scale.factor();
+    let size = [((rect.width() * px).round() as u32).clamp(16, 4096), ((rect.height() * px).round() as u32).clamp(16, 4096)];
     state.view.preview_size = size;
     handle_input(state, ui, &response, rect);
     // Where a Paint stroke would start under the pointer, for the brush preview.
@@ -149,6 +149,16 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             })
             .response
             .on_hover_text("How the preview trades responsiveness for finished frames");
+        egui::ComboBox::new("preview-scale", "preview res")
+            .width(52.0)
+            .selected_text(state.view.preview_scale.label())
+            .show_ui(ui, |ui| {
+                for scale in super::app::PreviewScale::ALL {
+                    ui.selectable_value(&mut state.view.preview_scale, scale, scale.label());
+                }
+            })
+            .response
+            .on_hover_text("Preview pixels per screen pixel: ½ and ¼ render 4× and 16× fewer pixels, for slow adapters and large windows");
         ui.separator();
         let mut exposure = state.session.project().render.exposure;
         let r = ui
