@@ -1,8 +1,8 @@
 // Injection: particles -> extinction volume (EV).
-// Each cell sums the gaussians listed in its bin (bin_size³ cells); a particle is listed
-// only in the bins its cut-off sphere reaches, so cost follows particle-cell overlaps. One
-// workgroup pair per listed 8³ brick: a full bake lists every brick, an edit only the bricks
-// it touched.
+// A bin is b × b cells across and one brick (8 cells) along z; a particle is listed only in
+// the bins its cut-off sphere reaches, so cost follows particle-cell overlaps. One workgroup
+// per listed 8³ brick (a full bake lists every brick, an edit only the bricks it touched);
+// each thread sums one column of 8 cells, so every particle it loads serves eight cells.
 
 struct ParticleGpu {
     center: vec3f,
@@ -22,32 +22,45 @@ struct ParticleGpu {
 // An imported density layer (e.g. from a VDB file) under the particles, when has_base_layer.
 @group(0) @binding(6) var<storage, read> base_layer: array<f32>;
 
-
-@compute @workgroup_size(8, 8, 4)
+@compute @workgroup_size(8, 8, 1)
 fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
     let brick = dirty_bricks[wg.x];
     let bdims = (grid.dims + BRICK - 1u) / BRICK;
     let b = vec3u(brick % bdims.x, (brick / bdims.x) % bdims.y, brick / (bdims.x * bdims.y));
-    let id = b * BRICK + lid + vec3u(0u, 0u, 4u * wg.y);
-    if any(id >= grid.dims) {
+    let base = b * BRICK + vec3u(lid.xy, 0u);
+    if any(base.xy >= grid.dims.xy) {
         return;
     }
-    let x = cell_center(id);
-    let ndims = (grid.dims + grid.bin_size - 1u) / grid.bin_size;
-    let nb = id / grid.bin_size;
-    let bin = nb.x + ndims.x * (nb.y + ndims.y * nb.z);
-    var sum = vec2f(0.0);
+    let ndims = vec2u((grid.dims.xy + grid.bin_size - 1u) / grid.bin_size);
+    let nb = base.xy / grid.bin_size;
+    let bin = nb.x + ndims.x * (nb.y + ndims.y * b.z);
+    let x0 = cell_center(base);
+    var sum: array<vec2f, 8>;
     for (var n = bin_offsets[bin]; n < bin_offsets[bin + 1u]; n++) {
         let p = particles[bin_items[n]];
-        let d = x - p.center;
-        let d2 = dot(d, d);
-        if d2 < p.cutoff2 {
-            sum += p.density * exp(-d2 * p.inv_r2);
+        let dxy = x0.xy - p.center.xy;
+        let dxy2 = dot(dxy, dxy);
+        if dxy2 >= p.cutoff2 {
+            continue;
+        }
+        for (var k = 0u; k < 8u; k++) {
+            let d = grid.min.z + (f32(base.z + k) + 0.5) * grid.cell.z - p.center.z;
+            let d2 = dxy2 + d * d;
+            if d2 < p.cutoff2 {
+                sum[k] += p.density * exp(-d2 * p.inv_r2);
+            }
         }
     }
-    var layer = 0.0;
-    if grid.has_base_layer != 0u {
-        layer = base_layer[linear_index(id)];
+    for (var k = 0u; k < 8u; k++) {
+        let id = base + vec3u(0u, 0u, k);
+        if id.z >= grid.dims.z {
+            break;
+        }
+        let x = cell_center(id);
+        var layer = 0.0;
+        if grid.has_base_layer != 0u {
+            layer = base_layer[linear_index(id)];
+        }
+        textureStore(ev, id, vec4f(base_fog_at(x.y) + layer + particle_sum(sum[k], x), 0.0, 0.0, 0.0));
     }
-    textureStore(ev, id, vec4f(base_fog_at(x.y) + layer + particle_sum(sum, x), 0.0, 0.0, 0.0));
 }

@@ -1,10 +1,13 @@
-//! CPU binning of particles into cubic bins of cells for injection.
+//! CPU binning of particles into columns of cells for injection.
 //!
 //! A particle is listed in every bin its cut-off sphere (physics.md §2) overlaps, so the
 //! injection shader evaluates only particle–cell pairs that can contribute: cost grows with
-//! overlaps, not particles × cells. The bin edge (2, 4 or 8 cells) is chosen per scene to
-//! minimise the evaluations Σ overlaps × bin volume: small bins for many small particles,
-//! large ones for few big ones, and no smaller than memory allows. The lists are a CSR pair
+//! overlaps, not particles × cells. A bin is b × b cells across and a brick's 8 cells along z:
+//! the shader gives each thread one such column of a brick, so one load of a particle serves
+//! eight cells (on software adapters the loads, not the gaussians, are most of the cost). The
+//! edge b (1, 2, 4 or 8 cells) is chosen per scene to minimise the evaluations Σ overlaps ×
+//! bin volume: small bins for many small particles, large ones for few big ones, and no
+//! smaller than memory allows. The lists are a CSR pair
 //! (offsets, items) built for one chunk of 8³ bricks at a time, so a chunk's lists fit a
 //! storage binding whatever the scene. Work is dispatched, and edits tracked, in bricks.
 
@@ -26,16 +29,21 @@ pub fn cutoff_radius(p: &Particle) -> f32 {
 
 /// Indices of the 8³ bricks a particle's cut-off sphere overlaps, or None if it misses the grid.
 pub fn brick_range(grid: &GridSpec, p: &Particle) -> Option<(UVec3, UVec3)> {
-    bin_range(grid, p, BRICK)
+    bin_range(grid, p, UVec3::splat(BRICK))
 }
 
-/// Indices of the bins of `bin` cells a particle's cut-off sphere overlaps.
-fn bin_range(grid: &GridSpec, p: &Particle, bin: u32) -> Option<(UVec3, UVec3)> {
+/// Cells of a bin of edge `b` across: b × b × [`BRICK`].
+pub fn bin_edge(b: u32) -> UVec3 {
+    UVec3::new(b, b, BRICK)
+}
+
+/// Indices of the bins of `edge` cells a particle's cut-off sphere overlaps.
+fn bin_range(grid: &GridSpec, p: &Particle, edge: UVec3) -> Option<(UVec3, UVec3)> {
     if p.hidden || p.density <= 0.0 {
         return None;
     }
-    let brick_dims = bin_dims(grid, bin);
-    let brick_size = grid.cell_size() * bin as f32;
+    let brick_dims = bin_dims(grid, edge);
+    let brick_size = grid.cell_size() * edge.as_vec3();
     let r = cutoff_radius(p);
     let lo = ((p.center - r - grid.min) / brick_size).floor();
     let hi = ((p.center + r - grid.min) / brick_size).floor();
@@ -47,11 +55,11 @@ fn bin_range(grid: &GridSpec, p: &Particle, bin: u32) -> Option<(UVec3, UVec3)> 
 }
 
 pub fn brick_dims(grid: &GridSpec) -> UVec3 {
-    bin_dims(grid, BRICK)
+    bin_dims(grid, UVec3::splat(BRICK))
 }
 
-fn bin_dims(grid: &GridSpec, bin: u32) -> UVec3 {
-    (grid.resolution + UVec3::splat(bin - 1)) / bin
+fn bin_dims(grid: &GridSpec, edge: UVec3) -> UVec3 {
+    (grid.resolution + edge - 1) / edge
 }
 
 /// Calls `f` with the linear index of every brick in the inclusive range.
@@ -69,7 +77,7 @@ pub fn for_each_brick(dims: UVec3, (lo, hi): (UVec3, UVec3), mut f: impl FnMut(u
 /// from. The lists themselves are built one chunk of bricks at a time ([`BinCounts::fill`]),
 /// so memory is bounded by the chunk, not by the scene.
 pub struct BinCounts {
-    /// Edge of a bin in cells.
+    /// Edge of a bin across (x and y) in cells; along z a bin spans a brick.
     pub bin_size: u32,
     dims: UVec3,
     counts: Vec<u32>,
@@ -95,14 +103,14 @@ impl BinCounts {
     /// every bin (of edge [`BRICK`]).
     pub fn new(grid: &GridSpec, particles: &[Particle], bin: u32, brute_force: bool) -> Self {
         let bin = if brute_force { BRICK } else { bin };
-        let dims = bin_dims(grid, bin);
+        let dims = bin_dims(grid, bin_edge(bin));
         let n = dims.as_u64vec3().element_product() as usize;
         let mut counts = vec![0u32; n];
         if brute_force {
             let v = particles.iter().filter(|p| visible(p)).count() as u32;
             counts.iter_mut().for_each(|c| *c = v);
         } else {
-            for range in particles.iter().filter_map(|p| bin_range(grid, p, bin)) {
+            for range in particles.iter().filter_map(|p| bin_range(grid, p, bin_edge(bin))) {
                 for_each_brick(dims, range, |b| counts[b] += 1);
             }
         }
@@ -113,7 +121,7 @@ impl BinCounts {
         if self.brute_force {
             visible(p).then_some((UVec3::ZERO, self.dims - 1))
         } else {
-            bin_range(grid, p, self.bin_size)
+            bin_range(grid, p, bin_edge(self.bin_size))
         }
     }
 
@@ -124,7 +132,7 @@ impl BinCounts {
 
     /// The 8³ brick holding bin `n`.
     fn brick_of(&self, grid: &GridSpec, n: usize) -> usize {
-        let b = self.coords(n) * self.bin_size / BRICK;
+        let b = self.coords(n) * bin_edge(self.bin_size) / BRICK;
         let bd = brick_dims(grid);
         (b.x + bd.x * (b.y + bd.y * b.z)) as usize
     }
@@ -136,8 +144,9 @@ impl BinCounts {
         let (mut items, mut evals) = (vec![0u64; bricks], vec![0u64; bricks]);
         for (n, &count) in self.counts.iter().enumerate() {
             let b = self.brick_of(grid, n);
-            let start = self.coords(n) * self.bin_size;
-            let cells = ((start + self.bin_size).min(grid.resolution) - start).as_u64vec3().element_product();
+            let edge = bin_edge(self.bin_size);
+            let start = self.coords(n) * edge;
+            let cells = ((start + edge).min(grid.resolution) - start).as_u64vec3().element_product();
             items[b] += count as u64;
             evals[b] += count as u64 * cells;
         }
@@ -167,7 +176,7 @@ impl BinCounts {
             return ChunkBins { offsets, items, particles: chunk_particles };
         }
         // The chunk's bounding box in bins.
-        let per = BRICK / self.bin_size;
+        let per = UVec3::splat(BRICK) / bin_edge(self.bin_size);
         let (blo, bhi) = (lo * per, ((hi + 1) * per).min(self.dims) - 1);
         let mut cursor = offsets.clone();
         for (pi, p) in particles.iter().enumerate() {
@@ -192,22 +201,27 @@ impl BinCounts {
     }
 }
 
-/// The bin edge for `particles` and its counts: of 2, 4 and 8 cells, the one with the fewest
+/// The bin edge for `particles` and its counts: of 1, 2, 4 and 8 cells, the one with the fewest
 /// particle–cell evaluations whose fullest 8³ brick lists at most `max_brick_items` entries
 /// (a brick is the smallest chunk the injection uploads). Larger bins list each particle
 /// fewer times, so memory pushes the choice up and evaluations push it down.
-pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64, brute_force: bool) -> BinCounts {
+///
+/// `only` restricts the choice to one edge (tests and benchmarks measure each edge).
+pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64, brute_force: bool, only: Option<u32>) -> BinCounts {
     if brute_force {
         return BinCounts::new(grid, particles, BRICK, true);
+    }
+    if let Some(edge) = only {
+        return BinCounts::new(grid, particles, edge, false);
     }
     let cost = |bin: u32| -> u64 {
         particles
             .iter()
-            .filter_map(|p| bin_range(grid, p, bin))
-            .map(|(lo, hi)| ((hi - lo + 1).as_u64vec3().element_product()) * (bin as u64).pow(3))
+            .filter_map(|p| bin_range(grid, p, bin_edge(bin)))
+            .map(|(lo, hi)| ((hi - lo + 1).as_u64vec3().element_product()) * bin_edge(bin).as_u64vec3().element_product())
             .sum()
     };
-    let mut order = [2u32, 4, 8];
+    let mut order = [1u32, 2, 4, 8];
     order.sort_by_key(|&b| cost(b));
     let mut counts = None;
     for bin in order {
@@ -218,7 +232,7 @@ pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64
             break;
         }
     }
-    counts.expect("three candidate bin edges")
+    counts.expect("four candidate bin edges")
 }
 
 /// Bricks whose EV changes when the particle list goes from `old` to `new`: those overlapped

@@ -242,7 +242,7 @@ impl Injector {
             );
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups((end - job.next) as u32, 2, 1);
+            pass.dispatch_workgroups((end - job.next) as u32, 1, 1);
             counters.dispatches += 1;
             counters.cells_injected += job.bricks[job.next..end].iter().map(|&b| brick_cells(inputs.grid, b)).sum::<u64>();
             counters.particle_evaluations += job.evaluations[job.next..end].iter().sum::<u64>();

@@ -296,6 +296,7 @@ pub struct FogPipeline {
     base_layer: Option<(Volume, wgpu::Buffer)>,
     base_layer_generation: u64,
     brute_force_injection: bool,
+    inject_bin_edge: Option<u32>,
     /// See [`FogPipeline::set_inject_chunk_bytes`].
     inject_chunk_limit: Option<u64>,
     opv_layout: OpvLayout,
@@ -364,6 +365,7 @@ impl FogPipeline {
             base_layer: None,
             base_layer_generation: 0,
             brute_force_injection: false,
+            inject_bin_edge: None,
             inject_chunk_limit: None,
             peak_memory: Default::default(),
             opv_layout,
@@ -859,7 +861,7 @@ impl FogPipeline {
             bricks.dedup();
         }
         let max_items = self.inject_chunk_bytes() / 4;
-        let counts = binning::choose_bins(&project.grid, &project.particles, max_items, self.brute_force_injection);
+        let counts = binning::choose_bins(&project.grid, &project.particles, max_items, self.brute_force_injection, self.inject_bin_edge);
         if counts.bin_size != self.bin_size {
             self.bin_size = counts.bin_size;
             self.write_scene_uniforms(project);
@@ -1187,6 +1189,17 @@ impl FogPipeline {
     /// the brute-force injection, for measuring what binning saves. Off by default.
     pub fn set_brute_force_injection(&mut self, on: bool) {
         self.brute_force_injection = on;
+    }
+
+    /// Bins the injection by this edge across (1, 2, 4 or 8 cells) instead of the one with
+    /// the fewest evaluations: tests and benchmarks compare the edges. `None` chooses again.
+    pub fn set_inject_bin_edge(&mut self, edge: Option<u32>) -> Result<(), GpuError> {
+        if let Some(e) = edge.filter(|e| ![1, 2, 4, 8].contains(e)) {
+            return Err(GpuError::Invalid(format!("injection bin edge {e}: must be 1, 2, 4 or 8 cells")));
+        }
+        self.inject_bin_edge = edge;
+        self.baked.ev = None;
+        Ok(())
     }
 
     /// Sets (or clears) a density layer added to every cell of the EV under the particles,
