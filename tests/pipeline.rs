@@ -21,6 +21,27 @@ fn density_with_cutoff(p: &Project, x: DVec3) -> f64 {
     s
 }
 
+/// Largest relative error of the EV against [`density_with_cutoff`] over the cells whose
+/// density exceeds `floor`, and how many cells that was; every value must be finite.
+fn ev_relative_error(p: &Project, ev: &fogsmith::scene::Volume, floor: f64) -> (f64, u32) {
+    let r = p.grid.resolution;
+    let (mut worst, mut checked) = (0.0f64, 0);
+    for k in 0..r.z {
+        for j in 0..r.y {
+            for i in 0..r.x {
+                let want = density_with_cutoff(p, p.grid.cell_center(i, j, k).as_dvec3());
+                let got = ev.get(i, j, k) as f64;
+                assert!(got.is_finite(), "cell ({i}, {j}, {k}) is {got}");
+                if want > floor {
+                    worst = worst.max((got - want).abs() / want);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    (worst, checked)
+}
+
 fn max_difference(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len());
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
@@ -37,21 +58,7 @@ fn ev_matches_cpu_density_at_every_cell() {
     gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
     let ev = gpu.read_ev().unwrap();
     let r = p.grid.resolution;
-    let mut worst = 0.0f64;
-    let mut checked = 0;
-    for k in 0..r.z {
-        for j in 0..r.y {
-            for i in 0..r.x {
-                let want = density_with_cutoff(&p, p.grid.cell_center(i, j, k).as_dvec3());
-                let got = ev.get(i, j, k) as f64;
-                assert!(got.is_finite());
-                if want > 1e-6 {
-                    worst = worst.max((got - want).abs() / want);
-                    checked += 1;
-                }
-            }
-        }
-    }
+    let (worst, checked) = ev_relative_error(&p, &ev, 1e-6);
     println!("EV: {checked} cells, max relative error {worst:.3e}");
     assert_eq!(checked, r.x * r.y * r.z, "base fog makes every cell count");
     assert!(worst <= 1e-5, "EV max relative error {worst:e} > 1e-5");
@@ -73,18 +80,8 @@ fn every_bin_edge_injects_the_exact_density() {
         gpu.set_brute_force_injection(edge.is_none());
         let report = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
         assert_eq!(report.counters.cells_injected, r.x as u64 * r.y as u64 * r.z as u64, "edge {edge:?}: every cell injected");
-        let ev = gpu.read_ev().unwrap();
-        let mut worst = 0.0f64;
-        for k in 0..r.z {
-            for j in 0..r.y {
-                for i in 0..r.x {
-                    let want = density_with_cutoff(&p, p.grid.cell_center(i, j, k).as_dvec3());
-                    let got = ev.get(i, j, k) as f64;
-                    assert!(got.is_finite());
-                    worst = worst.max((got - want).abs() / want.max(1e-3));
-                }
-            }
-        }
+        let (worst, checked) = ev_relative_error(&p, &gpu.read_ev().unwrap(), 0.0);
+        assert_eq!(checked, r.x * r.y * r.z, "base fog makes every cell count");
         println!("bin edge {edge:?}: max relative error {worst:.3e}");
         assert!(worst <= 1e-5, "bin edge {edge:?}: EV max relative error {worst:e} > 1e-5");
     }
