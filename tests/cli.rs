@@ -18,6 +18,25 @@ fn json_of(out: &std::process::Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
+/// `--sweep-refine` turns the project's sweep_refine on for that run, and the JSON says which
+/// setting the bake used.
+#[test]
+fn sweep_refine_flag_reaches_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("street.png");
+    let (project, png) = (demo("street.ron").display().to_string(), png.display().to_string());
+    let run = |extra: &[&str]| {
+        let mut args = vec!["render", &project, "-o", &png, "--width", "32", "--height", "18", "--json"];
+        args.extend_from_slice(extra);
+        json_of(&fogsmith().args(&args).output().unwrap())
+    };
+    let plain = run(&[]);
+    let refined = run(&["--sweep-refine"]);
+    assert_eq!(plain["sweep_refine"], false, "{plain}");
+    assert_eq!(refined["sweep_refine"], true, "{refined}");
+    assert_eq!(refined["scheme"], "sweep");
+}
+
 #[test]
 fn render_every_demo_prints_json_and_writes_the_image() {
     let dir = tempfile::tempdir().unwrap();

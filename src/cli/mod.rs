@@ -132,6 +132,11 @@ pub struct BakeArgs {
     /// Propagation scheme (default: the project's propagation.scheme).
     #[arg(long)]
     pub scheme: Option<Scheme>,
+    /// Turn on propagation.sweep_refine: `sweep` integrates directly where its stencil cannot
+    /// resolve the optical depth (the shadows of particles a cell or two wide); slower,
+    /// for final bakes of finely painted fog.
+    #[arg(long)]
+    pub sweep_refine: bool,
     /// No progress bar on stderr (bars appear only when stderr is a terminal).
     #[arg(long)]
     pub quiet: bool,
@@ -148,7 +153,8 @@ pub struct Baked {
 
 /// Loads the project (and its VDB base layer), opens the GPU and runs the whole pipeline.
 pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
-    let project = load_project(&args.project)?;
+    let mut project = load_project(&args.project)?;
+    project.propagation.sweep_refine |= args.sweep_refine;
     let mut request = FrameRequest::for_project(&project);
     request.width = args.width.unwrap_or(request.width);
     request.height = args.height.unwrap_or(request.height);
@@ -269,7 +275,7 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
     // The GPU memory of a freshly created pipeline, or of one that baked `project`.
     let baked = match project {
         Some(path) => {
-            let args = BakeArgs { project: path.to_path_buf(), width: None, height: None, scheme: None, quiet: true };
+            let args = BakeArgs { project: path.to_path_buf(), width: None, height: None, scheme: None, sweep_refine: false, quiet: true };
             let b = bake(&args)?;
             Some((b.pipeline.memory_bytes(), b.pipeline.peak_memory_bytes()))
         }
@@ -347,6 +353,7 @@ fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std:
             "particles": project.particles.len(),
             "grid": project.grid.resolution.to_array(),
             "scheme": request.scheme.to_string(),
+            "sweep_refine": project.propagation.sweep_refine,
             "timings_ms": report.timings_ms,
             "timing_source": if report.gpu_timestamps { "gpu_timestamps" } else { "wall_clock" },
             "counters": report.counters,

@@ -504,6 +504,16 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
         })
         .response
         .on_hover_text("How optical depth towards each light is propagated through the grid");
+        if current == Scheme::Sweep {
+            let mut refine = state.session.project().propagation.sweep_refine;
+            let r = ui.checkbox(&mut refine, "refine thin shadows").on_hover_text(
+                "Integrate directly where the sweep's interpolation cannot follow the shadow of a particle a cell or two wide: \
+                 exact there, 1.2–3× slower; for final bakes of finely painted fog",
+            );
+            if r.changed() {
+                state.session.edit(NEW_STEP).propagation.sweep_refine = refine;
+            }
+        }
     });
 }
 
