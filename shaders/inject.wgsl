@@ -44,6 +44,8 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
             continue;
         }
         for (var k = 0u; k < 8u; k++) {
+            // cell_center's z, written out: a table of the column's eight z values is slower
+            // on llvmpipe (dynamically indexed arrays live in memory there).
             let d = grid.min.z + (f32(base.z + k) + 0.5) * grid.cell.z - p.center.z;
             let d2 = dxy2 + d * d;
             if d2 < p.cutoff2 {

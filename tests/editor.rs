@@ -28,15 +28,7 @@ fn harness_with(start: StartProject, options: EditorOptions) -> Harness<'static,
 }
 
 fn harness_scaled(start: StartProject, options: EditorOptions, scale: PreviewScale) -> Harness<'static, EditorApp> {
-    let mut h = Harness::builder()
-        .with_size(Vec2::new(1280.0, 800.0))
-        .wgpu_setup(fogsmith::editor::wgpu_setup())
-        .build_eframe(|cc| {
-            let mut app = EditorApp::new(cc, start, options);
-            app.set_quality(Quality::Full);
-            app.set_preview_scale(scale);
-            app
-        });
+    let mut h = build(start, options, Quality::Full, scale);
     h.run_steps(3);
     assert_eq!(h.state().gpu_error(), None, "the preview must render");
     h
@@ -44,14 +36,17 @@ fn harness_scaled(start: StartProject, options: EditorOptions, scale: PreviewSca
 
 /// The editor as it starts for a user: the frame-budgeted preview, nothing rendered yet.
 fn progressive_harness() -> Harness<'static, EditorApp> {
-    Harness::builder()
-        .with_size(Vec2::new(1280.0, 800.0))
-        .wgpu_setup(fogsmith::editor::wgpu_setup())
-        .build_eframe(|cc| {
-            let mut app = EditorApp::new(cc, demo(), EditorOptions::default());
-            app.set_preview_scale(PreviewScale::Quarter);
-            app
-        })
+    build(demo(), EditorOptions::default(), Quality::Balanced, PreviewScale::Quarter)
+}
+
+/// A 1280×800 editor window on the pipeline's adapter, before its first frame.
+fn build(start: StartProject, options: EditorOptions, quality: Quality, scale: PreviewScale) -> Harness<'static, EditorApp> {
+    Harness::builder().with_size(Vec2::new(1280.0, 800.0)).wgpu_setup(fogsmith::editor::wgpu_setup()).build_eframe(|cc| {
+        let mut app = EditorApp::new(cc, start, options);
+        app.set_quality(quality);
+        app.set_preview_scale(scale);
+        app
+    })
 }
 
 fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {

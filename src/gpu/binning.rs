@@ -32,6 +32,9 @@ pub fn brick_range(grid: &GridSpec, p: &Particle) -> Option<(UVec3, UVec3)> {
     bin_range(grid, p, UVec3::splat(BRICK))
 }
 
+/// The bin edges across that the injection can use.
+pub const BIN_EDGES: [u32; 4] = [1, 2, 4, 8];
+
 /// Cells of a bin of edge `b` across: b × b × [`BRICK`].
 pub fn bin_edge(b: u32) -> UVec3 {
     UVec3::new(b, b, BRICK)
@@ -215,13 +218,14 @@ pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64
         return BinCounts::new(grid, particles, edge, false);
     }
     let cost = |bin: u32| -> u64 {
+        let edge = bin_edge(bin);
         particles
             .iter()
-            .filter_map(|p| bin_range(grid, p, bin_edge(bin)))
-            .map(|(lo, hi)| ((hi - lo + 1).as_u64vec3().element_product()) * bin_edge(bin).as_u64vec3().element_product())
+            .filter_map(|p| bin_range(grid, p, edge))
+            .map(|(lo, hi)| ((hi - lo + 1).as_u64vec3().element_product()) * edge.as_u64vec3().element_product())
             .sum()
     };
-    let mut order = [1u32, 2, 4, 8];
+    let mut order = BIN_EDGES;
     order.sort_by_key(|&b| cost(b));
     let mut counts = None;
     for bin in order {
@@ -232,7 +236,7 @@ pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64
             break;
         }
     }
-    counts.expect("four candidate bin edges")
+    counts.expect("BIN_EDGES is not empty")
 }
 
 /// Bricks whose EV changes when the particle list goes from `old` to `new`: those overlapped

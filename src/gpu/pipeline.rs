@@ -1194,8 +1194,8 @@ impl FogPipeline {
     /// Bins the injection by this edge across (1, 2, 4 or 8 cells) instead of the one with
     /// the fewest evaluations: tests and benchmarks compare the edges. `None` chooses again.
     pub fn set_inject_bin_edge(&mut self, edge: Option<u32>) -> Result<(), GpuError> {
-        if let Some(e) = edge.filter(|e| ![1, 2, 4, 8].contains(e)) {
-            return Err(GpuError::Invalid(format!("injection bin edge {e}: must be 1, 2, 4 or 8 cells")));
+        if let Some(e) = edge.filter(|e| !binning::BIN_EDGES.contains(e)) {
+            return Err(GpuError::Invalid(format!("injection bin edge {e}: must be one of {:?} cells", binning::BIN_EDGES)));
         }
         self.inject_bin_edge = edge;
         self.baked.ev = None;
