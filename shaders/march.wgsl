@@ -144,7 +144,7 @@ fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
 
 // The optical depth stored for light `light` at cell p: every OPV read goes through here.
 fn opv_value(light: u32, p: vec3u) -> f32 {
-    return opv_load(light * cell_count() + linear_index(p));
+    return opv_load(light, p);
 }
 
 // A sun's optical depth from x in the grid box: the OPV holds G + B (propagate_directional.wgsl);

@@ -29,11 +29,11 @@ struct PlaneParams {
 // binding 4: `opv`, declared with its helpers by src/gpu/opv_store.rs.
 
 // Mean in-box extinction of cell c of the previous plane: (T − B)/exit.
-fn mean_extinction(c: vec3u, towards: vec3f, base: u32) -> f32 {
+fn mean_extinction(c: vec3u, towards: vec3f, light: u32) -> f32 {
     let x = cell_center(c);
     let e = box_exit(x, towards);
     let b = sun_beyond(x, towards);
-    return max(opv_load(base + linear_index(c)) - b, 0.0) / max(e, 1e-30);
+    return max(opv_load(light, c) - b, 0.0) / max(e, 1e-30);
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -48,12 +48,11 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     id[a] = plane.plane;
     id[a1] = gid.x;
     id[a2] = gid.y;
-    let base = plane.light * cell_count();
     let towards = -lights[plane.light].direction;
     let x = cell_center(id);
     let beyond = sun_beyond(x, towards);
     if beyond >= OPAQUE {
-        opv_store(base + linear_index(id), OPAQUE);
+        opv_store(plane.light, id, OPAQUE);
         return;
     }
     let e = box_exit(x, towards);
@@ -76,15 +75,15 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
         c[a] = plane.previous;
         c[a1] = i1;
         c[a2] = i2;
-        let m00 = mean_extinction(c, towards, base);
+        let m00 = mean_extinction(c, towards, plane.light);
         c[a1] = j1;
-        let m10 = mean_extinction(c, towards, base);
+        let m10 = mean_extinction(c, towards, plane.light);
         c[a2] = j2;
-        let m11 = mean_extinction(c, towards, base);
+        let m11 = mean_extinction(c, towards, plane.light);
         c[a1] = i1;
-        let m01 = mean_extinction(c, towards, base);
+        let m01 = mean_extinction(c, towards, plane.light);
         let m = mix(mix(m00, m10, w1), mix(m01, m11, w1), w2);
         g = m * box_exit(u, towards) + integrate_pieces(x, u, true);
     }
-    opv_store(base + linear_index(id), g + beyond);
+    opv_store(plane.light, id, g + beyond);
 }

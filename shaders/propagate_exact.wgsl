@@ -32,5 +32,5 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     let tb = (grid.max - x) / dir;
     let inside = clamp(min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z)), 0.0, len);
     let t = integrate_segment(x, x + dir * inside, f32(exact.steps_per_cell)) + base_fog_depth(x + dir * inside, dir, len - inside);
-    opv_store(exact.light * cell_count() + linear_index(id), t);
+    opv_store(exact.light, id, t);
 }

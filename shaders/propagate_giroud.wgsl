@@ -32,7 +32,6 @@ fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: ve
     }
     let light = active_lights[slot];
     let s = lights[light].position;
-    let base = light * cell_count();
     let x = cell_center(id);
     let offs = x - s;
     let dist = length(offs);
@@ -53,7 +52,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: ve
         if any(n < vec3i(0)) || any(n >= vec3i(grid.dims)) {
             tn = base_fog_depth(nx, (s - nx) / max(ndist, 1e-30), ndist);
         } else {
-            tn = src_load(base + linear_index(vec3u(n)));
+            tn = src_load(light, vec3u(n));
         }
         let w = abs(offs[a]) / dist;
         sum += w * (tn + 0.5 * (sigma + sigma_at(n)) * (dist - ndist));
@@ -63,5 +62,5 @@ fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: ve
     if wsum > 0.0 {
         t = sum / wsum;
     }
-    dst_store(base + linear_index(id), t);
+    dst_store(light, id, t);
 }

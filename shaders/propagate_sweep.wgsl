@@ -78,20 +78,13 @@ struct SweepBox {
 // bindings 4, 5: `opv` and `mean_in`, declared with their helpers by src/gpu/opv_store.rs.
 @group(0) @binding(6) var<storage, read> boxes: array<SweepBox>;
 
-// Where light `light`'s values of cell `c` live: every access to the OPV and mean buffers
-// goes through these three functions.
-fn value_index(light: u32, c: vec3i) -> u32 {
-    return light * cell_count() + linear_index(vec3u(c));
-}
-
 fn load_mean(light: u32, c: vec3i) -> f32 {
-    return mean_in_load(value_index(light, c));
+    return mean_in_load(light, vec3u(c));
 }
 
 fn store(light: u32, c: vec3i, t: f32, mean: f32) {
-    let i = value_index(light, c);
-    opv_store(i, t);
-    mean_in_store(i, mean);
+    opv_store(light, vec3u(c), t);
+    mean_in_store(light, vec3u(c), mean);
 }
 
 struct Exit {

@@ -37,7 +37,7 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     if slice.source == 0u {
         v = textureLoad(ev, vec3i(c), 0).r;
     } else {
-        v = opv_load(slice.light * cell_count() + linear_index(c));
+        v = opv_load(slice.light, c);
     }
     plane[id.x + id.y * dims.x] = v;
 }

@@ -369,21 +369,27 @@ fn a_million_small_particles_inject() {
     assert!(ev.data.iter().all(|v| v.is_finite()));
 }
 
-/// OPVs cut into many small storage segments (each light straddling two, or one light per
-/// segment) give the same optical depths, slices and image, bit for bit, as the device's
-/// largest segments, for every scheme and after adding and removing lights.
+/// OPVs spread over several textures (one or two lights per texture) or stacked in rows give
+/// the same optical depths, slices and image, bit for bit, as all lights stacked along z in
+/// one texture, for every scheme and after adding and removing lights.
 #[test]
-fn segmented_optical_depths_equal_one_segment_bit_for_bit() {
-    for tenths in [7, 15] {
-        segmented_equals_whole(30 * 30 * 28 * 4 * tenths / 10);
+fn optical_depths_over_several_textures_equal_one_texture_bit_for_bit() {
+    use fogsmith::gpu::OpvLayout;
+    let limits = fogsmith::gpu::GpuContext::new_headless().unwrap().limits;
+    for layout in [
+        OpvLayout::with_lights_per_texture(&limits, 1),
+        OpvLayout::with_lights_per_texture(&limits, 2),
+        // A 3D edge of 60 on the 30×30×28 grid: two lights along z, a second row along y.
+        OpvLayout { max_depth: 60, ..OpvLayout::for_limits(&limits) },
+    ] {
+        spread_equals_whole(layout);
     }
 }
 
-fn segmented_equals_whole(segment_bytes: u64) {
-    use fogsmith::gpu::{GpuContext, OpvLayout, SliceSource};
+fn spread_equals_whole(layout: fogsmith::gpu::OpvLayout) {
+    use fogsmith::gpu::{GpuContext, SliceSource};
     let mut whole = pipeline();
     let ctx = GpuContext::new_headless().unwrap();
-    let layout = OpvLayout::with_segment_bytes(&ctx.limits, segment_bytes);
     let mut segmented = fogsmith::gpu::FogPipeline::with_opv_layout(ctx, layout);
     let mut p = small_scene(30, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-0.8, 0.3, 0.5), Vec3::new(0.1, -1.3, 0.2)]);
     p.grid.resolution.z = 28;
@@ -413,14 +419,28 @@ fn segmented_equals_whole(segment_bytes: u64) {
 }
 
 /// A scene the device cannot hold is refused before anything is allocated, with the size
-/// it needs; 256³ with 8 lights is accepted.
+/// it needs; 256³ with 8 lights is accepted, and so are more lights than storage bindings
+/// could hold (26 × 64 MiB, past 12 bindings of 128 MiB) where memory holds them.
 #[test]
 fn only_scenes_beyond_the_device_are_refused() {
     let gpu = pipeline();
     let mut p = small_scene(256, &[Vec3::splat(0.9); 8]);
     gpu.check_limits(&p, 640, 360).expect("256³ with 8 lights fits");
+    let memory = gpu.context().memory_bytes().expect("the adapter reports its memory");
+    let lights = |n: usize| vec![fogsmith::scene::Light::new(Vec3::splat(0.9), 1.0, Vec3::ONE); n];
+    p.lights = lights(26);
+    if gpu.memory_needed(&p.grid, 26, p.particles.len(), 640, 360) <= memory {
+        gpu.check_limits(&p, 640, 360).expect("256³ with 26 lights fits in memory");
+    }
+    // More lights than memory holds: refused by memory, naming it.
+    let most = (memory / (2 * 256u64.pow(3) * 4)) as usize;
+    p.lights = lights(most + 1);
+    let err = gpu.check_limits(&p, 640, 360).unwrap_err().to_string();
+    assert!(err.contains("GPU memory") && err.contains("fewer lights"), "{err}");
+    // One volume larger than a 3D texture may be.
+    p.lights = lights(8);
     p.grid.resolution = glam::UVec3::splat(2048);
-    let needed = 2048u64.pow(3) * 8 * 4;
+    let needed = 2048u64.pow(3) * 4;
     let err = gpu.check_limits(&p, 640, 360).unwrap_err().to_string();
     assert!(err.contains(&format!("needs {needed}")), "{err}");
     assert!(err.contains("lower grid.resolution"), "{err}");

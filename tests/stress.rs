@@ -39,7 +39,7 @@ fn reduced_stress_matrix_holds() {
 }
 
 fn opv_capacity(limits: &wgpu::Limits) -> u64 {
-    fogsmith::gpu::OpvLayout::for_limits(limits).capacity_bytes_for(64 * 64 * 64)
+    fogsmith::gpu::OpvLayout::for_limits(limits).capacity_lights(UVec3::splat(64))
 }
 
 /// A grid edge, OPV total, particle count or image past the adapter is refused by
@@ -59,14 +59,20 @@ fn limits_are_refused_before_allocation_with_the_limit_named() {
     let msg = limit_message(&p, 16, 16);
     assert!(msg.contains(&limits.max_texture_dimension_3d.to_string()) && msg.contains("lower grid.resolution"), "{msg}");
 
-    // OPVs span several storage bindings: refused only past all of them together.
+    // OPVs span several textures: refused only past all of them together, or past memory.
     let mut p = small_scene(64, &[]);
-    let capacity = opv_capacity(&limits);
-    let lights = capacity / (64 * 64 * 64 * 4) + 1;
-    p.lights = (0..lights).map(|i| fogsmith::scene::Light::new(Vec3::new(i as f32 * 1e-3, 0.0, 0.0), 1.0, Vec3::ONE)).collect();
+    let memory = gpu.context().memory_bytes().unwrap_or(u64::MAX);
+    let by_memory = (0..=opv_capacity(&limits)).rev().find(|&n| gpu.memory_needed(&p.grid, n as usize, p.particles.len(), 16, 16) <= memory).unwrap();
+    let most = by_memory.min(opv_capacity(&limits));
+    p.lights = (0..=most).map(|i| fogsmith::scene::Light::new(Vec3::new(i as f32 * 1e-5, 0.0, 0.0), 1.0, Vec3::ONE)).collect();
     let msg = limit_message(&p, 16, 16);
-    assert!(msg.contains("optical-depth") && msg.contains(&capacity.to_string()) && msg.contains("at most"), "{msg}");
-    p.lights.truncate(lights as usize - 1);
+    if most == by_memory {
+        assert!(msg.contains("GPU memory") && msg.contains("fewer lights"), "{msg}");
+    } else {
+        let capacity = opv_capacity(&limits) * 64 * 64 * 64 * 4;
+        assert!(msg.contains("optical-depth") && msg.contains(&capacity.to_string()) && msg.contains("at most"), "{msg}");
+    }
+    p.lights.truncate(most as usize);
     assert!(gpu.check_limits(&p, 16, 16).is_ok(), "the most lights that fit are accepted");
 
     let mut p = small_scene(8, &[Vec3::ONE]);

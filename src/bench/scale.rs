@@ -60,11 +60,11 @@ fn case(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32) -> Result<(F
     case_with(ctx, kind, p, w, h, None)
 }
 
-/// [`case`] with optical-depth segments of `segment_bytes` instead of one storage binding.
-fn case_with(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32, segment_bytes: Option<u64>) -> Result<(FrameReport, Value), BenchError> {
+/// [`case`] with at most `lights_per_texture` optical-depth volumes in one texture.
+fn case_with(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32, lights_per_texture: Option<u32>) -> Result<(FrameReport, Value), BenchError> {
     let gpu = ctx.gpu.context().clone();
-    let layout = match segment_bytes {
-        Some(b) => OpvLayout::with_segment_bytes(&gpu.limits, b),
+    let layout = match lights_per_texture {
+        Some(n) => OpvLayout::with_lights_per_texture(&gpu.limits, n),
         None => OpvLayout::for_limits(&gpu.limits),
     };
     ctx.gpu = crate::gpu::FogPipeline::with_opv_layout(gpu, layout);
@@ -158,15 +158,14 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
     }
     fit(out, log, &format!("propagate_vs_lights_{res}"), "propagation time vs lights", &by_lights);
 
-    // The cost of segmented optical-depth storage: the same scene with every light's volume
-    // in one binding, and with each light split over two segments (every load and store
-    // picks its segment).
+    // The cost of optical-depth volumes spread over several textures: the same scene with
+    // every light's volume in one texture, and with one light per texture (every load and
+    // store picks its texture).
     let p = small_particle_scene(2_000, 4, res);
-    let light_bytes = p.grid.cell_count() * 4;
-    for (name, seg) in [("one_binding", None), ("one_light_per_segment", Some(light_bytes)), ("two_segments_per_light", Some(light_bytes / 2))] {
-        let (r, mut v) = case_with(ctx, "opv_segments", &p, w, h, seg)?;
+    for (name, per) in [("one_texture", None), ("one_light_per_texture", Some(1))] {
+        let (r, mut v) = case_with(ctx, "opv_textures", &p, w, h, per)?;
         v["scheme_or_policy"] = json!(name);
-        log(&format!("scale {res}³ 4 lights, OPV {name:24} propagate {:9.1} ms  march {:.1} ms", r.timings_ms.propagate, r.timings_ms.march));
+        log(&format!("scale {res}³ 4 lights, OPV {name:22} propagate {:9.1} ms  march {:.1} ms", r.timings_ms.propagate, r.timings_ms.march));
         out.push(v);
     }
 

@@ -300,11 +300,13 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
                 "max_storage_buffer_binding_size": l.max_storage_buffer_binding_size,
                 "max_buffer_size": l.max_buffer_size,
                 "max_storage_buffers_per_shader_stage": l.max_storage_buffers_per_shader_stage,
+                "max_storage_textures_per_shader_stage": l.max_storage_textures_per_shader_stage,
+                "max_sampled_textures_per_shader_stage": l.max_sampled_textures_per_shader_stage,
             },
             "device_memory_bytes": device_memory,
-            "opv_segments": opv.segments,
-            "opv_segment_bytes": opv.segment as u64 * 4,
-            "opv_capacity_bytes": opv.capacity_bytes(),
+            "opv_textures": opv.textures,
+            "opv_lights_per_texture_128": opv.per_texture(glam::UVec3::splat(128)),
+            "opv_lights_128": opv.capacity_lights(glam::UVec3::splat(128)),
             "project": project,
             "gpu_memory_bytes": live,
             "gpu_memory_peak_bytes": baked.map(|b| b.1),
@@ -319,15 +321,16 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
         println!("max storage buffer binding: {} bytes", l.max_storage_buffer_binding_size);
         println!("max buffer: {} bytes", l.max_buffer_size);
         println!("max storage buffers per shader stage: {}", l.max_storage_buffers_per_shader_stage);
+        println!("max storage / sampled textures per shader stage: {} / {}", l.max_storage_textures_per_shader_stage, l.max_sampled_textures_per_shader_stage);
         match device_memory {
             Some(m) => println!("device memory: {} (host RAM of a CPU adapter)", human(m)),
             None => println!("device memory: not reported by the driver"),
         }
         println!(
-            "optical-depth storage: {} segments of {} ({} for all lights' volumes)",
-            opv.segments,
-            human(opv.segment as u64 * 4),
-            human(opv.capacity_bytes())
+            "optical-depth storage: {} textures per array, {} lights each at 128³ ({} lights in all; larger grids hold fewer, up to the device's memory)",
+            opv.textures,
+            opv.per_texture(glam::UVec3::splat(128)),
+            opv.capacity_lights(glam::UVec3::splat(128))
         );
         match (project, baked) {
             (Some(p), Some((live, peak))) => {

@@ -8,7 +8,7 @@ pub fn run(quick: bool, json: bool, quiet: bool) -> Result<(), Box<dyn std::erro
     let adapter = ctx.adapter_summary();
     let max_3d = ctx.limits.max_texture_dimension_3d;
     let max_binding = ctx.max_binding_bytes();
-    let opv_capacity = crate::gpu::OpvLayout::for_limits(&ctx.limits).capacity_bytes_for(64 * 64 * 64);
+    let opv_capacity = crate::gpu::OpvLayout::for_limits(&ctx.limits).capacity_lights(glam::UVec3::splat(64));
     let mut gpu = FogPipeline::new(ctx);
     let mut cases = matrix(quick, max_3d, max_binding, opv_capacity);
     cases.extend((0..if quick { 40 } else { 400 }).map(random_case));

@@ -170,7 +170,7 @@ mod tests {
     fn every_gpu_struct_has_the_size_of_its_wgsl_twin() {
         use crate::gpu::opv_store::{OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
         use crate::gpu::propagate::INTEGRATE;
-        let opv = OpvLayout { segment: 1 << 20, segments: 2 };
+        let opv = OpvLayout { textures: 2, max_depth: 2048, lights_per_texture: u32::MAX, rows: true };
         let (opv_read, opv_rw) = (opv.wgsl("opv", 4, EXTRA_BINDING, false), opv.wgsl("opv", 4, EXTRA_BINDING, true));
         let opv_mean = opv_rw.clone() + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
         let inject = [include_str!("../../shaders/noise.wgsl"), include_str!("../../shaders/inject.wgsl")];

@@ -19,6 +19,8 @@ pub enum Slot {
     Sampler { filtering: bool },
     StorageTexture3d(wgpu::TextureFormat),
     StorageTexture2d(wgpu::TextureFormat),
+    /// Texture 0 of an array of optical-depth volumes (see `opv_store`).
+    Opv { read_only: bool },
 }
 
 pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> wgpu::BindGroupLayout {
@@ -74,6 +76,7 @@ pub fn bind_group_layout_with(
                 } else {
                     wgpu::SamplerBindingType::NonFiltering
                 }),
+                Slot::Opv { read_only } => super::opv_store::OpvLayout::binding_type(read_only),
                 Slot::StorageTexture3d(format) => BindingType::StorageTexture {
                     access: wgpu::StorageTextureAccess::WriteOnly,
                     format,

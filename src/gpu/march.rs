@@ -6,7 +6,7 @@
 
 use super::gpu_types::{MarchParams, SurfaceGpu};
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
-use super::opv_store::{OpvBuffers, OpvLayout, EXTRA_BINDING};
+use super::opv_store::{OpvVolumes, OpvLayout, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
 use crate::sun_table::{FTable, GPU_TABLE_SIZE};
@@ -60,7 +60,7 @@ pub struct MarchInputs<'a> {
     pub grid_buf: &'a wgpu::Buffer,
     pub ev_view: &'a wgpu::TextureView,
     pub lights_buf: &'a wgpu::Buffer,
-    pub opv: &'a OpvBuffers,
+    pub opv: &'a OpvVolumes,
     pub brick_max: &'a wgpu::Buffer,
     pub surfaces: &'a [SurfaceGpu],
     pub params: MarchParams,
@@ -102,7 +102,7 @@ impl Marcher {
                 Slot::Uniform,
                 Slot::Texture3d,
                 Slot::StorageRead,
-                Slot::StorageRead,
+                Slot::Opv { read_only: true },
                 Slot::StorageTexture2d(wgpu::TextureFormat::Rgba32Float),
                 Slot::StorageTexture2d(wgpu::TextureFormat::Rgba8Unorm),
                 Slot::StorageWrite,

@@ -11,7 +11,7 @@
 
 use super::binning;
 use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
-use super::opv_store::{OpvBuffers, OpvLayout};
+use super::opv_store::{OpvLayout, OpvVolumes, MAX_TEXTURE_BYTES};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::propagate::{PropagationInputs, PropagationJob, Propagator};
@@ -139,14 +139,14 @@ struct GridResources {
     ev_view: wgpu::TextureView,
     lights_buf: wgpu::Buffer,
     /// The OPVs and the schemes' scratch array of the same size (see `opv_store`).
-    opv: [OpvBuffers; 2],
+    opv: [OpvVolumes; 2],
     /// Largest σ_t seen by samples in each 8³ brick (see `shaders/occupancy.wgsl`).
     brick_max: wgpu::Buffer,
 }
 
 impl GridResources {
     fn bytes(&self) -> u64 {
-        self.spec.cell_count() * 4 + self.grid_buf.size() + self.lights_buf.size() + self.opv.iter().map(OpvBuffers::bytes).sum::<u64>() + self.brick_max.size()
+        self.spec.cell_count() * 4 + self.grid_buf.size() + self.lights_buf.size() + self.opv.iter().map(OpvVolumes::bytes).sum::<u64>() + self.brick_max.size()
     }
 }
 
@@ -300,9 +300,9 @@ pub struct FogPipeline {
     /// See [`FogPipeline::set_inject_chunk_bytes`].
     inject_chunk_limit: Option<u64>,
     opv_layout: OpvLayout,
-    /// The segmentation the stages' shaders were built for: only as many segments as the
-    /// current scene's OPVs fill, since every extra segment adds a branch to each OPV read
-    /// (the march reads eight per light per sample).
+    /// The OPV textures the stages' shaders were built for: only as many as the current
+    /// scene's OPVs fill, since every extra texture adds a branch to each OPV read (the march
+    /// reads eight per light per sample).
     stage_layout: OpvLayout,
     /// See [`FogPipeline::peak_memory_bytes`].
     peak_memory: std::sync::atomic::AtomicU64,
@@ -337,12 +337,13 @@ impl FogPipeline {
         Self::with_opv_layout(ctx, layout)
     }
 
-    /// A pipeline whose optical-depth arrays are segmented as `opv_layout` says; [`new`](Self::new)
-    /// uses the device's largest segments. Smaller ones let tests cross segment boundaries.
+    /// A pipeline whose optical-depth arrays are stored as `opv_layout` says; [`new`](Self::new)
+    /// packs as many lights into a texture as the device allows. Fewer let tests cross
+    /// texture boundaries.
     pub fn with_opv_layout(ctx: GpuContext, opv_layout: OpvLayout) -> Self {
         let device = &ctx.device;
         let injector = Injector::new(device);
-        let stage_layout = OpvLayout { segments: 1, ..opv_layout };
+        let stage_layout = OpvLayout { textures: 1, ..opv_layout };
         let propagator = Propagator::new(device, stage_layout);
         let marcher = Marcher::new(device, stage_layout);
         let slicer = Slicer::new(device, stage_layout);
@@ -391,7 +392,7 @@ impl FogPipeline {
     }
 
     /// Refuses, before allocating anything, a scene larger than the adapter allows: grid edge
-    /// (3D texture), OPVs (segmented storage, see `opv_store`), particles and lights (one
+    /// (3D texture), OPVs (texture bindings, see `opv_store`), particles and lights (one
     /// storage binding each), the image (2D texture and its readback buffer), and the GPU
     /// memory all of it needs together where the device's memory is known.
     pub fn check_limits(&self, project: &Project, width: u32, height: u32) -> Result<(), GpuError> {
@@ -472,21 +473,15 @@ impl FogPipeline {
             });
         }
         let r = grid.resolution;
-        let opv_bytes = grid.cell_count() * light_count.max(1) as u64 * 4;
-        let opv_limit = self.opv_layout.capacity_bytes_for(grid.cell_count());
-        if opv_bytes > opv_limit {
-            let per_light = grid.cell_count() * 4;
+        // The EV and each light's OPV are one 3D texture each (or share one).
+        let volume = grid.cell_count() * 4;
+        if volume > MAX_TEXTURE_BYTES {
             return Err(GpuError::Limit {
-                what: format!("the optical-depth volumes of {light_count} lights on a {}×{}×{} grid", r.x, r.y, r.z),
-                needed: opv_bytes,
-                limit: opv_limit,
+                what: format!("one volume of a {}×{}×{} grid ({})", r.x, r.y, r.z, human_bytes(volume)),
+                needed: volume,
+                limit: MAX_TEXTURE_BYTES,
                 adapter: adapter.clone(),
-                suggestion: format!(
-                    "the adapter gives a shader {} storage bindings of {} for them; use at most {} lights at this resolution or lower grid.resolution",
-                    self.opv_layout.segments,
-                    human_bytes(self.opv_layout.segment_for(grid.cell_count()) * 4),
-                    opv_limit / per_light
-                ),
+                suggestion: "a 3D texture holds at most this much; lower grid.resolution".into(),
             });
         }
         let needed = self.memory_needed(grid, light_count, particle_count, width, height);
@@ -502,10 +497,25 @@ impl FogPipeline {
                     ),
                     needed,
                     limit: memory,
-                    adapter,
+                    adapter: adapter.clone(),
                     suggestion: format!("the device has {}; lower grid.resolution or use fewer lights", human_bytes(memory)),
                 });
             }
+        }
+        let per_light = grid.cell_count() * 4;
+        let capacity = self.opv_layout.capacity_lights(grid.resolution);
+        if light_count as u64 > capacity {
+            return Err(GpuError::Limit {
+                what: format!("the optical-depth volumes of {light_count} lights on a {}×{}×{} grid", r.x, r.y, r.z),
+                needed: per_light * light_count as u64,
+                limit: per_light * capacity,
+                adapter: adapter.clone(),
+                suggestion: format!(
+                    "the adapter gives a shader {} textures of {} lights each at this resolution; use at most {capacity} lights or lower grid.resolution",
+                    self.opv_layout.textures,
+                    self.opv_layout.per_texture(grid.resolution),
+                ),
+            });
         }
         let binding = self.ctx.max_binding_bytes();
         let particle_bytes = particle_count as u64 * std::mem::size_of::<ParticleGpu>() as u64;
@@ -1097,14 +1107,13 @@ impl FogPipeline {
         self.jobs = Jobs::default();
     }
 
-    /// The segmentation for `light_count` lights on `spec`: the fewest segments that hold them
+    /// The OPV storage for `light_count` lights on `spec`: the fewest textures that hold them
     /// (at most the device's). Rebuilds the stages that read OPVs when that number changes.
     fn stages_for(&mut self, spec: &GridSpec, light_count: usize) -> OpvLayout {
-        let cells = spec.cell_count();
-        let per_segment = self.opv_layout.segment_for(cells).max(1);
-        let needed = (cells * light_count.max(1) as u64).div_ceil(per_segment).clamp(1, self.opv_layout.segments as u64) as u32;
-        if needed != self.stage_layout.segments {
-            self.stage_layout = OpvLayout { segments: needed, ..self.opv_layout };
+        let needed = self.opv_layout.textures_for(spec.resolution, light_count as u64).clamp(1, self.opv_layout.textures as u64) as u32;
+        let rows = self.opv_layout.needs_rows(spec.resolution, light_count as u64);
+        if needed != self.stage_layout.textures || rows != self.stage_layout.rows {
+            self.stage_layout = OpvLayout { textures: needed, rows, ..self.opv_layout };
             let device = &self.ctx.device;
             self.propagator = Propagator::new(device, self.stage_layout);
             self.marcher = Marcher::new(device, self.stage_layout);
@@ -1122,12 +1131,12 @@ impl FogPipeline {
         let Some(g) = &mut self.grid else { return };
         let device = &self.ctx.device;
         let (lights_buf, opv) = light_buffers(device, layout, &g.spec, light_count);
-        let kept = g.spec.cell_count() * 4 * g.light_count.min(light_count) as u64;
+        let kept = g.light_count.min(light_count) as u64;
         if kept > 0 {
             let mut encoder = device.create_command_encoder(&Default::default());
             // Both: the sweep keeps each cell's mean in-box extinction in the second one.
-            g.opv[0].copy_to(&mut encoder, 0, &opv[0], 0, kept / 4);
-            g.opv[1].copy_to(&mut encoder, 0, &opv[1], 0, kept / 4);
+            g.opv[0].copy_to(&mut encoder, 0, &opv[0], 0, kept);
+            g.opv[1].copy_to(&mut encoder, 0, &opv[1], 0, kept);
             self.ctx.queue.submit([encoder.finish()]);
         }
         g.lights_buf = lights_buf;
@@ -1230,8 +1239,7 @@ impl FogPipeline {
         if light >= g.light_count {
             return Err(GpuError::Invalid(format!("light {light} does not exist (the scene has {})", g.light_count)));
         }
-        let n = g.spec.cell_count();
-        let data = g.opv[0].read(&self.ctx, light as u64 * n, n)?;
+        let data = g.opv[0].read(&self.ctx, light as u64)?;
         Ok(Volume::new(g.spec, data))
     }
 
@@ -1338,9 +1346,9 @@ fn light_gpu(l: &Light, culled: bool) -> LightGpu {
 }
 
 /// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
-fn light_buffers(device: &wgpu::Device, layout: OpvLayout, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [OpvBuffers; 2]) {
+fn light_buffers(device: &wgpu::Device, layout: OpvLayout, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [OpvVolumes; 2]) {
     let lights = light_count.max(1) as u64;
-    let opv = ["optical depth A", "optical depth B"].map(|label| OpvBuffers::new(device, layout, spec.cell_count(), lights, label));
+    let opv = ["optical depth A", "optical depth B"].map(|label| OpvVolumes::new(device, layout, spec.resolution, lights, label));
     let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("lights"),
         size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,

@@ -1,10 +1,10 @@
 //! Opacity propagation: EV → one optical-depth volume (OPV) per light, by one of three
-//! schemes (see [`Scheme`]). All OPVs form one light-major array, segmented over buffers
-//! that each fit a storage binding (see `opv_store`).
+//! schemes (see [`Scheme`]). The OPVs live in 3D textures, several lights to a texture
+//! (see `opv_store`).
 
 use super::gpu_types::{ExactParams, PlaneParams, SweepBox, SweepStep};
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, VOLUME_LOOKUP};
-use super::opv_store::{OpvBuffers, OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
+use super::opv_store::{OpvVolumes, OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
 use super::Counters;
 use crate::scene::{GridSpec, Scheme};
 use bytemuck::Zeroable;
@@ -17,7 +17,7 @@ pub struct PropagationInputs<'a> {
     pub ev_view: &'a wgpu::TextureView,
     pub lights_buf: &'a wgpu::Buffer,
     /// Result buffer (all lights) and a scratch buffer of the same size.
-    pub opv: &'a [OpvBuffers; 2],
+    pub opv: &'a [OpvVolumes; 2],
     /// Light positions, indexed like the OPVs.
     pub positions: &'a [Vec3],
     /// The unit direction of travel of each directional light (None for point and spot
@@ -54,7 +54,7 @@ impl Propagator {
         let giroud_layout = bind_group_layout_with(
             device,
             "propagate_giroud",
-            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::StorageRead, Slot::StorageRead, Slot::StorageWrite],
+            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::StorageRead, Slot::Opv { read_only: true }, Slot::Opv { read_only: false }],
             two(true, false),
         );
         let src_dst = opv.wgsl("src", 4, EXTRA_BINDING, false) + &opv.wgsl("dst", 5, EXTRA_BINDING_2, true);
@@ -74,8 +74,8 @@ impl Propagator {
                 if filtered { Slot::Texture3dFiltered } else { Slot::Texture3d },
                 Slot::StorageRead,
                 Slot::UniformDynamic,
-                Slot::StorageWrite,
-                Slot::StorageWrite,
+                Slot::Opv { read_only: false },
+                Slot::Opv { read_only: false },
                 Slot::StorageRead,
                 Slot::Sampler { filtering: filtered },
             ],
@@ -106,7 +106,7 @@ impl Propagator {
         let exact_layout = bind_group_layout_with(
             device,
             "propagate_exact",
-            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::UniformDynamic, Slot::StorageWrite],
+            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::UniformDynamic, Slot::Opv { read_only: false }],
             opv.layout_entries(EXTRA_BINDING, false),
         );
         let opv_rw = opv.wgsl("opv", 4, EXTRA_BINDING, true);
@@ -204,7 +204,7 @@ impl Propagator {
                 // An even count leaves the result in buffer A, where every other light's OPV is.
                 let iterations = iterations + iterations % 2;
                 let active_buf = super::pipeline::storage_buffer(device, "active lights", bytemuck::cast_slice(active));
-                let make = |src: &OpvBuffers, dst: &OpvBuffers| {
+                let make = |src: &OpvVolumes, dst: &OpvVolumes| {
                     bind_group_with(
                         device,
                         "propagate_giroud",
@@ -310,7 +310,7 @@ impl Propagator {
         let (all, range) = (range.clone(), range.start.min(sun_start)..range.end.min(sun_start));
         if let (Work::Giroud { a, b, .. }, 0) = (&job.work, job.next) {
             // Lights not being updated must survive in B too, since B feeds back into A.
-            a.copy_to(encoder, 0, b, 0, a.floats());
+            a.copy_to(encoder, 0, b, 0, a.lights());
         }
         let mut dispatches = 0u32;
         {
@@ -426,7 +426,7 @@ enum Which {
 
 enum Work {
     /// Jacobi iterations ping-ponging between the two OPV buffers.
-    Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: OpvBuffers, b: OpvBuffers, _active: wgpu::Buffer },
+    Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: OpvVolumes, b: OpvVolumes, _active: wgpu::Buffer },
     /// One dispatch per uniform entry, each seeing its entry through a dynamic offset.
     PerDispatch { which: Which, bind_group: wgpu::BindGroup, stride: u64, _buf: wgpu::Buffer, _keep: Option<wgpu::Buffer> },
     /// Nothing but directional lights to propagate.

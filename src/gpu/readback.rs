@@ -18,9 +18,15 @@ pub fn read_buffer<T: Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, offset: u64,
 }
 
 /// Reads a whole 2D or 3D texture of `texel_bytes`-sized texels, rows unpadded.
-pub fn read_texture<T: Pod>(
+pub fn read_texture<T: Pod>(ctx: &GpuContext, texture: &wgpu::Texture, extent: [u32; 3], texel_bytes: u32) -> Result<Vec<T>, GpuError> {
+    read_texture_region(ctx, texture, wgpu::Origin3d::ZERO, extent, texel_bytes)
+}
+
+/// Reads the `[width, height, depth]` texels of `texture` from `origin`, rows unpadded.
+pub fn read_texture_region<T: Pod>(
     ctx: &GpuContext,
     texture: &wgpu::Texture,
+    origin: wgpu::Origin3d,
     [width, height, depth]: [u32; 3],
     texel_bytes: u32,
 ) -> Result<Vec<T>, GpuError> {
@@ -29,7 +35,7 @@ pub fn read_texture<T: Pod>(
     let staging = staging_buffer(ctx, padded_row as u64 * height as u64 * depth as u64);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     encoder.copy_texture_to_buffer(
-        texture.as_image_copy(),
+        wgpu::TexelCopyTextureInfo { texture, mip_level: 0, origin, aspect: wgpu::TextureAspect::All },
         wgpu::TexelCopyBufferInfo {
             buffer: &staging,
             layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row), rows_per_image: Some(height) },

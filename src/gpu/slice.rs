@@ -2,7 +2,7 @@
 //! without copying the whole EV or OPV to the CPU.
 
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
-use super::opv_store::{OpvBuffers, OpvLayout, EXTRA_BINDING};
+use super::opv_store::{OpvVolumes, OpvLayout, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
@@ -37,7 +37,7 @@ pub struct SliceParams {
 pub struct SliceInputs<'a> {
     pub grid_buf: &'a wgpu::Buffer,
     pub ev_view: &'a wgpu::TextureView,
-    pub opv: &'a OpvBuffers,
+    pub opv: &'a OpvVolumes,
 }
 
 pub struct Slicer {
@@ -52,7 +52,7 @@ impl Slicer {
         let layout = bind_group_layout_with(
             device,
             "slice",
-            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::Uniform, Slot::StorageWrite],
+            &[Slot::Uniform, Slot::Texture3d, Slot::Opv { read_only: true }, Slot::Uniform, Slot::StorageWrite],
             opv.layout_entries(EXTRA_BINDING, true),
         );
         let opv_read = opv.wgsl("opv", 2, EXTRA_BINDING, false);
