@@ -20,14 +20,19 @@
 //
 // Interpolation cannot resolve the shadow of a particle of a cell or two: there the optical
 // depth varies over the stencil faster than any interpolant follows. With
-// `propagation.sweep_refine` (step.refine) a cell whose stencil shows it (the cubic and the
-// bilinear interpolant disagree by more than REFINE_TOL in transmittance, or the four nearest
-// cells' transmittances spread by more than SPREAD_TOL) integrates its whole in-box path
-// directly instead, like the cells that start the sweep. Its value is then as exact as the
-// `exact` scheme's, and the cells behind it interpolate from exact values. Dense smooth fog
-// whose optical depth curves across the stencil triggers it too, so it costs time on every
-// scene, most where the fog is dense. Whole in-box paths (and, with refine, every segment) are
-// split at every axis' cell-centre planes, which makes their integral exact.
+// `propagation.sweep_refine` (step.refine) such stencils are looked for only in the shadows of
+// fine detail: a cell is marked (the sign bit of its stored mean) when its path crosses a
+// brick whose detail (occupancy.wgsl: how far σ_t departs from linear across a cell, in
+// optical depth) exceeds DETAIL_TOL, or when one of the four nearest cells it interpolates
+// from is marked. A cell whose stencil is marked and shows an unresolved shadow (the cubic
+// and the bilinear interpolant disagree by more than REFINE_TOL in transmittance, or the four
+// nearest cells' transmittances spread by more than SPREAD_TOL) integrates its whole in-box
+// path directly instead, like the cells that start the sweep: its value is then as exact as
+// the `exact` scheme's, and the cells behind it interpolate from exact values. Unmarked cells
+// interpolate as without refine, so smooth fog, however dense, costs nothing extra (the checks
+// alone, unrestricted, fire on dense smooth fog and cost up to 3× there). Whole in-box paths
+// and marked segments are split at every axis' cell-centre planes, which makes their integral
+// exact.
 //
 // Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
 // units, around the light, or around a far light's anchor on the same line) closer to the
@@ -77,14 +82,42 @@ struct SweepBox {
 @group(0) @binding(3) var<uniform> step: SweepStep;
 // bindings 4, 5: `opv` and `mean_in`, declared with their helpers by src/gpu/opv_store.rs.
 @group(0) @binding(6) var<storage, read> boxes: array<SweepBox>;
+// Each brick's largest σ_t, then its detail (shaders/occupancy.wgsl).
+@group(0) @binding(8) var<storage, read> brick_max: array<f32>;
 
+// With refine, whether one of the four nearest stencil cells lies in the shadow of detail
+// (set by layer_mean).
+var<private> stencil_detail: bool;
+
+// The mean's sign bit marks, with refine, a cell in the shadow of detail: its path, or the
+// paths its value was interpolated from, crosses a brick whose detail exceeds DETAIL_TOL.
 fn load_mean(light: u32, c: vec3i) -> f32 {
     return mean_in_load(light, vec3u(c));
 }
 
-fn store(light: u32, c: vec3i, t: f32, mean: f32) {
+fn store(light: u32, c: vec3i, t: f32, mean: f32, shadowed: bool) {
     opv_store(light, vec3u(c), t);
-    mean_in_store(light, vec3u(c), mean);
+    mean_in_store(light, vec3u(c), select(abs(mean), -abs(mean), shadowed));
+}
+
+fn detail_at(x: vec3f) -> bool {
+    let c = clamp(vec3i(floor((x - grid.min) / grid.cell)), vec3i(0), vec3i(grid.dims) - 1);
+    let bdims = (grid.dims + BRICK - 1u) / BRICK;
+    let b = vec3u(c) / BRICK;
+    return brick_max[b.x + bdims.x * (b.y + bdims.y * b.z) + bdims.x * bdims.y * bdims.z] > DETAIL_TOL;
+}
+
+// Whether the segment from x along dir of length len crosses a brick with detail, sampled
+// every half brick.
+fn detail_along(x: vec3f, dir: vec3f, len: f32) -> bool {
+    let h = 0.5 * f32(BRICK) * min(grid.cell.x, min(grid.cell.y, grid.cell.z));
+    let n = u32(ceil(len / h));
+    for (var k = 0u; k <= n; k++) {
+        if detail_at(x + dir * min(f32(k) * h, len)) {
+            return true;
+        }
+    }
+    return false;
 }
 
 struct Exit {
@@ -157,17 +190,20 @@ fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> vec4f {
     var hi = 0.0;
     var cell = vec3i(0);
     cell[a] = layer;
+    stencil_detail = false;
     for (var j = first; j < last; j++) {
         cell[d] = clamp(fd + j - 1, 0, nd - 1);
         var row = 0.0;
         for (var i = first; i < last; i++) {
             cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            let m = load_mean(light, cell);
+            let stored = load_mean(light, cell);
+            let m = abs(stored);
             row += wb[i] * m;
             if (i == 1 || i == 2) && (j == 1 || j == 2) {
                 bilinear += lin_b[i] * lin_d[j] * m;
                 lo = min(lo, m);
                 hi = max(hi, m);
+                stencil_detail = stencil_detail || (bitcast<u32>(stored) & 0x80000000u) != 0u;
             }
         }
         sum += wd[j] * row;
@@ -196,6 +232,11 @@ fn fold_ghosts(w: vec4f, f: i32, n: i32) -> vec4f {
 // but lets errors of 1e-2 through.
 const REFINE_TOL: f32 = 5e-5;
 const SPREAD_TOL: f32 = 0.02;
+// Detail (optical depth by which σ_t departs from linear across a cell, occupancy.wgsl) above
+// which a brick's shadow gets those checks; elsewhere the interpolation resolves the shadows.
+// The largest value at which the placements test's worst class stays as with 2e-3 (1.8e-3);
+// at 8e-3 it reaches 2.0e-3.
+const DETAIL_TOL: f32 = 4e-3;
 
 fn solve(c: vec3i, light: u32) {
     let s = lights[light].position;
@@ -204,7 +245,7 @@ fn solve(c: vec3i, light: u32) {
     let len = length(v);
     let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
     if len < 1e-6 * h {
-        store(light, c, 0.0, sigma_cell(c));
+        store(light, c, 0.0, sigma_cell(c), false);
         return;
     }
     let dir = v / len;
@@ -247,20 +288,30 @@ fn solve(c: vec3i, light: u32) {
     // rest: one call either way, so that threads taking different branches share it.
     var near = inside;
     var t_rest = 0.0;
+    var shadowed = false;
     if mag[a] >= stride + 0.5 && inside > to_plane && layer >= 0 && layer < i32(grid.dims[e]) && !kink {
         let u = (x + dir * to_plane - grid.min) / grid.cell - 0.5;
         let m = layer_mean(light, e, layer, u) * (inside - to_plane);
-        // A stencil that does not resolve the optical depth around P: X integrates its whole
-        // path directly.
+        // A stencil in the shadow of detail that does not resolve the optical depth around
+        // P: X integrates its whole path directly. Detail between X and P does not matter
+        // to X (integrated exactly), only to the cells that interpolate X.
         let disagree = abs(exp(-m.x) - exp(-m.y));
         let spread = abs(exp(-m.z) - exp(-m.w));
-        if step.refine == 0u || (disagree <= REFINE_TOL && spread <= SPREAD_TOL) {
+        let checked = step.refine != 0u && stencil_detail;
+        if !checked || (disagree <= REFINE_TOL && spread <= SPREAD_TOL) {
             near = to_plane;
             t_rest = m.x;
+            // The segment is at most a brick and a half long: its ends' bricks stand for it.
+            shadowed = checked || (step.refine != 0u && (detail_at(x) || detail_at(x + dir * to_plane)));
         }
     }
-    let t_in = integrate_pieces(x + dir * near, x, near == inside || step.refine != 0u) + t_rest;
-    store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
+    if step.refine != 0u && near == inside {
+        shadowed = detail_along(x, dir, inside);
+    }
+    // Segments in the shadow of detail are split at every axis' cell-centre planes, which
+    // makes their integral exact for the trilinear medium.
+    let t_in = integrate_pieces(x + dir * near, x, near == inside || shadowed) + t_rest;
+    store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h), shadowed);
 }
 
 @compute @workgroup_size(64, 1, 1)

@@ -369,6 +369,31 @@ fn a_million_small_particles_inject() {
     assert!(ev.data.iter().all(|v| v.is_finite()));
 }
 
+/// `sweep_refine` checks interpolations only in the shadows of fine detail: on fog of wide,
+/// thin particles it gives the plain sweep's optical depths bit for bit (no work added), and
+/// with particles a cell or two wide it changes them.
+#[test]
+fn sweep_refine_works_only_in_the_shadows_of_detail() {
+    let mut gpu = pipeline();
+    let lights = [Vec3::new(0.3, 0.9, -0.2), Vec3::new(-2.5, 0.4, 1.5)];
+    let mut smooth = small_scene(32, &lights);
+    scatter(&mut smooth, 5, 20, 0.5, 0.8);
+    smooth.particles.iter_mut().for_each(|q| q.density *= 0.05);
+    let mut fine = smooth.clone();
+    scatter(&mut fine, 6, 40, 0.06, 0.12);
+    for (p, same) in [(smooth, true), (fine, false)] {
+        let mut opvs = Vec::new();
+        for refine in [false, true] {
+            let mut p = p.clone();
+            p.propagation.sweep_refine = refine;
+            gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+            opvs.push((0..lights.len()).map(|l| gpu.read_opv(l).unwrap().data).collect::<Vec<_>>());
+        }
+        let differ: usize = opvs[0].iter().zip(&opvs[1]).map(|(a, b)| a.iter().zip(b).filter(|(x, y)| x.to_bits() != y.to_bits()).count()).sum();
+        assert_eq!(differ == 0, same, "{differ} cells differ between plain and refined sweep (expected {})", if same { "none" } else { "some" });
+    }
+}
+
 /// OPVs spread over several textures (one or two lights per texture) or stacked in rows give
 /// the same optical depths, slices and image, bit for bit, as all lights stacked along z in
 /// one texture, for every scheme and after adding and removing lights.

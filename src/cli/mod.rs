@@ -132,11 +132,11 @@ pub struct BakeArgs {
     /// Propagation scheme (default: the project's propagation.scheme).
     #[arg(long)]
     pub scheme: Option<Scheme>,
-    /// Turn on propagation.sweep_refine: `sweep` integrates directly where its stencil cannot
-    /// resolve the optical depth (the shadows of particles a cell or two wide); slower,
-    /// for final bakes of finely painted fog.
-    #[arg(long)]
-    pub sweep_refine: bool,
+    /// Override propagation.sweep_refine (true or false): `sweep` checks its interpolations in
+    /// the shadows of fine detail and integrates directly where they cannot resolve the
+    /// optical depth; false is faster on finely painted fog and less accurate there.
+    #[arg(long, value_name = "BOOL")]
+    pub sweep_refine: Option<bool>,
     /// No progress bar on stderr (bars appear only when stderr is a terminal).
     #[arg(long)]
     pub quiet: bool,
@@ -154,7 +154,9 @@ pub struct Baked {
 /// Loads the project (and its VDB base layer), opens the GPU and runs the whole pipeline.
 pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     let mut project = load_project(&args.project)?;
-    project.propagation.sweep_refine |= args.sweep_refine;
+    if let Some(refine) = args.sweep_refine {
+        project.propagation.sweep_refine = refine;
+    }
     let mut request = FrameRequest::for_project(&project);
     request.width = args.width.unwrap_or(request.width);
     request.height = args.height.unwrap_or(request.height);
@@ -275,7 +277,7 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
     // The GPU memory of a freshly created pipeline, or of one that baked `project`.
     let baked = match project {
         Some(path) => {
-            let args = BakeArgs { project: path.to_path_buf(), width: None, height: None, scheme: None, sweep_refine: false, quiet: true };
+            let args = BakeArgs { project: path.to_path_buf(), width: None, height: None, scheme: None, sweep_refine: None, quiet: true };
             let b = bake(&args)?;
             Some((b.pipeline.memory_bytes(), b.pipeline.peak_memory_bytes()))
         }

@@ -140,7 +140,8 @@ struct GridResources {
     lights_buf: wgpu::Buffer,
     /// The OPVs and the schemes' scratch array of the same size (see `opv_store`).
     opv: [OpvVolumes; 2],
-    /// Largest σ_t seen by samples in each 8³ brick (see `shaders/occupancy.wgsl`).
+    /// Largest σ_t seen by samples in each 8³ brick, then each brick's detail (see
+    /// `shaders/occupancy.wgsl`).
     brick_max: wgpu::Buffer,
 }
 
@@ -427,7 +428,7 @@ impl FogPipeline {
         // A chunk's lists: at most the chunk limit, and at most every particle in every bin.
         let lists = if particles == 0 { 0 } else { self.inject_chunk_bytes().min(particles as u64 * bins * 4) + bins * 4 + particle_bytes };
         let pixels = width as u64 * height as u64;
-        cells * 4 + bricks * 4 + 2 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
+        cells * 4 + bricks * 8 + 2 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
     }
 
     /// The largest grid, of the same proportions as `grid`, whose scene passes
@@ -953,6 +954,7 @@ impl FogPipeline {
             ev_view: &g.ev_view,
             lights_buf: &g.lights_buf,
             opv: &g.opv,
+            brick_max: &g.brick_max,
             positions: &positions,
             directions: &directions,
             sweep_stride: project.propagation.sweep_stride,
@@ -1094,8 +1096,8 @@ impl FogPipeline {
         });
         let bricks = spec.resolution.map(|n| n.div_ceil(binning::BRICK));
         let brick_max = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("brick max extinction"),
-            size: (bricks.x * bricks.y * bricks.z) as u64 * 4,
+            label: Some("brick max extinction and detail"),
+            size: (bricks.x * bricks.y * bricks.z) as u64 * 8,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });

@@ -18,6 +18,8 @@ pub struct PropagationInputs<'a> {
     pub lights_buf: &'a wgpu::Buffer,
     /// Result buffer (all lights) and a scratch buffer of the same size.
     pub opv: &'a [OpvVolumes; 2],
+    /// Each brick's largest σ_t, then its detail (`shaders/occupancy.wgsl`).
+    pub brick_max: &'a wgpu::Buffer,
     /// Light positions, indexed like the OPVs.
     pub positions: &'a [Vec3],
     /// The unit direction of travel of each directional light (None for point and spot
@@ -78,6 +80,7 @@ impl Propagator {
                 Slot::Opv { read_only: false },
                 Slot::StorageRead,
                 Slot::Sampler { filtering: filtered },
+                Slot::StorageRead,
             ],
             two(false, false),
         );
@@ -233,6 +236,9 @@ impl Propagator {
                     .map(|(k, &l)| {
                         let position = inputs.positions[l as usize];
                         let first = changed.get(k).copied().flatten().map_or(0, |cells| {
+                            // With refine, a cell's path also reads the detail of the bricks
+                            // it crosses, which a change reaches one cell beyond its bricks.
+                            let cells = if inputs.sweep_refine { bricks_around(inputs.grid, cells) } else { cells };
                             first_changed_batch(inputs.grid, position, inputs.sweep_stride, cells)
                         });
                         (l, position, first)
@@ -256,7 +262,12 @@ impl Propagator {
                     bytemuck::cast_slice(if plan.boxes.is_empty() { &placeholder[..] } else { &plan.boxes }),
                 );
                 // The second OPV buffer holds each cell's mean in-box extinction.
-                let extra = [inputs.opv[1].first(), boxes.as_entire_binding(), wgpu::BindingResource::Sampler(&self.sweep_sampler)];
+                let extra = [
+                    inputs.opv[1].first(),
+                    boxes.as_entire_binding(),
+                    wgpu::BindingResource::Sampler(&self.sweep_sampler),
+                    inputs.brick_max.as_entire_binding(),
+                ];
                 // Entries: the steps, then each split batch as one step.
                 let mut entries = plan.steps.clone();
                 for (steps, step, groups) in &plan.whole {
@@ -753,6 +764,16 @@ pub fn first_changed_batch(grid: &GridSpec, position: Vec3, stride: u32, changed
 
 /// Jacobi sweeps after which the `giroud` gather has converged exactly: one more than the
 /// largest Manhattan distance (in cells) from any cell to the light's slabs.
+/// The cells of the bricks whose detail a change of `cells` (inclusive bounds) can alter: its
+/// bricks and those one cell beyond them (`shaders/occupancy.wgsl` reads one cell around).
+fn bricks_around(grid: &GridSpec, (lo, hi): (glam::UVec3, glam::UVec3)) -> (glam::UVec3, glam::UVec3) {
+    let b = super::binning::BRICK;
+    let max = grid.resolution.max(glam::UVec3::ONE) - 1;
+    let lo = lo.saturating_sub(glam::UVec3::ONE) / b * b;
+    let hi = ((hi + 1) / b * b + (b - 1)).min(max);
+    (lo, hi)
+}
+
 pub fn giroud_iterations(grid: &GridSpec, light: Vec3) -> u32 {
     let lc = light_cell(grid, light);
     let n = grid.resolution.as_ivec3();
