@@ -164,6 +164,26 @@ impl OpvLayout {
     }
 }
 
+/// An r32float 3D texture and its view that shaders write, read and sample, and copies read
+/// and write: the EV's and the OPVs' storage.
+pub fn volume_texture(device: &wgpu::Device, label: &str, size: wgpu::Extent3d) -> (wgpu::Texture, wgpu::TextureView) {
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format: wgpu::TextureFormat::R32Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let view = texture.create_view(&Default::default());
+    (texture, view)
+}
+
 /// One array of per-light volumes on the GPU.
 #[derive(Clone)]
 pub struct OpvVolumes {
@@ -190,21 +210,7 @@ impl OpvVolumes {
                     let rows = held.div_ceil(along_z);
                     wgpu::Extent3d { width: res.x, height: res.y * rows, depth_or_array_layers: res.z * held.min(along_z) }
                 };
-                let texture = device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size,
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D3,
-                    format: wgpu::TextureFormat::R32Float,
-                    usage: wgpu::TextureUsages::STORAGE_BINDING
-                        | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC
-                        | wgpu::TextureUsages::COPY_DST,
-                    view_formats: &[],
-                });
-                let view = texture.create_view(&Default::default());
-                (texture, view)
+                volume_texture(device, label, size)
             })
             .collect();
         Self { textures, res, per_texture, along_z, lights }

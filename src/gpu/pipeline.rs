@@ -1075,19 +1075,7 @@ impl FogPipeline {
         }
         let device = &self.ctx.device;
         let r = spec.resolution;
-        let ev = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("extinction volume"),
-            size: wgpu::Extent3d { width: r.x, height: r.y, depth_or_array_layers: r.z },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let ev_view = ev.create_view(&Default::default());
+        let (ev, ev_view) = super::opv_store::volume_texture(device, "extinction volume", wgpu::Extent3d { width: r.x, height: r.y, depth_or_array_layers: r.z });
         let grid_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("grid params"),
             size: std::mem::size_of::<GridParams>() as u64,
