@@ -18,7 +18,7 @@ fn json_of(out: &std::process::Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
-/// `--sweep-refine false|true` overrides the project's sweep_refine (default true) for that
+/// `--sweep-refine false|true` overrides the project's sweep_refine (default false) for that
 /// run, and the JSON says which setting the bake used.
 #[test]
 fn sweep_refine_flag_reaches_the_bake() {
@@ -33,7 +33,7 @@ fn sweep_refine_flag_reaches_the_bake() {
     let default = run(&[]);
     let plain = run(&["--sweep-refine", "false"]);
     let refined = run(&["--sweep-refine", "true"]);
-    assert_eq!(default["sweep_refine"], true, "{default}");
+    assert_eq!(default["sweep_refine"], false, "{default}");
     assert_eq!(plain["sweep_refine"], false, "{plain}");
     assert_eq!(refined["sweep_refine"], true, "{refined}");
     assert_eq!(refined["scheme"], "sweep");

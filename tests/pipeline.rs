@@ -378,7 +378,7 @@ fn sweep_refine_works_only_in_the_shadows_of_detail() {
     let lights = [Vec3::new(0.3, 0.9, -0.2), Vec3::new(-2.5, 0.4, 1.5)];
     let mut smooth = small_scene(32, &lights);
     scatter(&mut smooth, 5, 20, 0.5, 0.8);
-    smooth.particles.iter_mut().for_each(|q| q.density *= 0.05);
+    smooth.particles.iter_mut().for_each(|q| q.density *= 0.005);
     let mut fine = smooth.clone();
     scatter(&mut fine, 6, 40, 0.06, 0.12);
     for (p, same) in [(smooth, true), (fine, false)] {

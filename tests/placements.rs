@@ -3,8 +3,9 @@
 //! and that medium against the analytic gaussians clipped to the box (the resolution error).
 //! `cargo test --release --test placements -- --nocapture --test-threads=1` prints the table
 //! per class, for particles of 1–10 and of 6–10 cells radius; SWEEP_STRIDES=4,8,16 measures
-//! other strides (the bounds are for stride 8), and PLACEMENT_DIAG=1 prints each light's worst
-//! cell with the reference and computed optical depth along its path.
+//! other strides (the bounds are for stride 8), PLACEMENT_SEED=n draws other scenes, and
+//! PLACEMENT_DIAG=1 prints each light's worst cell with the reference and computed optical
+//! depth along its path.
 
 mod common;
 
@@ -15,20 +16,19 @@ use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project, Scheme
 use glam::{UVec3, Vec3};
 
 /// The `sweep` scheme's largest transmittance error against the grid's own medium, at stride
-/// 8 with `sweep_refine` (the default), for every placement class and particles of 1 to 10
+/// 8 with `sweep_refine`, for every placement class and particles of 1 to 10
 /// cells radius. Where interpolation cannot resolve a shadow (particles of 1–2 cells, peak
 /// optical depth up to 2) the sweep then integrates directly (shaders/propagate_sweep.wgsl);
 /// what remains is the interpolation of resolved shadows along the path, as without refine.
-/// The worst class on these scenes measured 1.8e-3 (beyond a face); the bound is the goal of
-/// 2e-3 the scheme is built for.
+/// The worst class on the scenes of three seeds measured 1.7e-3 (on a face, seed 7); the bound
+/// is the goal of 2e-3 the scheme is built for.
 const SWEEP_SCHEME_BOUNDS: [f64; 8] = [2e-3; 8];
 
-/// The same for particles of 6 to 10 cells radius, whose shadows the interpolation resolves
-/// and which seldom lie in the shadow of detail: the plain sweep's error there, worst class
-/// 1.55e-3 (beyond a face).
-const SWEEP_SCHEME_BOUNDS_RESOLVED: [f64; 8] = [2e-3; 8];
+/// The same for particles of 6 to 10 cells radius, whose shadows the interpolation resolves:
+/// the worst class measured 3.7e-4 on the first seed's scenes.
+const SWEEP_SCHEME_BOUNDS_RESOLVED: [f64; 8] = [1e-3; 8];
 
-/// Without `sweep_refine` (the plain sweep, faster on finely painted fog), per placement class in
+/// Without `sweep_refine` (the default, for the live preview's speed), per placement class in
 /// `CLASSES` order: the numerical diffusion of the interpolations, which cannot resolve the
 /// shadow of a particle of 1–2 cells radius, least of all along the long paths of lights
 /// outside the elongated grids. Each bound is the class's worst case on these scenes with a
@@ -125,11 +125,14 @@ fn scene(rng: &mut Rng, resolution: UVec3, base: f32, min_radius: f32) -> (Proje
     (p, n)
 }
 
-fn worst_by_class(scheme: Scheme, stride: u32, refine: bool, min_radius: f32) -> Vec<(f64, f64)> {
+/// The scenes' seed: PLACEMENT_SEED, else the one the bounds were measured on.
+const SEED: u64 = 0x5EED_0012;
+
+fn worst_by_class(scheme: Scheme, stride: u32, refine: bool, min_radius: f32, seed: u64) -> Vec<(f64, f64)> {
     let mut gpu = pipeline();
     let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
     let mut worst = vec![(0.0f64, 0.0f64); CLASSES.len()];
-    let mut rng = Rng(0x5EED_0012);
+    let mut rng = Rng(seed);
     for (g, &res) in grids.iter().enumerate() {
         for seed in 0..2 {
             // Half the scenes without base fog, so that far lights still see the medium.
@@ -210,32 +213,37 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     }
 }
 
-fn check_sweep(min_radius: f32, refine: bool, bounds: [f64; 8]) {
+/// Asserts `bounds` on the scenes of each of `seeds` (or of PLACEMENT_SEED alone).
+fn check_sweep(min_radius: f32, refine: bool, bounds: [f64; 8], seeds: &[u64]) {
     let strides: Vec<u32> = std::env::var("SWEEP_STRIDES").map_or(vec![8], |s| s.split(',').map(|v| v.parse().unwrap()).collect());
-    let all: Vec<_> = strides.iter().map(|&stride| (stride, worst_by_class(Scheme::Sweep, stride, refine, min_radius))).collect();
-    for (stride, worst) in all {
-        for ((class, (s, _)), bound) in CLASSES.iter().zip(&worst).zip(bounds) {
-            assert!(*s <= bound, "sweep stride {stride} refine {refine}, radii {min_radius}–10 cells, light {class}: scheme error {s:.3e} > {bound:e}");
+    let seeds = std::env::var("PLACEMENT_SEED").map_or(seeds.to_vec(), |s| vec![s.parse().expect("PLACEMENT_SEED is a number")]);
+    for &seed in &seeds {
+        for &stride in &strides {
+            let worst = worst_by_class(Scheme::Sweep, stride, refine, min_radius, seed);
+            for ((class, (s, _)), bound) in CLASSES.iter().zip(&worst).zip(bounds) {
+                assert!(*s <= bound, "seed {seed}, sweep stride {stride} refine {refine}, radii {min_radius}–10 cells, light {class}: scheme error {s:.3e} > {bound:e}");
+            }
         }
     }
 }
 
 #[test]
 fn refined_sweep_is_accurate_for_every_light_placement() {
-    check_sweep(1.0, true, SWEEP_SCHEME_BOUNDS);
+    check_sweep(1.0, true, SWEEP_SCHEME_BOUNDS, &[SEED, 7, 99]);
 }
 
 #[test]
 fn refined_sweep_is_accurate_for_resolved_particles() {
-    check_sweep(6.0, true, SWEEP_SCHEME_BOUNDS_RESOLVED);
+    check_sweep(6.0, true, SWEEP_SCHEME_BOUNDS_RESOLVED, &[SEED, 7]);
 }
 
+/// The plain sweep's bounds are its measured worst on the first seed's scenes plus a margin.
 #[test]
 fn plain_sweep_is_bounded_for_every_light_placement() {
-    check_sweep(1.0, false, PLAIN_SWEEP_SCHEME_BOUNDS);
+    check_sweep(1.0, false, PLAIN_SWEEP_SCHEME_BOUNDS, &[SEED]);
 }
 
 #[test]
 fn plain_sweep_matches_an_inside_light_everywhere_for_resolved_particles() {
-    check_sweep(6.0, false, PLAIN_SWEEP_SCHEME_BOUNDS_RESOLVED);
+    check_sweep(6.0, false, PLAIN_SWEEP_SCHEME_BOUNDS_RESOLVED, &[SEED]);
 }

@@ -725,18 +725,19 @@ pub struct PropagationSettings {
     /// diffusive and costs more per cell. Default 8 (on the demos: max transmittance error
     /// 5.1e-3 to 1.3e-2 against 7.6e-3 to 2.0e-2 with 4, at about the same time).
     pub sweep_stride: u32,
-    /// Whether the `sweep` scheme checks its interpolations in the shadows of fine detail
-    /// (particles a few cells wide, noise) and integrates directly the cells whose stencil
-    /// does not resolve the optical depth there: a scheme error below 2e-3 whatever the
-    /// particles' size, at no cost where the fog has no such detail
-    /// (`fogsmith bench --suite opv`). Default true; false gives the plain sweep, faster on
-    /// finely painted fog and up to a few 1e-2 off in the shadows of its smallest particles.
+    /// Whether the `sweep` scheme checks its interpolations in the shadows of detail
+    /// (particles and noise that are not smooth across a cell) and integrates directly the
+    /// cells whose stencil does not resolve the optical depth there: a scheme error below
+    /// 2e-3 whatever the particles' size, at 1.1–3× the plain sweep's time on the demos, none
+    /// extra on fog that is smooth across every cell (`fogsmith bench --suite opv`). Default
+    /// false: the live preview's speed; the plain sweep is up to a few 1e-2 off in the
+    /// shadows of particles a cell or two wide. Turn it on for exports of finely painted fog.
     pub sweep_refine: bool,
 }
 
 impl Default for PropagationSettings {
     fn default() -> Self {
-        Self { scheme: Scheme::default(), sweep_stride: 8, sweep_refine: true }
+        Self { scheme: Scheme::default(), sweep_stride: 8, sweep_refine: false }
     }
 }
 
