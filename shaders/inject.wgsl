@@ -13,20 +13,14 @@ struct ParticleGpu {
     _pad: f32,
 }
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
+// Bindings 0 and 4–6 and each cell's last step: inject_finish.wgsl.
 @group(0) @binding(1) var<storage, read> particles: array<ParticleGpu>;
 @group(0) @binding(2) var<storage, read> bin_offsets: array<u32>;
 @group(0) @binding(3) var<storage, read> bin_items: array<u32>;
-@group(0) @binding(4) var ev: texture_storage_3d<r32float, write>;
-@group(0) @binding(5) var<storage, read> dirty_bricks: array<u32>;
-// An imported density layer (e.g. from a VDB file) under the particles, when has_base_layer.
-@group(0) @binding(6) var<storage, read> base_layer: array<f32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
-    let brick = dirty_bricks[wg.x];
-    let bdims = (grid.dims + BRICK - 1u) / BRICK;
-    let b = vec3u(brick % bdims.x, (brick / bdims.x) % bdims.y, brick / (bdims.x * bdims.y));
+    let b = dirty_brick(wg.x);
     let base = b * BRICK + vec3u(lid.xy, 0u);
     if any(base.xy >= grid.dims.xy) {
         return;
@@ -58,11 +52,6 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
         if id.z >= grid.dims.z {
             break;
         }
-        let x = cell_center(id);
-        var layer = 0.0;
-        if grid.has_base_layer != 0u {
-            layer = base_layer[linear_index(id)];
-        }
-        textureStore(ev, id, vec4f(base_fog_at(x.y) + layer + particle_sum(sum[k], x), 0.0, 0.0, 0.0));
+        write_cell(id, sum[k]);
     }
 }

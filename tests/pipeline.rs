@@ -4,7 +4,7 @@
 mod common;
 
 use common::{homogeneous_scene, pipeline, small_scene};
-use fogsmith::gpu::{cutoff_radius, FrameRequest};
+use fogsmith::gpu::{cutoff_radius, FrameRequest, InjectPath};
 use fogsmith::scene::{Project, Scheme};
 use glam::{DVec3, Vec3};
 
@@ -311,14 +311,23 @@ fn scatter(p: &mut Project, seed: u64, count: usize, r0: f32, r1: f32) {
         .collect();
 }
 
-/// Injection in memory chunks (each chunk's particle–bin lists built and uploaded alone)
+/// Injection in memory chunks (each chunk's particle–bin lists, or on the host path its
+/// particle sums, built and uploaded alone)
 /// writes the same EV, bit for bit, as one pass holding every list, on randomized scenes,
 /// grids whose edges are not multiples of a brick, and after an edit. The small limit may
 /// also push the bin edge up; each cell still sums the same particles in the same order.
 #[test]
 fn chunked_injection_equals_single_pass_bit_for_bit() {
+    for path in [InjectPath::Host, InjectPath::Adapter] {
+        chunked_injection_case(path);
+    }
+}
+
+fn chunked_injection_case(path: InjectPath) {
     let mut single = pipeline();
     let mut chunked = pipeline();
+    single.set_inject_path(path);
+    chunked.set_inject_path(path);
     chunked.set_inject_chunk_bytes(Some(16 << 10));
     for (seed, res, count, r0, r1) in [(1u64, 40u32, 3000usize, 0.02f32, 0.1f32), (2, 37, 400, 0.05, 0.6), (3, 61, 20000, 0.01, 0.05)] {
         let mut p = small_scene(res, &[Vec3::new(0.9, 0.9, 0.9)]);
@@ -335,13 +344,13 @@ fn chunked_injection_equals_single_pass_bit_for_bit() {
             let b = chunked.update(&p, &request(&p, Scheme::Sweep)).unwrap();
             assert!(
                 b.counters.inject_chunks > a.counters.inject_chunks,
-                "seed {seed}: the small limit must force more chunks ({} vs {})",
+                "{path:?}, seed {seed}: the small limit must force more chunks ({} vs {})",
                 b.counters.inject_chunks,
                 a.counters.inject_chunks
             );
             let (ea, eb) = (single.read_ev().unwrap(), chunked.read_ev().unwrap());
             let differ = ea.data.iter().zip(&eb.data).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
-            assert_eq!(differ, 0, "seed {seed}, edit {edit}: {differ} cells differ between chunked and single-pass injection");
+            assert_eq!(differ, 0, "{path:?}, seed {seed}, edit {edit}: {differ} cells differ between chunked and single-pass injection");
             assert!(ea.data.iter().all(|v| v.is_finite()));
         }
     }
@@ -473,4 +482,62 @@ fn only_scenes_beyond_the_device_are_refused() {
     assert!(fit.x >= 256 && fit.x < 2048, "largest fitting grid {fit}");
     p.grid.resolution = fit;
     gpu.check_limits(&p, 640, 360).expect("the largest fitting grid fits");
+}
+
+/// The host's particle sums (the path software adapters take) give the f64 density at every
+/// cell as the adapter's gather does, and the two agree to rounding, on randomized scenes:
+/// grids whose sides are not multiples of a brick, thin grids, particles from a tenth of a
+/// cell to several cells, some crossing the box, hidden or empty, and noise on some. Sliced
+/// into small budgeted calls the host path writes the same EV bit for bit. On this adapter
+/// `Auto` takes the host path only when the adapter runs on the CPU.
+#[test]
+fn host_particle_sums_equal_the_adapter_gather() {
+    let mut host = pipeline();
+    let mut adapter = pipeline();
+    let mut sliced = pipeline();
+    let cpu = host.context().adapter_info.device_type == wgpu::DeviceType::Cpu;
+    assert_eq!(host.inject_on_host(), cpu, "Auto takes the host path exactly on CPU adapters");
+    host.set_inject_path(InjectPath::Host);
+    sliced.set_inject_path(InjectPath::Host);
+    adapter.set_inject_path(InjectPath::Adapter);
+    assert!(host.inject_on_host() && !adapter.inject_on_host());
+    let grids = [glam::UVec3::new(29, 13, 21), glam::UVec3::new(64, 9, 9), glam::UVec3::new(17, 40, 8)];
+    for (seed, res) in grids.into_iter().enumerate() {
+        let mut p = small_scene(8, &[Vec3::new(0.9, 0.9, 0.9)]);
+        p.grid.resolution = res;
+        let cell = p.grid.cell_size().min_element();
+        scatter(&mut p, 100 + seed as u64, 900, 0.1 * cell, 4.0 * cell);
+        if seed == 1 {
+            p.medium.noise = Some(fogsmith::scene::Noise { amplitude: 0.6, frequency: 3.0, octaves: 3, seed: 7 });
+            for q in p.particles.iter_mut().step_by(2) {
+                q.noise = true;
+            }
+        }
+        host.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+        adapter.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+        let (h, a) = (host.read_ev().unwrap(), adapter.read_ev().unwrap());
+        let worst = h.data.iter().zip(&a.data).map(|(x, y)| ((x - y).abs() / y.abs().max(1e-3)) as f64).fold(0.0, f64::max);
+        println!("grid {res}: host against adapter, max relative difference {worst:.2e}");
+        assert!(worst <= 2e-6, "grid {res}: host and adapter EVs differ by {worst:e} (relative)");
+        if p.medium.noise.is_none() {
+            let (err, checked) = ev_relative_error(&p, &h, 0.0);
+            assert_eq!(checked, res.x * res.y * res.z);
+            assert!(err <= 1e-5, "grid {res}: host EV max relative error {err:e} > 1e-5");
+        }
+        // Budgeted calls small enough to take a few bricks each.
+        let (mut calls, mut inject_calls) = (0, 0);
+        loop {
+            let progress = sliced.advance(&p, &request(&p, Scheme::Sweep), Some(std::time::Duration::from_micros(1))).unwrap();
+            calls += 1;
+            inject_calls += (progress.report.counters.cells_injected > 0) as u32;
+            if progress.converged() {
+                break;
+            }
+            assert!(calls < 100_000, "the sliced bake never finished");
+        }
+        let s = sliced.read_ev().unwrap();
+        let differ = s.data.iter().zip(&h.data).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+        assert!(inject_calls > 2, "grid {res}: a 1 µs budget must slice the injection ({inject_calls} calls)");
+        assert_eq!(differ, 0, "grid {res}: {differ} cells differ between sliced and one-pass host injection");
+    }
 }

@@ -13,6 +13,7 @@
 //! bin buffers, which it reuses across updates and grows only when a chunk outgrows them.
 
 use super::binning::{self, BinCounts};
+use super::host_sums;
 use crate::scene::Particle;
 use super::gpu_types::ParticleGpu;
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
@@ -44,6 +45,9 @@ pub struct InjectJob {
     uploaded: Option<usize>,
     /// Largest list and particle buffers a chunk used, in bytes.
     pub peak_chunk_bytes: u64,
+    /// The host computes the particle sums ([`host_sums`]), call by call, instead of the
+    /// adapter evaluating binned lists.
+    host: bool,
     occupancy_done: bool,
 }
 
@@ -67,12 +71,15 @@ fn brick_cells(grid: &GridSpec, b: u32) -> u64 {
 pub struct Injector {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
+    /// `shaders/inject_sums.wgsl`: the host's particle sums into the EV (same layout).
+    sums_pipeline: wgpu::ComputePipeline,
     occupancy_layout: wgpu::BindGroupLayout,
     occupancy: wgpu::ComputePipeline,
     particles: wgpu::Buffer,
     offsets: wgpu::Buffer,
     items: wgpu::Buffer,
     bricks: wgpu::Buffer,
+    sums: wgpu::Buffer,
     no_layer: wgpu::Buffer,
 }
 
@@ -110,7 +117,10 @@ impl Injector {
                 Slot::StorageRead,
             ],
         );
-        let pipeline = compute_pipeline(device, "inject", &[include_str!("../../shaders/noise.wgsl"), include_str!("../../shaders/inject.wgsl")], &layout);
+        let finish = include_str!("../../shaders/inject_finish.wgsl");
+        let noise = include_str!("../../shaders/noise.wgsl");
+        let pipeline = compute_pipeline(device, "inject", &[noise, finish, include_str!("../../shaders/inject.wgsl")], &layout);
+        let sums_pipeline = compute_pipeline(device, "inject sums", &[noise, finish, include_str!("../../shaders/inject_sums.wgsl")], &layout);
         let occupancy_layout = bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
         let occupancy =
             compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
@@ -118,18 +128,21 @@ impl Injector {
         Self {
             layout,
             pipeline,
+            sums_pipeline,
             occupancy_layout,
             occupancy,
             particles: empty("particles"),
             offsets: empty("bin offsets"),
             items: empty("bin items"),
             bricks: empty("dirty bricks"),
+            sums: empty("particle sums"),
             no_layer: empty("no base layer"),
         }
     }
 
     /// Plans one injection of `bricks`: cuts them into chunks whose lists hold at most
-    /// `max_items` entries (a brick with more forms a chunk alone). Nothing is uploaded yet.
+    /// `max_items` entries (a brick with more forms a chunk alone); with `host`, whose
+    /// particle sums (two words per cell) fit `max_items` words. Nothing is uploaded yet.
     pub fn begin(
         grid: &GridSpec,
         particles: Vec<Particle>,
@@ -137,12 +150,13 @@ impl Injector {
         counts: BinCounts,
         bricks: Vec<u32>,
         max_items: u64,
+        host: bool,
     ) -> InjectJob {
         let (items, evals) = counts.per_brick(grid);
         let mut chunk_ends = Vec::new();
         let mut acc = 0u64;
         for (i, &b) in bricks.iter().enumerate() {
-            let n = items[b as usize];
+            let n = if host { host_sums::WORDS as u64 } else { items[b as usize] };
             if i > 0 && acc + n > max_items {
                 chunk_ends.push(i);
                 acc = 0;
@@ -161,6 +175,7 @@ impl Injector {
             chunk_ends,
             uploaded: None,
             peak_chunk_bytes: 0,
+            host,
             occupancy_done: false,
         }
     }
@@ -183,9 +198,14 @@ impl Injector {
         job.uploaded = Some(c);
     }
 
-    /// Smallest chunk of bricks: a storage binding's offset alignment, in bricks.
-    pub fn chunk_align(ctx: &GpuContext) -> usize {
-        (ctx.limits.min_storage_buffer_offset_alignment as usize / 4).max(1)
+    /// Smallest chunk of bricks: a storage binding's offset alignment, in bricks (one brick on
+    /// the host path, which uploads each call's bricks from offset 0).
+    pub fn chunk_align(ctx: &GpuContext, job: &InjectJob) -> usize {
+        if job.host {
+            1
+        } else {
+            (ctx.limits.min_storage_buffer_offset_alignment as usize / 4).max(1)
+        }
     }
 
     /// Particle evaluations plus cells of the next `count` bricks: the unit of their cost.
@@ -211,19 +231,36 @@ impl Injector {
         let device = &ctx.device;
         let chunk = job.chunk_ends.partition_point(|&e| e <= job.next);
         if job.next < job.bricks.len() && job.uploaded != Some(chunk) {
-            self.upload_chunk(ctx, inputs.grid, job, chunk);
+            if !job.host {
+                self.upload_chunk(ctx, inputs.grid, job, chunk);
+            }
+            job.uploaded = Some(chunk);
             counters.inject_chunks += 1;
         }
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: timestamps });
         if job.next < job.bricks.len() {
             let start = if chunk == 0 { 0 } else { job.chunk_ends[chunk - 1] };
-            let align = Self::chunk_align(ctx);
+            let align = Self::chunk_align(ctx, job);
             let max = (ctx.limits.max_compute_workgroups_per_dimension as usize / align).max(1) * align;
             let count = count.max(1).next_multiple_of(align).min(max);
             let end = (job.next + count).min(job.chunk_ends[chunk]);
+            let mut offset = ((job.next - start) * 4) as u64;
+            if job.host {
+                // The host sums exactly this call's bricks, so a frame budget bounds its work.
+                let bricks = &job.bricks[job.next..end];
+                let lists = job.counts.fill(inputs.grid, &job.particles, bricks);
+                let (sums, pairs) = host_sums::particle_sums(inputs.grid, &job.gpu_particles, bricks, &lists);
+                upload(ctx, &mut self.sums, "particle sums", bytemuck::cast_slice(&sums));
+                upload(ctx, &mut self.bricks, "dirty bricks", bytemuck::cast_slice(bricks));
+                job.peak_chunk_bytes = job.peak_chunk_bytes.max(std::mem::size_of_val(&sums[..]) as u64);
+                counters.particle_evaluations += pairs;
+                offset = 0;
+            } else {
+                counters.particle_evaluations += job.evaluations[job.next..end].iter().sum::<u64>();
+            }
             let slice = wgpu::BufferBinding {
                 buffer: &self.bricks,
-                offset: ((job.next - start) * 4) as u64,
+                offset,
                 size: wgpu::BufferSize::new((end - job.next) as u64 * 4),
             };
             let bg = bind_group(
@@ -232,7 +269,7 @@ impl Injector {
                 &self.layout,
                 &[
                     inputs.grid_buf.as_entire_binding(),
-                    self.particles.as_entire_binding(),
+                    if job.host { &self.sums } else { &self.particles }.as_entire_binding(),
                     self.offsets.as_entire_binding(),
                     self.items.as_entire_binding(),
                     wgpu::BindingResource::TextureView(inputs.ev_view),
@@ -240,12 +277,11 @@ impl Injector {
                     inputs.layer.unwrap_or(&self.no_layer).as_entire_binding(),
                 ],
             );
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(if job.host { &self.sums_pipeline } else { &self.pipeline });
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups((end - job.next) as u32, 1, 1);
             counters.dispatches += 1;
             counters.cells_injected += job.bricks[job.next..end].iter().map(|&b| brick_cells(inputs.grid, b)).sum::<u64>();
-            counters.particle_evaluations += job.evaluations[job.next..end].iter().sum::<u64>();
             job.next = end;
         }
         if job.next >= job.bricks.len() {
@@ -269,6 +305,6 @@ impl Injector {
     }
 
     pub fn bytes(&self) -> u64 {
-        [&self.particles, &self.offsets, &self.items, &self.bricks, &self.no_layer].iter().map(|b| b.size()).sum()
+        [&self.particles, &self.offsets, &self.items, &self.bricks, &self.sums, &self.no_layer].iter().map(|b| b.size()).sum()
     }
 }

@@ -3,7 +3,8 @@
 //! Three compute stages turn a [`Project`](crate::scene::Project) into an image:
 //! 1. **Injection** (`shaders/inject.wgsl`): particles, binned on the CPU into 8³ bricks by
 //!    their cut-off spheres, are summed with the base fog into the extinction volume (EV), an
-//!    r32float 3D texture of σ_t at cell centres.
+//!    r32float 3D texture of σ_t at cell centres. On software adapters the host sums the
+//!    particles itself (`host_sums`, `shaders/inject_sums.wgsl`).
 //! 2. **Opacity propagation** (`shaders/propagate_*.wgsl`): for each light, an optical
 //!    depth volume (OPV) of T(cell, light), all lights packed in one storage buffer, by
 //!    Giroud & Biri's iterated gather, an upwind wavefront sweep, or a brute-force march.
@@ -18,6 +19,7 @@ mod context;
 mod error;
 mod gpu_types;
 mod layout;
+mod host_sums;
 mod inject;
 mod march;
 mod opv_store;
@@ -35,4 +37,4 @@ pub use opv_store::OpvLayout;
 pub use slice::{Plane, SliceSource};
 pub use gpu_types::{SweepBox, SweepStep};
 pub use propagate::{giroud_iterations, sweep_steps, ShellFrame, SweepPlan, EXACT_STEPS_PER_CELL};
-pub use pipeline::{human_bytes, light_has_opv, light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, Progress, Stage, StageTimings};
+pub use pipeline::{human_bytes, light_has_opv, light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, InjectPath, Progress, Stage, StageTimings};

@@ -44,6 +44,22 @@ impl FrameRequest {
     }
 }
 
+/// Where injection sums the particles' gaussians into each cell.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum InjectPath {
+    /// The host on a software adapter (which runs on the same cores, where native loops over
+    /// each particle's cells beat the shader's list walk many times over), the adapter
+    /// otherwise. Brute-force injection and a fixed bin edge measure the adapter's path, so
+    /// they select it.
+    #[default]
+    Auto,
+    /// `host_sums`: the host scatters each particle over its cells; the adapter adds the
+    /// base fog, layer and noise.
+    Host,
+    /// `shaders/inject.wgsl`: each cell evaluates the particles binned around it.
+    Adapter,
+}
+
 /// Time per stage in milliseconds: GPU timestamps on hardware adapters that have them (see
 /// [`FrameReport::gpu_timestamps`]), else wall time of the stage's host work, submits and
 /// drained queue.
@@ -298,6 +314,7 @@ pub struct FogPipeline {
     base_layer_generation: u64,
     brute_force_injection: bool,
     inject_bin_edge: Option<u32>,
+    inject_path: InjectPath,
     /// See [`FogPipeline::set_inject_chunk_bytes`].
     inject_chunk_limit: Option<u64>,
     opv_layout: OpvLayout,
@@ -368,6 +385,7 @@ impl FogPipeline {
             base_layer_generation: 0,
             brute_force_injection: false,
             inject_bin_edge: None,
+            inject_path: InjectPath::Auto,
             inject_chunk_limit: None,
             peak_memory: Default::default(),
             opv_layout,
@@ -872,13 +890,39 @@ impl FogPipeline {
             bricks.dedup();
         }
         let max_items = self.inject_chunk_bytes() / 4;
-        let counts = binning::choose_bins(&project.grid, &project.particles, max_items, self.brute_force_injection, self.inject_bin_edge);
-        if counts.bin_size != self.bin_size {
+        let host = self.inject_on_host();
+        let scene = if host {
+            // The host sums each cell's particles in order of the brick holding their centre
+            // (then scene order): a brick's particles then lie together in memory. The order
+            // depends only on the particles, so every injection of a cell sums the same way.
+            let bd = binning::brick_dims(&project.grid);
+            let to_brick = project.grid.cell_size() * binning::BRICK as f32;
+            let mut keyed: Vec<u64> = project
+                .particles
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let c = ((p.center - project.grid.min) / to_brick).floor().clamp(glam::Vec3::ZERO, (bd - 1).as_vec3()).as_uvec3();
+                    ((c.x + bd.x * (c.y + bd.y * c.z)) as u64) << 32 | i as u64
+                })
+                .collect();
+            keyed.sort_unstable();
+            keyed.iter().map(|&k| project.particles[k as u32 as usize].clone()).collect()
+        } else {
+            project.particles.clone()
+        };
+        // The host lists particles per brick (its cost estimate and its work order).
+        let counts = if host {
+            binning::BinCounts::new(&project.grid, &scene, binning::BRICK, false)
+        } else {
+            binning::choose_bins(&project.grid, &scene, max_items, self.brute_force_injection, self.inject_bin_edge)
+        };
+        if !host && counts.bin_size != self.bin_size {
             self.bin_size = counts.bin_size;
             self.write_scene_uniforms(project);
         }
-        let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
-        let job = Injector::begin(&project.grid, project.particles.clone(), particles, counts, bricks, max_items);
+        let particles: Vec<ParticleGpu> = scene.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
+        let job = Injector::begin(&project.grid, scene, particles, counts, bricks, max_items, host);
         self.jobs.inject = Some((job, region));
         self.baked.ev = Some((key, project.particles.clone()));
     }
@@ -888,7 +932,7 @@ impl FogPipeline {
         let (Some(g), Some((job, _))) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
         let rate = self.rates[timer::INJECT as usize];
         let budget_units = rate.units_in(left_ms);
-        let mut count = Injector::chunk_align(&self.ctx);
+        let mut count = Injector::chunk_align(&self.ctx, job);
         while job.next + count < job.bricks.len() && Injector::units(job, &project.grid, count * 2) <= budget_units {
             count *= 2;
         }
@@ -1188,6 +1232,25 @@ impl FogPipeline {
     /// the brute-force injection, for measuring what binning saves. Off by default.
     pub fn set_brute_force_injection(&mut self, on: bool) {
         self.brute_force_injection = on;
+    }
+
+    /// Where the injection sums the particles (see [`InjectPath`]).
+    pub fn set_inject_path(&mut self, path: InjectPath) {
+        if path != self.inject_path {
+            self.inject_path = path;
+            self.baked.ev = None;
+        }
+    }
+
+    /// Whether the next injection sums the particles on the host.
+    pub fn inject_on_host(&self) -> bool {
+        match self.inject_path {
+            InjectPath::Host => true,
+            InjectPath::Adapter => false,
+            InjectPath::Auto => {
+                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu && !self.brute_force_injection && self.inject_bin_edge.is_none()
+            }
+        }
     }
 
     /// Bins the injection by this edge across (1, 2, 4 or 8 cells) instead of the one with
