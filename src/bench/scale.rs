@@ -6,7 +6,7 @@
 
 use super::suites::{loglog_slope, Context};
 use super::BenchError;
-use crate::gpu::{FrameReport, OpvLayout};
+use crate::gpu::{FrameReport, InjectPath, OpvLayout};
 use crate::scene::{Light, Particle, Project};
 use glam::{UVec3, Vec3};
 use serde_json::{json, Value};
@@ -57,17 +57,28 @@ fn reset_peak_rss() -> bool {
 /// Bakes `p` from scratch on a fresh pipeline (so buffers grown by earlier cases do not
 /// count) and returns its record.
 fn case(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32) -> Result<(FrameReport, Value), BenchError> {
-    case_with(ctx, kind, p, w, h, None)
+    case_with(ctx, kind, p, w, h, None, InjectPath::Auto)
 }
 
-/// [`case`] with at most `lights_per_texture` optical-depth volumes in one texture.
-fn case_with(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32, lights_per_texture: Option<u32>) -> Result<(FrameReport, Value), BenchError> {
+/// [`case`] with at most `lights_per_texture` optical-depth volumes in one texture and the
+/// particles summed where `path` says.
+fn case_with(
+    ctx: &mut Context,
+    kind: &str,
+    p: &Project,
+    w: u32,
+    h: u32,
+    lights_per_texture: Option<u32>,
+    path: InjectPath,
+) -> Result<(FrameReport, Value), BenchError> {
     let gpu = ctx.gpu.context().clone();
     let layout = match lights_per_texture {
         Some(n) => OpvLayout::with_lights_per_texture(&gpu.limits, n),
         None => OpvLayout::for_limits(&gpu.limits),
     };
     ctx.gpu = crate::gpu::FogPipeline::with_opv_layout(gpu, layout);
+    ctx.gpu.set_inject_path(path);
+    let on_host = ctx.gpu.inject_on_host();
     let rss_reset = reset_peak_rss();
     let t = std::time::Instant::now();
     let r = ctx.full(p, w, h)?;
@@ -78,6 +89,7 @@ fn case_with(ctx: &mut Context, kind: &str, p: &Project, w: u32, h: u32, lights_
         "time_ms": r.timings_ms.inject + r.timings_ms.propagate + r.timings_ms.march, "wall_ms": wall,
         "stage_ms": {"inject": r.timings_ms.inject, "propagate": r.timings_ms.propagate, "march": r.timings_ms.march},
         "particle_evaluations": r.counters.particle_evaluations, "inject_chunks": r.counters.inject_chunks,
+        "inject_path": if on_host { "host" } else { "adapter" },
         "gpu_peak_bytes": ctx.gpu.peak_memory_bytes(),
         "rss_peak_bytes": if rss_reset { peak_rss_bytes() } else { None },
         "rss_peak_is_process_lifetime": !rss_reset,
@@ -112,6 +124,17 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
             ));
             by_count.push((n as f64, r.timings_ms.inject));
             by_evals.push((r.counters.particle_evaluations as f64, r.timings_ms.inject));
+            out.push(v);
+        }
+        // The largest case again on the adapter's gather, the path a software adapter no
+        // longer takes: what summing on the host saves.
+        if ctx.gpu.inject_on_host() {
+            let n = *counts.last().expect("particle counts");
+            let (r, v) = case_with(ctx, "particles_adapter_path", &small_particle_scene(n, 1, res), w, h, None, InjectPath::Adapter)?;
+            log(&format!(
+                "scale {res}³ {n:>8} particles  inject {:9.1} ms on the adapter's gather ({} evaluations, {} chunks)  GPU peak {:.0} MiB",
+                r.timings_ms.inject, r.counters.particle_evaluations, r.counters.inject_chunks, mib(&v, "gpu_peak_bytes")
+            ));
             out.push(v);
         }
         fit(out, log, &format!("inject_vs_particles_{res}"), "injection time vs particles", &by_count);
@@ -163,7 +186,7 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
     // store picks its texture).
     let p = small_particle_scene(2_000, 4, res);
     for (name, per) in [("one_texture", None), ("one_light_per_texture", Some(1))] {
-        let (r, mut v) = case_with(ctx, "opv_textures", &p, w, h, per)?;
+        let (r, mut v) = case_with(ctx, "opv_textures", &p, w, h, per, InjectPath::Auto)?;
         v["scheme_or_policy"] = json!(name);
         log(&format!("scale {res}³ 4 lights, OPV {name:22} propagate {:9.1} ms  march {:.1} ms", r.timings_ms.propagate, r.timings_ms.march));
         out.push(v);

@@ -6,7 +6,7 @@
 //!    r32float 3D texture of σ_t at cell centres. On software adapters the host sums the
 //!    particles itself (`host_sums`, `shaders/inject_sums.wgsl`).
 //! 2. **Opacity propagation** (`shaders/propagate_*.wgsl`): for each light, an optical
-//!    depth volume (OPV) of T(cell, light), all lights packed in one storage buffer, by
+//!    depth volume (OPV) of T(cell, light), in slabs of r32float 3D textures, by
 //!    Giroud & Biri's iterated gather, an upwind wavefront sweep, or a brute-force march.
 //! 3. **Ray march** (`shaders/march.wgsl`): single scattering along camera rays with
 //!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.

@@ -707,8 +707,11 @@ impl FogPipeline {
         self.ensure_grid(project);
         self.write_scene_uniforms(project);
 
-        // 1. Injection: every preview frame shows the current extinction volume.
+        // 1. Injection: every preview frame shows the current extinction volume. Planning
+        // (finding dirty bricks, ordering and counting particles) is the stage's host work.
+        let planning = Instant::now();
         self.plan_inject(project);
+        progress.report.timings_ms.inject += planning.elapsed().as_secs_f64() * 1e3;
         while self.jobs.inject.is_some() {
             let t = Instant::now();
             let units = self.inject_item(project, left(t), &mut progress.report.counters)?;
