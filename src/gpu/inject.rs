@@ -48,6 +48,8 @@ pub struct InjectJob {
     /// The host computes the particle sums ([`host_sums`]), call by call, instead of the
     /// adapter evaluating binned lists.
     host: bool,
+    /// The particles in the host's order, on the host path.
+    ordered: Option<host_sums::Ordered>,
     occupancy_done: bool,
 }
 
@@ -141,8 +143,9 @@ impl Injector {
     }
 
     /// Plans one injection of `bricks`: cuts them into chunks whose lists hold at most
-    /// `max_items` entries (a brick with more forms a chunk alone); with `host`, whose
-    /// particle sums (two words per cell) fit `max_items` words. Nothing is uploaded yet.
+    /// `max_items` entries (a brick with more forms a chunk alone); on the host path (given
+    /// `ordered`), whose particle sums (two words per cell) fit `max_items` words. Nothing is
+    /// uploaded yet.
     pub fn begin(
         grid: &GridSpec,
         particles: Vec<Particle>,
@@ -150,8 +153,9 @@ impl Injector {
         counts: BinCounts,
         bricks: Vec<u32>,
         max_items: u64,
-        host: bool,
+        ordered: Option<host_sums::Ordered>,
     ) -> InjectJob {
+        let host = ordered.is_some();
         let (items, evals) = counts.per_brick(grid);
         let mut chunk_ends = Vec::new();
         let mut acc = 0u64;
@@ -176,6 +180,7 @@ impl Injector {
             uploaded: None,
             peak_chunk_bytes: 0,
             host,
+            ordered,
             occupancy_done: false,
         }
     }
@@ -248,8 +253,8 @@ impl Injector {
             if job.host {
                 // The host sums exactly this call's bricks, so a frame budget bounds its work.
                 let bricks = &job.bricks[job.next..end];
-                let lists = job.counts.fill(inputs.grid, &job.particles, bricks);
-                let (sums, pairs) = host_sums::particle_sums(inputs.grid, &job.gpu_particles, bricks, &lists);
+                let ordered = job.ordered.as_ref().expect("the host path's particles");
+                let (sums, pairs) = host_sums::particle_sums(inputs.grid, ordered, bricks, &job.evaluations[job.next..end]);
                 upload(ctx, &mut self.sums, "particle sums", bytemuck::cast_slice(&sums));
                 upload(ctx, &mut self.bricks, "dirty bricks", bytemuck::cast_slice(bricks));
                 job.peak_chunk_bytes = job.peak_chunk_bytes.max(std::mem::size_of_val(&sums[..]) as u64);

@@ -894,38 +894,20 @@ impl FogPipeline {
         }
         let max_items = self.inject_chunk_bytes() / 4;
         let host = self.inject_on_host();
-        let scene = if host {
-            // The host sums each cell's particles in order of the brick holding their centre
-            // (then scene order): a brick's particles then lie together in memory. The order
-            // depends only on the particles, so every injection of a cell sums the same way.
-            let bd = binning::brick_dims(&project.grid);
-            let to_brick = project.grid.cell_size() * binning::BRICK as f32;
-            let mut keyed: Vec<u64> = project
-                .particles
-                .iter()
-                .enumerate()
-                .map(|(i, p)| {
-                    let c = ((p.center - project.grid.min) / to_brick).floor().clamp(glam::Vec3::ZERO, (bd - 1).as_vec3()).as_uvec3();
-                    ((c.x + bd.x * (c.y + bd.y * c.z)) as u64) << 32 | i as u64
-                })
-                .collect();
-            keyed.sort_unstable();
-            keyed.iter().map(|&k| project.particles[k as u32 as usize].clone()).collect()
+        let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
+        let job = if host {
+            // The host lists nothing; its per-brick counts are its cost estimate.
+            let counts = binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false);
+            let ordered = super::host_sums::order(&project.grid, particles, |p| p.cutoff2.sqrt());
+            Injector::begin(&project.grid, Vec::new(), Vec::new(), counts, bricks, max_items, Some(ordered))
         } else {
-            project.particles.clone()
+            let counts = binning::choose_bins(&project.grid, &project.particles, max_items, self.brute_force_injection, self.inject_bin_edge);
+            if counts.bin_size != self.bin_size {
+                self.bin_size = counts.bin_size;
+                self.write_scene_uniforms(project);
+            }
+            Injector::begin(&project.grid, project.particles.clone(), particles, counts, bricks, max_items, None)
         };
-        // The host lists particles per brick (its cost estimate and its work order).
-        let counts = if host {
-            binning::BinCounts::new(&project.grid, &scene, binning::BRICK, false)
-        } else {
-            binning::choose_bins(&project.grid, &scene, max_items, self.brute_force_injection, self.inject_bin_edge)
-        };
-        if !host && counts.bin_size != self.bin_size {
-            self.bin_size = counts.bin_size;
-            self.write_scene_uniforms(project);
-        }
-        let particles: Vec<ParticleGpu> = scene.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
-        let job = Injector::begin(&project.grid, scene, particles, counts, bricks, max_items, host);
         self.jobs.inject = Some((job, region));
         self.baked.ev = Some((key, project.particles.clone()));
     }
