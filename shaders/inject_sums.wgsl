@@ -1,9 +1,11 @@
 // Injection from particle sums the host computed (src/gpu/host_sums.rs): the path taken on
 // software adapters, where the host's own loops over each particle's cells are many times
-// faster than this adapter's per-cell list walk. `sums` holds, per dispatched brick, its 512
-// cells' plain particle sums, then their noisy ones, x fastest then y then z.
+// faster than this adapter's per-cell list walk. `sums` holds, per dispatched brick that a
+// particle reaches, its 512 cells' plain particle sums, then their noisy ones, x fastest then
+// y then z; `slots` gives each dispatched brick's place there (NONE: no particle, all zero).
 
 @group(0) @binding(1) var<storage, read> sums: array<f32>;
+@group(0) @binding(2) var<storage, read> slots: array<u32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
@@ -11,10 +13,13 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
     if any(base.xy >= grid.dims.xy) {
         return;
     }
-    let at = wg.x * 1024u + lid.x + 8u * lid.y;
+    let slot = slots[wg.x];
     var sum: array<vec2f, 8>;
-    for (var k = 0u; k < 8u; k++) {
-        sum[k] = vec2f(sums[at + 64u * k], sums[at + 512u + 64u * k]);
+    if slot != 0xffffffffu {
+        let at = slot * 1024u + lid.x + 8u * lid.y;
+        for (var k = 0u; k < 8u; k++) {
+            sum[k] = vec2f(sums[at + 64u * k], sums[at + 512u + 64u * k]);
+        }
     }
     for (var k = 0u; k < 8u; k++) {
         let id = base + vec3u(0u, 0u, k);

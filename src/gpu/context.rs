@@ -20,11 +20,12 @@ pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY.un
 impl GpuContext {
     /// Opens the best adapter without a window. Vulkan is preferred: on machines with only
     /// Mesa's llvmpipe the GL backend returns wrong results for 3D storage textures, so GL
-    /// is used only when no other backend has an adapter. `FOGSMITH_BACKEND=vulkan|gl|metal|dx12`
-    /// overrides the choice.
+    /// is used only when no other backend has an adapter, and llvmpipe on GL is refused
+    /// unless asked for. `FOGSMITH_BACKEND=vulkan|gl|metal|dx12` overrides the choice.
     pub fn new_headless() -> Result<Self, GpuError> {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
-        desc.backends = match std::env::var("FOGSMITH_BACKEND").ok().as_deref() {
+        let forced = std::env::var("FOGSMITH_BACKEND").ok();
+        desc.backends = match forced.as_deref() {
             Some("vulkan") => wgpu::Backends::VULKAN,
             Some("gl") => wgpu::Backends::GL,
             Some("metal") => wgpu::Backends::METAL,
@@ -39,6 +40,9 @@ impl GpuContext {
             .max_by_key(|a| adapter_rank(&a.get_info()))
             .ok_or(GpuError::NoAdapter)?;
         let info = adapter.get_info();
+        if refuses_unasked(info.backend, info.device_type, forced.is_some()) {
+            return Err(GpuError::SoftwareGlOnly { adapter: info.name });
+        }
         let features = adapter.features() & OPTIONAL_FEATURES;
         let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -102,6 +106,13 @@ impl GpuContext {
 }
 
 /// Higher is better: real GPUs first, then Vulkan software rasterisers, GL last.
+/// Whether the best adapter is one that gives wrong volumes and was not asked for by name:
+/// llvmpipe's GL driver, chosen when Mesa's Vulkan driver is missing, loses 3D storage-texture
+/// writes beyond the first layer.
+fn refuses_unasked(backend: wgpu::Backend, device_type: wgpu::DeviceType, backend_forced: bool) -> bool {
+    !backend_forced && backend == wgpu::Backend::Gl && device_type == wgpu::DeviceType::Cpu
+}
+
 pub fn adapter_rank(info: &wgpu::AdapterInfo) -> u32 {
     let device = match info.device_type {
         wgpu::DeviceType::DiscreteGpu => 40,
@@ -120,5 +131,19 @@ pub fn adapter_rank(info: &wgpu::AdapterInfo) -> u32 {
         device / 10
     } else {
         device * 10 + backend
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::refuses_unasked;
+
+    #[test]
+    fn only_an_unasked_software_gl_adapter_is_refused() {
+        use wgpu::{Backend, DeviceType};
+        assert!(refuses_unasked(Backend::Gl, DeviceType::Cpu, false));
+        assert!(!refuses_unasked(Backend::Gl, DeviceType::Cpu, true), "FOGSMITH_BACKEND=gl still gets it");
+        assert!(!refuses_unasked(Backend::Vulkan, DeviceType::Cpu, false));
+        assert!(!refuses_unasked(Backend::Gl, DeviceType::IntegratedGpu, false));
     }
 }

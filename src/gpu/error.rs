@@ -8,6 +8,12 @@ pub enum GpuError {
          Mesa's software Vulkan driver (mesa-vulkan-drivers libvulkan1); elsewhere install your GPU's Vulkan driver"
     )]
     NoAdapter,
+    #[error(
+        "the only adapter found is {adapter} on GL, whose 3D storage-texture writes are lost beyond the first layer \
+         (every volume would be wrong). On Debian/Ubuntu run ./setup.sh, which installs Mesa's software Vulkan driver \
+         (mesa-vulkan-drivers libvulkan1); set FOGSMITH_BACKEND=gl to use this adapter anyway"
+    )]
+    SoftwareGlOnly { adapter: String },
     #[error("could not open the GPU device on adapter {adapter}: {message}")]
     Device { adapter: String, message: String },
     #[error("{what} needs {needed} but the adapter {adapter} allows at most {limit}; {suggestion}")]

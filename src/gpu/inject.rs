@@ -253,9 +253,19 @@ impl Injector {
             if job.host {
                 // The host sums exactly this call's bricks, so a frame budget bounds its work.
                 let bricks = &job.bricks[job.next..end];
+                // Bricks no particle reaches need no sums: their slot is NONE.
+                let (mut slots, mut busy, mut weights) = (Vec::with_capacity(bricks.len()), Vec::new(), Vec::new());
+                for (&b, &w) in bricks.iter().zip(&job.evaluations[job.next..end]) {
+                    slots.push(if w > 0 { busy.len() as u32 } else { u32::MAX });
+                    if w > 0 {
+                        busy.push(b);
+                        weights.push(w);
+                    }
+                }
                 let ordered = job.ordered.as_ref().expect("the host path's particles");
-                let (sums, pairs) = host_sums::particle_sums(inputs.grid, ordered, bricks, &job.evaluations[job.next..end]);
+                let (sums, pairs) = host_sums::particle_sums(inputs.grid, ordered, &busy, &weights);
                 upload(ctx, &mut self.sums, "particle sums", bytemuck::cast_slice(&sums));
+                upload(ctx, &mut self.offsets, "particle sum slots", bytemuck::cast_slice(&slots));
                 upload(ctx, &mut self.bricks, "dirty bricks", bytemuck::cast_slice(bricks));
                 job.peak_chunk_bytes = job.peak_chunk_bytes.max(std::mem::size_of_val(&sums[..]) as u64);
                 counters.particle_evaluations += pairs;
