@@ -488,19 +488,24 @@ fn only_scenes_beyond_the_device_are_refused() {
 /// cell as the adapter's gather does, and the two agree to rounding, on randomized scenes:
 /// grids whose sides are not multiples of a brick, thin grids, particles from a tenth of a
 /// cell to several cells, some crossing the box, hidden or empty, and noise on some. Sliced
-/// into small budgeted calls the host path writes the same EV bit for bit. On this adapter
-/// `Auto` takes the host path only when the adapter runs on the CPU.
+/// into small budgeted calls the host path writes the same EV bit for bit. `Auto` takes the
+/// host path only on CPU adapters, and only for scenes dense in particles.
 #[test]
 fn host_particle_sums_equal_the_adapter_gather() {
     let mut host = pipeline();
     let mut adapter = pipeline();
     let mut sliced = pipeline();
     let cpu = host.context().adapter_info.device_type == wgpu::DeviceType::Cpu;
-    assert_eq!(host.inject_on_host(), cpu, "Auto takes the host path exactly on CPU adapters");
+    // Auto: the host path on CPU adapters, for scenes whose particles reach enough bricks.
+    let sparse = small_scene(40, &[Vec3::new(0.9, 0.9, 0.9)]);
+    let mut dense = sparse.clone();
+    scatter(&mut dense, 9, 400, 0.02, 0.1);
+    assert!(!host.inject_on_host(&sparse), "four particles over 125 bricks stay on the adapter");
+    assert_eq!(host.inject_on_host(&dense), cpu, "a dense scene takes the host path exactly on CPU adapters");
     host.set_inject_path(InjectPath::Host);
     sliced.set_inject_path(InjectPath::Host);
     adapter.set_inject_path(InjectPath::Adapter);
-    assert!(host.inject_on_host() && !adapter.inject_on_host());
+    assert!(host.inject_on_host(&sparse) && !adapter.inject_on_host(&dense));
     let grids = [glam::UVec3::new(29, 13, 21), glam::UVec3::new(64, 9, 9), glam::UVec3::new(17, 40, 8)];
     for (seed, res) in grids.into_iter().enumerate() {
         let mut p = small_scene(8, &[Vec3::new(0.9, 0.9, 0.9)]);

@@ -78,7 +78,7 @@ fn case_with(
     };
     ctx.gpu = crate::gpu::FogPipeline::with_opv_layout(gpu, layout);
     ctx.gpu.set_inject_path(path);
-    let on_host = ctx.gpu.inject_on_host();
+    let on_host = ctx.gpu.inject_on_host(p);
     let rss_reset = reset_peak_rss();
     let t = std::time::Instant::now();
     let r = ctx.full(p, w, h)?;
@@ -128,9 +128,10 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
         }
         // The largest case again on the adapter's gather, the path a software adapter no
         // longer takes: what summing on the host saves.
-        if ctx.gpu.inject_on_host() {
-            let n = *counts.last().expect("particle counts");
-            let (r, v) = case_with(ctx, "particles_adapter_path", &small_particle_scene(n, 1, res), w, h, None, InjectPath::Adapter)?;
+        let n = *counts.last().expect("particle counts");
+        let p = small_particle_scene(n, 1, res);
+        if ctx.gpu.inject_on_host(&p) {
+            let (r, v) = case_with(ctx, "particles_adapter_path", &p, w, h, None, InjectPath::Adapter)?;
             log(&format!(
                 "scale {res}³ {n:>8} particles  inject {:9.1} ms on the adapter's gather ({} evaluations, {} chunks)  GPU peak {:.0} MiB",
                 r.timings_ms.inject, r.counters.particle_evaluations, r.counters.inject_chunks, mib(&v, "gpu_peak_bytes")

@@ -44,13 +44,19 @@ impl FrameRequest {
     }
 }
 
+/// Particle–brick overlaps per brick of the grid from which `InjectPath::Auto` sums on the
+/// host. Below it the host's fixed cost per brick (its sums written, uploaded and read) exceeds
+/// the gather's list walk: on llvmpipe at about 8 the two paths take the same time
+/// (`fogsmith bench --suite scale` measures both on its largest particle cases).
+pub const HOST_MIN_ENTRIES_PER_BRICK: u64 = 8;
+
 /// Where injection sums the particles' gaussians into each cell.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InjectPath {
     /// The host on a software adapter (which runs on the same cores, where native loops over
-    /// each particle's cells beat the shader's list walk many times over), the adapter
-    /// otherwise. Brute-force injection and a fixed bin edge measure the adapter's path, so
-    /// they select it.
+    /// each particle's cells beat the shader's list walk many times over) for scenes dense
+    /// in particles ([`HOST_MIN_ENTRIES_PER_BRICK`]), the adapter otherwise. Brute-force
+    /// injection and a fixed bin edge measure the adapter's path, so they select it.
     #[default]
     Auto,
     /// `host_sums`: the host scatters each particle over its cells; the adapter adds the
@@ -893,7 +899,7 @@ impl FogPipeline {
             bricks.dedup();
         }
         let max_items = self.inject_chunk_bytes() / 4;
-        let host = self.inject_on_host();
+        let host = self.inject_on_host(project);
         let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
         let job = if host {
             // The host lists nothing; its per-brick counts are its cost estimate.
@@ -1227,13 +1233,27 @@ impl FogPipeline {
         }
     }
 
-    /// Whether the next injection sums the particles on the host.
-    pub fn inject_on_host(&self) -> bool {
+    /// Whether injecting `project` sums its particles on the host. `Auto` does on a CPU
+    /// adapter (unless brute force or a fixed bin edge asks for the gather) when the
+    /// particles reach at least [`HOST_MIN_ENTRIES_PER_BRICK`] bricks per brick of the grid.
+    pub fn inject_on_host(&self, project: &Project) -> bool {
         match self.inject_path {
             InjectPath::Host => true,
             InjectPath::Adapter => false,
             InjectPath::Auto => {
-                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu && !self.brute_force_injection && self.inject_bin_edge.is_none()
+                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu
+                    && !self.brute_force_injection
+                    && self.inject_bin_edge.is_none()
+                    && {
+                        let grid = &project.grid;
+                        let entries: u64 = project
+                            .particles
+                            .iter()
+                            .filter_map(|q| binning::brick_range(grid, q))
+                            .map(|(lo, hi)| (hi - lo + 1).as_u64vec3().element_product())
+                            .sum();
+                        entries >= HOST_MIN_ENTRIES_PER_BRICK * binning::brick_dims(grid).as_u64vec3().element_product()
+                    }
             }
         }
     }
