@@ -140,6 +140,11 @@ impl BinCounts {
         (b.x + bd.x * (b.y + bd.y * b.z)) as usize
     }
 
+    /// List entries over all bins: the particle–bin overlaps.
+    pub fn entries(&self) -> u64 {
+        self.counts.iter().map(|&c| c as u64).sum()
+    }
+
     /// Per 8³ brick: list entries and particle–cell evaluations (each cell reads its bin's
     /// whole list).
     pub fn per_brick(&self, grid: &GridSpec) -> (Vec<u64>, Vec<u64>) {

@@ -105,7 +105,6 @@ impl GpuContext {
     }
 }
 
-/// Higher is better: real GPUs first, then Vulkan software rasterisers, GL last.
 /// Whether the best adapter is one that gives wrong volumes and was not asked for by name:
 /// llvmpipe's GL driver, chosen when Mesa's Vulkan driver is missing, loses 3D storage-texture
 /// writes beyond the first layer.
@@ -113,6 +112,7 @@ fn refuses_unasked(backend: wgpu::Backend, device_type: wgpu::DeviceType, backen
     !backend_forced && backend == wgpu::Backend::Gl && device_type == wgpu::DeviceType::Cpu
 }
 
+/// Higher is better: real GPUs first, then Vulkan software rasterisers, GL last.
 pub fn adapter_rank(info: &wgpu::AdapterInfo) -> u32 {
     let device = match info.device_type {
         wgpu::DeviceType::DiscreteGpu => 40,

@@ -45,10 +45,8 @@ pub struct InjectJob {
     uploaded: Option<usize>,
     /// Largest list and particle buffers a chunk used, in bytes.
     pub peak_chunk_bytes: u64,
-    /// The host computes the particle sums ([`host_sums`]), call by call, instead of the
-    /// adapter evaluating binned lists.
-    host: bool,
-    /// The particles in the host's order, on the host path.
+    /// On the host path, the particles in the host's order: the host computes the particle
+    /// sums ([`host_sums`]), call by call, instead of the adapter evaluating binned lists.
     ordered: Option<host_sums::Ordered>,
     occupancy_done: bool,
 }
@@ -56,6 +54,9 @@ pub struct InjectJob {
 impl InjectJob {
     pub fn done(&self) -> bool {
         self.occupancy_done
+    }
+    fn host(&self) -> bool {
+        self.ordered.is_some()
     }
     pub fn fraction(&self) -> f64 {
         self.next as f64 / self.bricks.len().max(1) as f64
@@ -179,7 +180,6 @@ impl Injector {
             chunk_ends,
             uploaded: None,
             peak_chunk_bytes: 0,
-            host,
             ordered,
             occupancy_done: false,
         }
@@ -206,7 +206,7 @@ impl Injector {
     /// Smallest chunk of bricks: a storage binding's offset alignment, in bricks (one brick on
     /// the host path, which uploads each call's bricks from offset 0).
     pub fn chunk_align(ctx: &GpuContext, job: &InjectJob) -> usize {
-        if job.host {
+        if job.host() {
             1
         } else {
             (ctx.limits.min_storage_buffer_offset_alignment as usize / 4).max(1)
@@ -236,7 +236,7 @@ impl Injector {
         let device = &ctx.device;
         let chunk = job.chunk_ends.partition_point(|&e| e <= job.next);
         if job.next < job.bricks.len() && job.uploaded != Some(chunk) {
-            if !job.host {
+            if !job.host() {
                 self.upload_chunk(ctx, inputs.grid, job, chunk);
             }
             job.uploaded = Some(chunk);
@@ -250,7 +250,7 @@ impl Injector {
             let count = count.max(1).next_multiple_of(align).min(max);
             let end = (job.next + count).min(job.chunk_ends[chunk]);
             let mut offset = ((job.next - start) * 4) as u64;
-            if job.host {
+            if job.host() {
                 // The host sums exactly this call's bricks, so a frame budget bounds its work.
                 let bricks = &job.bricks[job.next..end];
                 // Bricks no particle reaches need no sums: their slot is NONE.
@@ -284,7 +284,7 @@ impl Injector {
                 &self.layout,
                 &[
                     inputs.grid_buf.as_entire_binding(),
-                    if job.host { &self.sums } else { &self.particles }.as_entire_binding(),
+                    if job.host() { &self.sums } else { &self.particles }.as_entire_binding(),
                     self.offsets.as_entire_binding(),
                     self.items.as_entire_binding(),
                     wgpu::BindingResource::TextureView(inputs.ev_view),
@@ -292,7 +292,7 @@ impl Injector {
                     inputs.layer.unwrap_or(&self.no_layer).as_entire_binding(),
                 ],
             );
-            pass.set_pipeline(if job.host { &self.sums_pipeline } else { &self.pipeline });
+            pass.set_pipeline(if job.host() { &self.sums_pipeline } else { &self.pipeline });
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups((end - job.next) as u32, 1, 1);
             counters.dispatches += 1;

@@ -899,11 +899,14 @@ impl FogPipeline {
             bricks.dedup();
         }
         let max_items = self.inject_chunk_bytes() / 4;
-        let host = self.inject_on_host(project);
         let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
-        let job = if host {
-            // The host lists nothing; its per-brick counts are its cost estimate.
-            let counts = binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false);
+        // The host path's per-brick counts are also what decides it, and its cost estimate.
+        let brick_counts = self
+            .host_possible()
+            .then(|| binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false))
+            .filter(|counts| self.host_pays(&project.grid, counts));
+        let job = if let Some(counts) = brick_counts {
+            // The host lists nothing.
             let ordered = super::host_sums::order(&project.grid, particles, |p| p.cutoff2.sqrt());
             Injector::begin(&project.grid, Vec::new(), Vec::new(), counts, bricks, max_items, Some(ordered))
         } else {
@@ -1237,25 +1240,25 @@ impl FogPipeline {
     /// adapter (unless brute force or a fixed bin edge asks for the gather) when the
     /// particles reach at least [`HOST_MIN_ENTRIES_PER_BRICK`] bricks per brick of the grid.
     pub fn inject_on_host(&self, project: &Project) -> bool {
+        self.host_possible() && self.host_pays(&project.grid, &binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false))
+    }
+
+    /// Whether the injection may take the host path, for scenes dense enough under `Auto`.
+    fn host_possible(&self) -> bool {
         match self.inject_path {
             InjectPath::Host => true,
             InjectPath::Adapter => false,
             InjectPath::Auto => {
-                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu
-                    && !self.brute_force_injection
-                    && self.inject_bin_edge.is_none()
-                    && {
-                        let grid = &project.grid;
-                        let entries: u64 = project
-                            .particles
-                            .iter()
-                            .filter_map(|q| binning::brick_range(grid, q))
-                            .map(|(lo, hi)| (hi - lo + 1).as_u64vec3().element_product())
-                            .sum();
-                        entries >= HOST_MIN_ENTRIES_PER_BRICK * binning::brick_dims(grid).as_u64vec3().element_product()
-                    }
+                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu && !self.brute_force_injection && self.inject_bin_edge.is_none()
             }
         }
+    }
+
+    /// Given [`host_possible`](Self::host_possible) and the scene's per-brick particle counts,
+    /// whether it takes the host path.
+    fn host_pays(&self, grid: &GridSpec, brick_counts: &binning::BinCounts) -> bool {
+        self.inject_path == InjectPath::Host
+            || brick_counts.entries() >= HOST_MIN_ENTRIES_PER_BRICK * binning::brick_dims(grid).as_u64vec3().element_product()
     }
 
     /// Bins the injection by this edge across (1, 2, 4 or 8 cells) instead of the one with
