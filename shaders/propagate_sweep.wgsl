@@ -19,20 +19,21 @@
 // diffusion.
 //
 // Interpolation cannot resolve the shadow of a particle of a cell or two: there the optical
-// depth varies over the stencil faster than any interpolant follows. With
-// `propagation.sweep_refine` (step.refine) such stencils are looked for only in the shadows of
-// fine detail: a cell is marked (the sign bit of its stored mean) when its path crosses a
-// brick whose detail (occupancy.wgsl: how far σ_t departs from linear across a cell, in
-// optical depth) exceeds DETAIL_TOL, or when one of the four nearest cells it interpolates
-// from is marked. A cell whose stencil is marked and shows an unresolved shadow (the cubic
-// and the bilinear interpolant disagree by more than REFINE_TOL in transmittance, or the four
-// nearest cells' transmittances spread by more than SPREAD_TOL) integrates its whole in-box
-// path directly instead, like the cells that start the sweep: its value is then as exact as
-// the `exact` scheme's, and the cells behind it interpolate from exact values. Unmarked cells
-// interpolate as without refine, so smooth fog, however dense, costs nothing extra (the checks
-// alone, unrestricted, fire on dense smooth fog and cost up to 3× there). Whole in-box paths
-// and marked segments are split at every axis' cell-centre planes, which makes their integral
-// exact.
+// depth varies over the stencil faster than any interpolant follows, and the error of each
+// interpolation adds up along the ray. With `propagation.sweep_refine` (step.refine) every
+// interpolation is error-controlled: the stencil's third differences across each axis (zero
+// for the quadratic data Catmull-Rom reproduces; their size is the order of its error on data
+// that is not smooth across a cell, where a sharper estimate with the interpolation weights
+// missed errors of 3e-2) plus what the limiter clipped give the error of m at P; times the
+// rest's length and its transmittance, that is the interpolation's error in transmittance. If
+// it exceeds `step.tolerance`, X tries planes 2 and 4 times as far (shorter rests, smoother
+// stencils nearer the light), and integrates its whole in-box path directly only if those
+// fail too: its value is then as exact as the `exact` scheme's, and the cells behind it
+// interpolate from exact values. The worst error along a ray stays within a small multiple
+// of the tolerance (tests/placements.rs). Segments X–P that cross a brick whose detail
+// (occupancy.wgsl: how far σ_t departs from linear across a cell, in optical depth) exceeds
+// DETAIL_TOL, and whole in-box paths, are split at every axis' cell-centre planes, which makes
+// their integral exact for the trilinear medium.
 //
 // Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
 // units, around the light, or around a far light's anchor on the same line) closer to the
@@ -54,10 +55,11 @@ struct SweepStep {
     stride: u32,
     // Index of this dispatch's first thread among its batch's (box `first` counts from there).
     offset: u32,
-    // 1: cells whose stencil does not resolve the optical depth integrate directly.
+    // 1: interpolations are error-controlled (see the top of this file).
     refine: u32,
-    _pad1: u32,
-    _pad2: u32,
+    // Their largest accepted error in transmittance.
+    tolerance: f32,
+    _pad: u32,
 }
 
 struct SweepBox {
@@ -85,19 +87,13 @@ struct SweepBox {
 // Each brick's largest σ_t, then its detail (shaders/occupancy.wgsl).
 @group(0) @binding(8) var<storage, read> brick_max: array<f32>;
 
-// With refine, whether one of the four nearest stencil cells lies in the shadow of detail
-// (set by layer_mean).
-var<private> stencil_detail: bool;
-
-// The mean's sign bit marks, with refine, a cell in the shadow of detail: its path, or the
-// paths its value was interpolated from, crosses a brick whose detail exceeds DETAIL_TOL.
 fn load_mean(light: u32, c: vec3i) -> f32 {
     return mean_in_load(light, vec3u(c));
 }
 
-fn store(light: u32, c: vec3i, t: f32, mean: f32, shadowed: bool) {
+fn store(light: u32, c: vec3i, t: f32, mean: f32) {
     opv_store(light, vec3u(c), t);
-    mean_in_store(light, vec3u(c), select(abs(mean), -abs(mean), shadowed));
+    mean_in_store(light, vec3u(c), mean);
 }
 
 fn detail_at(x: vec3f) -> bool {
@@ -161,9 +157,11 @@ fn catmull_rom(t: f32) -> vec4f {
 // stands for the linear extrapolation of the two edge cells (its weight moves onto them), not
 // for a copy of the edge cell: a copy flattens the slope in the last interval, an error of
 // first order in the cell size that the many interpolations along a ray near a face
-// accumulate. Within the outer half-cell P takes the edge cells' values. Returns that value,
-// the bilinear interpolant of the 2×2 nearest, and their least and greatest value.
-fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> vec4f {
+// accumulate. Within the outer half-cell P takes the edge cells' values. Returns that value
+// and an estimate of its error: the largest third differences across each axis (the ghost
+// positions holding their extrapolations) plus what the limiter clipped; for the bilinear
+// stencil of stride 3, the 2×2 cells' spread.
+fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> vec2f {
     let b = (a + 1u) % 3u;
     let d = (a + 2u) % 3u;
     let nb = i32(grid.dims[b]);
@@ -178,37 +176,51 @@ fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> vec4f {
     let last = select(3, 4, cubic);
     var wb = vec4f(0.0, 1.0 - (ub - f32(fb)), ub - f32(fb), 0.0);
     var wd = vec4f(0.0, 1.0 - (ud - f32(fd)), ud - f32(fd), 0.0);
-    let lin_b = wb;
-    let lin_d = wd;
     if cubic {
         wb = fold_ghosts(catmull_rom(ub - f32(fb)), fb, nb);
         wd = fold_ghosts(catmull_rom(ud - f32(fd)), fd, nd);
     }
     var sum = 0.0;
-    var bilinear = 0.0;
     var lo = 3.4e38;
     var hi = 0.0;
     var cell = vec3i(0);
     cell[a] = layer;
-    stencil_detail = false;
+    var v: array<f32, 16>;
     for (var j = first; j < last; j++) {
         cell[d] = clamp(fd + j - 1, 0, nd - 1);
         var row = 0.0;
         for (var i = first; i < last; i++) {
             cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            let stored = load_mean(light, cell);
-            let m = abs(stored);
+            let m = load_mean(light, cell);
+            v[4 * j + i] = m;
             row += wb[i] * m;
             if (i == 1 || i == 2) && (j == 1 || j == 2) {
-                bilinear += lin_b[i] * lin_d[j] * m;
                 lo = min(lo, m);
                 hi = max(hi, m);
-                stencil_detail = stencil_detail || (bitcast<u32>(stored) & 0x80000000u) != 0u;
             }
         }
         sum += wd[j] * row;
     }
-    return vec4f(clamp(sum, lo, hi), bilinear, lo, hi);
+    let limited = clamp(sum, lo, hi);
+    if !cubic {
+        return vec2f(limited, hi - lo);
+    }
+    if step.refine == 0u {
+        return vec2f(limited, 0.0);
+    }
+    for (var k = 0; k < 4; k++) {
+        if nb >= 2 && fb == 0 { v[4 * k] = 2.0 * v[4 * k + 1] - v[4 * k + 2]; }
+        if nb >= 2 && fb >= nb - 2 { v[4 * k + 3] = 2.0 * v[4 * k + 2] - v[4 * k + 1]; }
+        if nd >= 2 && fd == 0 { v[k] = 2.0 * v[4 + k] - v[8 + k]; }
+        if nd >= 2 && fd >= nd - 2 { v[12 + k] = 2.0 * v[8 + k] - v[4 + k]; }
+    }
+    var e_b = 0.0;
+    var e_d = 0.0;
+    for (var k = 0; k < 4; k++) {
+        e_b = max(e_b, abs(v[4 * k] - 3.0 * v[4 * k + 1] + 3.0 * v[4 * k + 2] - v[4 * k + 3]));
+        e_d = max(e_d, abs(v[k] - 3.0 * v[4 + k] + 3.0 * v[8 + k] - v[12 + k]));
+    }
+    return vec2f(limited, e_b + e_d + abs(sum - limited));
 }
 
 // Weights `w` of the stencil cells f − 1 … f + 2 along an axis of n cells, with the weight of
@@ -224,21 +236,12 @@ fn fold_ghosts(w: vec4f, f: i32, n: i32) -> vec4f {
     return v;
 }
 
-// Above these a cell integrates its path directly instead of interpolating (see the top of
-// this file): the transmittance difference between the two interpolants of the rest of the
-// path, and the spread of the four nearest cells' transmittances over it. Chosen on the
-// placements test's randomized scenes (tests/placements.rs): a scheme error below 2e-3
-// whatever the particles' size. A looser REFINE_TOL (5e-4) halves the cost on smooth scenes
-// but lets errors of 1e-2 through.
-const REFINE_TOL: f32 = 5e-5;
-const SPREAD_TOL: f32 = 0.02;
 // Detail (optical depth by which σ_t departs from linear across a cell, occupancy.wgsl) above
-// which a brick's shadow gets those checks; elsewhere the interpolation resolves the shadows.
-// Chosen on the placements test's scenes of several seeds: at 1e-3 one seed's worst class
-// reaches 2.4e-3 and at 4e-3 2.6e-2 (dense particles of several cells, whose curvature is
-// small but whose shadows are deep), at 2.5e-4 every class stays below 2e-3. This fires on
-// most particles of the demos, so refine costs about what the unrestricted checks did there.
+// which a brick's segments are integrated exactly with refine. Above this the plain
+// integration of a segment X–P measured errors beyond 1e-3 on the placements test's scenes.
 const DETAIL_TOL: f32 = 2.5e-4;
+// With refine, the planes tried before the whole path: 1, 2 and 4 times the stride.
+const PLANES: u32 = 3u;
 
 fn solve(c: vec3i, light: u32) {
     let s = lights[light].position;
@@ -247,7 +250,7 @@ fn solve(c: vec3i, light: u32) {
     let len = length(v);
     let h = min(grid.cell.x, min(grid.cell.y, grid.cell.z));
     if len < 1e-6 * h {
-        store(light, c, 0.0, sigma_cell(c), false);
+        store(light, c, 0.0, sigma_cell(c));
         return;
     }
     let dir = v / len;
@@ -268,8 +271,6 @@ fn solve(c: vec3i, light: u32) {
         e = centres.axis;
         layers = max(ceil(stride * mag[e] / mag[a]), 1.0);
     }
-    let to_plane = len * layers / mag[e];
-    let layer = c[e] + i32(layers) * i32(sign(v[e]));
     // Where the ray would reach the plane of another face's outermost cells less than two
     // cells (along that face's axis) after leaving through e's, the stencil around P holds
     // cells whose rays leave through that face instead: their in-box lengths and means meet
@@ -291,29 +292,30 @@ fn solve(c: vec3i, light: u32) {
     var near = inside;
     var t_rest = 0.0;
     var shadowed = false;
-    if mag[a] >= stride + 0.5 && inside > to_plane && layer >= 0 && layer < i32(grid.dims[e]) && !kink {
-        let u = (x + dir * to_plane - grid.min) / grid.cell - 0.5;
-        let m = layer_mean(light, e, layer, u) * (inside - to_plane);
-        // A stencil in the shadow of detail that does not resolve the optical depth around
-        // P: X integrates its whole path directly. Detail between X and P does not matter
-        // to X (integrated exactly), only to the cells that interpolate X.
-        let disagree = abs(exp(-m.x) - exp(-m.y));
-        let spread = abs(exp(-m.z) - exp(-m.w));
-        let checked = step.refine != 0u && stencil_detail;
-        if !checked || (disagree <= REFINE_TOL && spread <= SPREAD_TOL) {
-            near = to_plane;
-            t_rest = m.x;
-            // The segment is at most a brick and a half long: its ends' bricks stand for it.
-            shadowed = checked || (step.refine != 0u && (detail_at(x) || detail_at(x + dir * to_plane)));
+    if mag[a] >= stride + 0.5 && !kink {
+        let tries = select(1u, PLANES, step.refine != 0u);
+        for (var r = 0u; r < tries; r++) {
+            let n = layers * f32(1u << r);
+            let at = len * n / mag[e];
+            let plane = c[e] + i32(n) * i32(sign(v[e]));
+            if at >= inside || plane < 0 || plane >= i32(grid.dims[e]) {
+                break;
+            }
+            let u = (x + dir * at - grid.min) / grid.cell - 0.5;
+            let m = layer_mean(light, e, plane, u) * (inside - at);
+            if step.refine == 0u || m.y * exp(-m.x) <= step.tolerance {
+                near = at;
+                t_rest = m.x;
+                shadowed = step.refine != 0u && select(detail_along(x, dir, at), detail_at(x) || detail_at(x + dir * at), r == 0u);
+                break;
+            }
         }
     }
     if step.refine != 0u && near == inside {
         shadowed = detail_along(x, dir, inside);
     }
-    // Segments in the shadow of detail are split at every axis' cell-centre planes, which
-    // makes their integral exact for the trilinear medium.
     let t_in = integrate_pieces(x + dir * near, x, near == inside || shadowed) + t_rest;
-    store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h), shadowed);
+    store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
 @compute @workgroup_size(64, 1, 1)

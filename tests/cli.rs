@@ -18,8 +18,9 @@ fn json_of(out: &std::process::Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
-/// `--sweep-refine false|true` overrides the project's sweep_refine (default false) for that
-/// run, and the JSON says which setting the bake used.
+/// `--sweep-refine false|true` and `--sweep-tolerance` override the project's settings
+/// (default on, 5e-4) for that run, the JSON says which settings the bake used, and a
+/// tolerance out of range is refused with the flag and its range named.
 #[test]
 fn sweep_refine_flag_reaches_the_bake() {
     let dir = tempfile::tempdir().unwrap();
@@ -32,11 +33,16 @@ fn sweep_refine_flag_reaches_the_bake() {
     };
     let default = run(&[]);
     let plain = run(&["--sweep-refine", "false"]);
-    let refined = run(&["--sweep-refine", "true"]);
-    assert_eq!(default["sweep_refine"], false, "{default}");
+    let refined = run(&["--sweep-refine", "true", "--sweep-tolerance", "2e-4"]);
+    assert_eq!(default["sweep_refine"], true, "{default}");
+    assert!((default["sweep_tolerance"].as_f64().unwrap() - 5e-4).abs() < 1e-9, "{default}");
     assert_eq!(plain["sweep_refine"], false, "{plain}");
     assert_eq!(refined["sweep_refine"], true, "{refined}");
+    assert!((refined["sweep_tolerance"].as_f64().unwrap() - 2e-4).abs() < 1e-9, "{refined}");
     assert_eq!(refined["scheme"], "sweep");
+    let bad = fogsmith().args(["render", &project, "-o", &png, "--sweep-tolerance", "0"]).output().unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("--sweep-tolerance must be within 1e-6..=0.1"), "{err}");
 }
 
 #[test]

@@ -255,18 +255,21 @@ fn default_layout_snapshot() {
     h.snapshot_options("editor_layout", &options);
 }
 
-/// The Inspector's "refine thin shadows" box sets propagation.sweep_refine as one undo step.
+/// The Inspector's "refine thin shadows" box sets propagation.sweep_refine as one undo step,
+/// and its tolerance field shows only while it is on.
 #[test]
 fn the_sweep_refine_box_edits_the_project_and_undoes() {
     let mut h = harness(demo());
-    assert!(!h.state().session().project().propagation.sweep_refine);
+    assert!(h.state().session().project().propagation.sweep_refine);
+    assert!(h.query_by_label_contains("tolerance").is_some(), "the tolerance shows while refine is on");
     h.get_by_label("refine thin shadows").click();
     h.run_steps(2);
-    assert!(h.state().session().project().propagation.sweep_refine, "the box turned sweep_refine on");
+    assert!(!h.state().session().project().propagation.sweep_refine, "the box turned sweep_refine off");
+    assert!(h.query_by_label_contains("tolerance").is_none(), "the tolerance hides while refine is off");
     assert_eq!(h.state().gpu_error(), None);
     h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
     h.run_steps(2);
-    assert!(!h.state().session().project().propagation.sweep_refine, "undo turns it off again");
+    assert!(h.state().session().project().propagation.sweep_refine, "undo turns it on again");
 }
 
 /// The toolbar's resolution control sets the preview's pixels per screen pixel.

@@ -378,11 +378,11 @@ fn a_million_small_particles_inject() {
     assert!(ev.data.iter().all(|v| v.is_finite()));
 }
 
-/// `sweep_refine` checks interpolations only in the shadows of fine detail: on fog of wide,
-/// thin particles it gives the plain sweep's optical depths bit for bit (no work added), and
+/// `sweep_refine` changes only interpolations whose estimated error exceeds its tolerance: on
+/// fog of wide, thin particles it gives the plain sweep's optical depths bit for bit, and
 /// with particles a cell or two wide it changes them.
 #[test]
-fn sweep_refine_works_only_in_the_shadows_of_detail() {
+fn sweep_refine_changes_only_interpolations_beyond_its_tolerance() {
     let mut gpu = pipeline();
     let lights = [Vec3::new(0.3, 0.9, -0.2), Vec3::new(-2.5, 0.4, 1.5)];
     let mut smooth = small_scene(32, &lights);

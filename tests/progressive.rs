@@ -125,8 +125,9 @@ proptest! {
 
 /// A local edit far from a light re-propagates only the shells it can reach, and the result
 /// is still bit for bit the fresh bake; so after a light is added (its buffers reallocated).
-/// With `sweep_refine` the edit reaches further: the cells' marks also depend on the detail of
-/// the bricks their paths cross, which the edit changes up to one cell beyond its bricks.
+/// With `sweep_refine` the edit reaches further: how a cell integrates its segment also depends
+/// on the detail of the bricks its path crosses, which the edit changes up to one cell beyond
+/// its bricks.
 #[test]
 fn a_local_edit_repropagates_only_the_shells_it_reaches() {
     for (refine, kept_at_least) in [(false, 0.1), (true, 0.05)] {

@@ -34,6 +34,10 @@ pub struct BenchOptions {
     pub suites: Vec<Suite>,
     /// Resolutions of the propagation suite; empty for its default list.
     pub resolutions: Vec<u32>,
+    /// Demo scenes of the propagation suite; empty for its default list.
+    pub scenes: Vec<String>,
+    /// Scheme labels of the propagation suite (`sweep8r`, `exact`, …); empty for all.
+    pub schemes: Vec<String>,
 }
 
 /// Why a benchmark could not run.
@@ -43,6 +47,8 @@ pub enum BenchError {
     Gpu(#[from] crate::gpu::GpuError),
     #[error(transparent)]
     Project(#[from] crate::scene::ProjectError),
+    #[error("{0}")]
+    Option(String),
     #[error("the interaction benchmark: {0}")]
     Editor(String),
     #[error("{path}: could not write benchmark output: {message}")]
@@ -54,7 +60,7 @@ pub enum BenchError {
 pub fn run(opts: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
     std::fs::create_dir_all(&opts.out).map_err(|e| write_err(&opts.out, e))?;
     let mut records = Vec::new();
-    let mut ctx = suites::Context::new(opts.quick, opts.resolutions.clone())?;
+    let mut ctx = suites::Context::new(opts)?;
     for suite in &opts.suites {
         let start = records.len();
         suites::run(*suite, &mut ctx, &mut records, log)?;

@@ -507,11 +507,28 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
         if current == Scheme::Sweep {
             let mut refine = state.session.project().propagation.sweep_refine;
             let r = ui.checkbox(&mut refine, "refine thin shadows").on_hover_text(
-                "In the shadows of detail (particles a few cells wide, noise), integrate directly where the sweep's \
-                 interpolation cannot follow the shadow: accurate there, 1.2–3× slower; for final bakes of finely painted fog",
+                "Control the error of the sweep's interpolations: where one cannot follow a shadow (particles a cell or two \
+                 wide, noise), take it from farther or integrate the path directly. Off: faster, up to a few 1e-2 off there",
             );
             if r.changed() {
                 state.session.edit(NEW_STEP).propagation.sweep_refine = refine;
+            }
+            if refine {
+                let mut tolerance = state.session.project().propagation.sweep_tolerance;
+                let r = ui
+                    .horizontal(|ui| {
+                        let label = ui.label("tolerance");
+                        ui.add(egui::DragValue::new(&mut tolerance).range(1e-6..=0.1).speed(1e-5).custom_formatter(|v, _| format!("{v:.1e}")))
+                            .labelled_by(label.id)
+                    })
+                    .inner
+                    .on_hover_text(
+                        "Largest transmittance error accepted per interpolation (default 5e-4); the worst error along a ray is \
+                         a small multiple of it. Lower for final bakes, higher for speed",
+                    );
+                if r.changed() {
+                    state.session.edit(r.id.value()).propagation.sweep_tolerance = tolerance;
+                }
             }
         }
     });

@@ -101,9 +101,11 @@ pub struct SweepStep {
     pub stride: u32,
     /// Index of the step's first thread among its batch's.
     pub offset: u32,
-    /// 1: cells with an unresolved stencil integrate directly (`sweep_refine`).
+    /// 1: interpolations are error-controlled (`sweep_refine`).
     pub refine: u32,
-    pub _pad: [u32; 2],
+    /// Their largest accepted error in transmittance (`sweep_tolerance`).
+    pub tolerance: f32,
+    pub _pad: u32,
 }
 
 /// One slab of cells a sweep dispatch may solve for one light (see `propagate_sweep.wgsl`).

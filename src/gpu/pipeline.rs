@@ -193,7 +193,8 @@ struct OpvKey {
     ev_generation: u64,
     scheme: Scheme,
     stride: u32,
-    refine: bool,
+    /// The sweep's tolerance, with `sweep_refine`.
+    refine: Option<f32>,
     /// A directional light, whose `position` holds its unit direction.
     sun: bool,
 }
@@ -959,9 +960,9 @@ impl FogPipeline {
         }
         // A sun's volume depends on its direction only, whatever the scheme.
         if let Some(direction) = sun_direction(l) {
-            return Some(OpvKey { position: direction, ev_generation: self.baked.ev_generation, scheme: Scheme::Sweep, stride: 0, refine: false, sun: true });
+            return Some(OpvKey { position: direction, ev_generation: self.baked.ev_generation, scheme: Scheme::Sweep, stride: 0, refine: None, sun: true });
         }
-        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride, refine: project.propagation.sweep_refine, sun: false })
+        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride, refine: project.propagation.sweep_refine.then_some(project.propagation.sweep_tolerance), sun: false })
     }
 
     /// Lights whose OPV must be (re)propagated, with the inputs it will have; counts the rest.
@@ -996,7 +997,7 @@ impl FogPipeline {
             positions: &positions,
             directions: &directions,
             sweep_stride: project.propagation.sweep_stride,
-            sweep_refine: project.propagation.sweep_refine,
+            sweep_refine: project.propagation.sweep_refine.then_some(project.propagation.sweep_tolerance),
         };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
         let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> = targets.iter().map(|&(i, k)| self.changed_since(i, k)).collect();

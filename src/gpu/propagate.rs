@@ -28,8 +28,8 @@ pub struct PropagationInputs<'a> {
     pub directions: &'a [Option<Vec3>],
     /// Layers stepped back per interpolation by the `sweep` scheme (≥ 3).
     pub sweep_stride: u32,
-    /// The `sweep` scheme's direct integration of unresolved stencils.
-    pub sweep_refine: bool,
+    /// The `sweep` scheme's error control: the tolerance of its interpolations, if on.
+    pub sweep_refine: Option<f32>,
 }
 
 pub struct Propagator {
@@ -238,15 +238,18 @@ impl Propagator {
                         let first = changed.get(k).copied().flatten().map_or(0, |cells| {
                             // With refine, a cell's path also reads the detail of the bricks
                             // it crosses, which a change reaches one cell beyond its bricks.
-                            let cells = if inputs.sweep_refine { bricks_around(inputs.grid, cells) } else { cells };
+                            let cells = if inputs.sweep_refine.is_some() { bricks_around(inputs.grid, cells) } else { cells };
                             first_changed_batch(inputs.grid, position, inputs.sweep_stride, cells)
                         });
                         (l, position, first)
                     })
                     .collect();
                 let mut plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride, ITEM_THREADS);
-                let refine = inputs.sweep_refine as u32;
-                plan.steps.iter_mut().chain(plan.whole.iter_mut().map(|w| &mut w.1)).for_each(|s| s.refine = refine);
+                let (refine, tolerance) = inputs.sweep_refine.map_or((0, 0.0), |t| (1, t));
+                plan.steps.iter_mut().chain(plan.whole.iter_mut().map(|w| &mut w.1)).for_each(|s| {
+                    s.refine = refine;
+                    s.tolerance = tolerance;
+                });
                 let units = plan
                     .steps
                     .iter()
@@ -692,7 +695,8 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
             stride,
             offset: offset as u32,
             refine: 0,
-            _pad: [0; 2],
+            tolerance: 0.0,
+            _pad: 0,
         });
     };
     for batch in 0..batches {
@@ -731,7 +735,8 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
                 stride,
                 offset: 0,
                 refine: 0,
-                _pad: [0; 2],
+                tolerance: 0.0,
+                _pad: 0,
             };
             plan.whole.push((batch_step..plan.steps.len(), step, groups));
         }
@@ -921,3 +926,4 @@ mod tests {
         assert!(centre <= 33 / 5 + 1, "{centre}");
     }
 }
+

@@ -725,19 +725,25 @@ pub struct PropagationSettings {
     /// diffusive and costs more per cell. Default 8 (on the demos: max transmittance error
     /// 5.1e-3 to 1.3e-2 against 7.6e-3 to 2.0e-2 with 4, at about the same time).
     pub sweep_stride: u32,
-    /// Whether the `sweep` scheme checks its interpolations in the shadows of detail
-    /// (particles and noise that are not smooth across a cell) and integrates directly the
-    /// cells whose stencil does not resolve the optical depth there: a scheme error below
-    /// 2e-3 whatever the particles' size, at 1.1–3× the plain sweep's time on the demos, none
-    /// extra on fog that is smooth across every cell (`fogsmith bench --suite opv`). Default
-    /// false: the live preview's speed; the plain sweep is up to a few 1e-2 off in the
-    /// shadows of particles a cell or two wide. Turn it on for exports of finely painted fog.
+    /// Whether the `sweep` scheme controls the error of its interpolations: each one whose
+    /// estimated error in transmittance exceeds `sweep_tolerance` is taken from a farther
+    /// plane or replaced by the direct integral of the cell's path. Default true. Off, the
+    /// sweep is faster (`fogsmith bench --suite opv` measures both) but up to a few 1e-2 off
+    /// in the shadows of particles a cell or two wide.
     pub sweep_refine: bool,
+    /// The largest estimated transmittance error `sweep_refine` accepts per interpolation,
+    /// within 1e-6..=0.1. Default 5e-4; the worst error along a ray is a small multiple of it
+    /// (tests/placements.rs measures the classes of light placement): lower it for final
+    /// bakes of finely painted fog, raise it for speed.
+    pub sweep_tolerance: f32,
 }
+
+/// `PropagationSettings::sweep_tolerance`'s default.
+pub const DEFAULT_SWEEP_TOLERANCE: f32 = 5e-4;
 
 impl Default for PropagationSettings {
     fn default() -> Self {
-        Self { scheme: Scheme::default(), sweep_stride: 8, sweep_refine: false }
+        Self { scheme: Scheme::default(), sweep_stride: 8, sweep_refine: true, sweep_tolerance: DEFAULT_SWEEP_TOLERANCE }
     }
 }
 

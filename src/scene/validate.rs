@@ -302,6 +302,10 @@ impl Project {
         if !(3..=16).contains(&stride) {
             return Err(err("propagation.sweep_stride", format!("must be within 3..=16, got {stride}")));
         }
+        let tolerance = self.propagation.sweep_tolerance;
+        if !(1e-6..=0.1).contains(&tolerance) {
+            return Err(err("propagation.sweep_tolerance", format!("must be within 1e-6..=0.1 (default 5e-4), got {tolerance}")));
+        }
         Ok(())
     }
 }
