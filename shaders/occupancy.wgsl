@@ -7,8 +7,7 @@
 // anisotropic grids a particle can be resolved along one axis and not another). It is the
 // optical depth by which the medium departs from linear across one cell, large only for
 // features of a few cells (small particles, noise, an imported volume's fine structure): the
-// refined sweep (propagate_sweep.wgsl) checks its interpolations only in the shadows of such
-// bricks.
+// refined sweep (propagate_sweep.wgsl) integrates the segments that cross such bricks exactly.
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;

@@ -287,34 +287,41 @@ fn solve(c: vec3i, light: u32) {
             }
         }
     }
-    // Either the whole in-box path is integrated, or the part up to P plus the interpolated
-    // rest: one call either way, so that threads taking different branches share it.
-    var near = inside;
-    var t_rest = 0.0;
-    var shadowed = false;
-    if mag[a] >= stride + 0.5 && !kink {
-        let tries = select(1u, PLANES, step.refine != 0u);
-        for (var r = 0u; r < tries; r++) {
-            let n = layers * f32(1u << r);
-            let at = len * n / mag[e];
-            let plane = c[e] + i32(n) * i32(sign(v[e]));
-            if at >= inside || plane < 0 || plane >= i32(grid.dims[e]) {
-                break;
-            }
-            let u = (x + dir * at - grid.min) / grid.cell - 0.5;
-            let m = layer_mean(light, e, plane, u) * (inside - at);
-            if step.refine == 0u || m.y * exp(-m.x) <= step.tolerance {
-                near = at;
-                t_rest = m.x;
-                shadowed = step.refine != 0u && select(detail_along(x, dir, at), detail_at(x) || detail_at(x + dir * at), r == 0u);
-                break;
-            }
+    // Each round integrates the path from where the last one ended either to the next plane
+    // P, then adds the rest interpolated there if its error is within the tolerance, or to
+    // the box's exit. One integration call in one loop, so that threads taking different
+    // branches share it, and a rejected plane's segment is part of the next one's.
+    let usable = mag[a] >= stride + 0.5 && !kink;
+    let tries = select(1u, PLANES, step.refine != 0u);
+    var near = 0.0;
+    var t_in = 0.0;
+    for (var r = 0u; ; r++) {
+        var far = inside;
+        var m = vec2f(0.0);
+        let n = layers * f32(1u << r);
+        let at = len * n / mag[e];
+        let plane = c[e] + i32(n) * i32(sign(v[e]));
+        let interpolate = usable && r < tries && at < inside && plane >= 0 && plane < i32(grid.dims[e]);
+        if interpolate {
+            far = at;
+            m = layer_mean(light, e, plane, (x + dir * at - grid.min) / grid.cell - 0.5) * (inside - at);
+        }
+        var exact = !interpolate;
+        if step.refine != 0u && interpolate {
+            exact = select(detail_along(x + dir * near, dir, at - near), detail_at(x) || detail_at(x + dir * at), r == 0u);
+        }
+        t_in += integrate_pieces(x + dir * far, x + dir * near, exact);
+        near = far;
+        if !interpolate {
+            break;
+        }
+        // The interpolation's error in the cell's transmittance: in mean extinction, times
+        // the rest's length, times the transmittance of the whole path.
+        if step.refine == 0u || m.y * exp(-(m.x + t_in)) <= step.tolerance {
+            t_in += m.x;
+            break;
         }
     }
-    if step.refine != 0u && near == inside {
-        shadowed = detail_along(x, dir, inside);
-    }
-    let t_in = integrate_pieces(x + dir * near, x, near == inside || shadowed) + t_rest;
     store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 

@@ -307,3 +307,17 @@ fn a_wrong_base_volume_in_the_reference_is_detected() {
     assert!(scaled.0 > 0.02 && scaled.1 > 2.0 * honest.1 && scaled.2 > 2.0 * honest.2, "a 5% scale error: {scaled:?} vs {honest:?}");
     assert!(without.0 > 0.5 && without.1 > 0.05 && without.2 > 0.1 && without.2 > 3.0 * honest.2, "{without:?} vs {honest:?}");
 }
+
+/// The propagation suite's `--scene` and `--scheme` filters refuse names they do not know,
+/// naming the bad one and listing the valid ones, before any benchmark runs.
+#[test]
+fn bench_refuses_unknown_scenes_and_schemes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().display().to_string();
+    for (flag, bad, known) in [("--scene", "atlantis", "cornell"), ("--scheme", "sweep9", "sweep8r")] {
+        let run = fogsmith().args(["bench", "--suite", "opv", "--quiet", "--out", &out, flag, bad]).output().unwrap();
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{flag} {bad} was accepted");
+        assert!(err.contains(&format!("{flag} {bad}")) && err.contains(known), "{err}");
+    }
+}

@@ -722,8 +722,8 @@ pub struct PropagationSettings {
     /// Default `sweep`.
     pub scheme: Scheme,
     /// Layers the `sweep` scheme steps back per interpolation, 3..=16: larger is less
-    /// diffusive and costs more per cell. Default 8 (on the demos: max transmittance error
-    /// 5.1e-3 to 1.3e-2 against 7.6e-3 to 2.0e-2 with 4, at about the same time).
+    /// diffusive and costs more per cell. Default 8 (`fogsmith bench --suite opv` compares 4
+    /// and 8).
     pub sweep_stride: u32,
     /// Whether the `sweep` scheme controls the error of its interpolations: each one whose
     /// estimated error in transmittance exceeds `sweep_tolerance` is taken from a farther
