@@ -25,10 +25,10 @@
 // for the quadratic data Catmull-Rom reproduces; their size is the order of its error on data
 // that is not smooth across a cell, where a sharper estimate with the interpolation weights
 // missed errors of 3e-2) plus what the limiter clipped give the error of m at P; times the
-// rest's length and its transmittance, that is the interpolation's error in transmittance. If
-// it exceeds `step.tolerance`, X tries planes 2 and 4 times as far (shorter rests, smoother
-// stencils nearer the light), and integrates its whole in-box path directly only if those
-// fail too: its value is then as exact as the `exact` scheme's, and the cells behind it
+// rest's length and the whole path's transmittance, that is the interpolation's error in the
+// cell's transmittance. If it exceeds `step.tolerance`, X tries planes 2 and 4 times as far
+// (shorter rests; the segments already integrated are kept), and integrates its whole in-box
+// path directly only if those fail too: its value is then as exact as the `exact` scheme's, and the cells behind it
 // interpolate from exact values. The worst error along a ray stays within a small multiple
 // of the tolerance (tests/placements.rs). Segments X–P that cross a brick whose detail
 // (occupancy.wgsl: how far σ_t departs from linear across a cell, in optical depth) exceeds

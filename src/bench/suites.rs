@@ -118,9 +118,10 @@ fn image_size(project: &Project, width: u32) -> (u32, u32) {
 }
 
 /// The propagation suite's schemes, (scheme, sweep stride, sweep_refine), by record label.
-const OPV_SCHEMES: [((Scheme, u32, bool), &str); 5] = [
+const OPV_SCHEMES: [((Scheme, u32, bool), &str); 6] = [
     ((Scheme::Giroud, 4, false), "giroud"),
     ((Scheme::Sweep, 4, false), "sweep4"),
+    ((Scheme::Sweep, 4, true), "sweep4r"),
     ((Scheme::Sweep, 8, false), "sweep8"),
     ((Scheme::Sweep, 8, true), "sweep8r"),
     ((Scheme::Exact, 4, false), "exact"),
