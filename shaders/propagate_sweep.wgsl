@@ -180,47 +180,77 @@ fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> vec2f {
         wb = fold_ghosts(catmull_rom(ub - f32(fb)), fb, nb);
         wd = fold_ghosts(catmull_rom(ud - f32(fd)), fd, nd);
     }
+    // Third differences along b of each row and along d of each column, from coefficients
+    // that read no ghost position: a ghost holds the linear extrapolation of the edge cells.
+    let cb = third_difference(fb, nb);
+    let cd = third_difference(fd, nd);
+    let refine = cubic && step.refine != 0u;
     var sum = 0.0;
     var lo = 3.4e38;
     var hi = 0.0;
     var cell = vec3i(0);
     cell[a] = layer;
-    var v: array<f32, 16>;
+    var rows = vec4f(0.0);
+    var cols = vec4f(0.0);
     for (var j = first; j < last; j++) {
         cell[d] = clamp(fd + j - 1, 0, nd - 1);
         var row = 0.0;
+        var diff = 0.0;
         for (var i = first; i < last; i++) {
             cell[b] = clamp(fb + i - 1, 0, nb - 1);
             let m = load_mean(light, cell);
-            v[4 * j + i] = m;
             row += wb[i] * m;
+            if refine {
+                diff += cb[i] * m;
+                cols[i] += cd[j] * m;
+            }
             if (i == 1 || i == 2) && (j == 1 || j == 2) {
                 lo = min(lo, m);
                 hi = max(hi, m);
             }
         }
         sum += wd[j] * row;
+        rows[j] = diff;
     }
     let limited = clamp(sum, lo, hi);
     if !cubic {
         return vec2f(limited, hi - lo);
     }
-    if step.refine == 0u {
+    if !refine {
         return vec2f(limited, 0.0);
     }
-    for (var k = 0; k < 4; k++) {
-        if nb >= 2 && fb == 0 { v[4 * k] = 2.0 * v[4 * k + 1] - v[4 * k + 2]; }
-        if nb >= 2 && fb >= nb - 2 { v[4 * k + 3] = 2.0 * v[4 * k + 2] - v[4 * k + 1]; }
-        if nd >= 2 && fd == 0 { v[k] = 2.0 * v[4 + k] - v[8 + k]; }
-        if nd >= 2 && fd >= nd - 2 { v[12 + k] = 2.0 * v[8 + k] - v[4 + k]; }
-    }
-    var e_b = 0.0;
-    var e_d = 0.0;
-    for (var k = 0; k < 4; k++) {
-        e_b = max(e_b, abs(v[4 * k] - 3.0 * v[4 * k + 1] + 3.0 * v[4 * k + 2] - v[4 * k + 3]));
-        e_d = max(e_d, abs(v[k] - 3.0 * v[4 + k] + 3.0 * v[8 + k] - v[12 + k]));
-    }
+    rows = extrapolate_ghosts(rows, fd, nd);
+    cols = extrapolate_ghosts(cols, fb, nb);
+    let e_b = max(max(abs(rows.x), abs(rows.y)), max(abs(rows.z), abs(rows.w)));
+    let e_d = max(max(abs(cols.x), abs(cols.y)), max(abs(cols.z), abs(cols.w)));
     return vec2f(limited, e_b + e_d + abs(sum - limited));
+}
+
+// Coefficients of the third difference v0 − 3v1 + 3v2 − v3 over the stencil cells f − 1 …
+// f + 2 of an axis of n cells, with a position beyond the axis standing for the linear
+// extrapolation of the two edge cells.
+fn third_difference(f: i32, n: i32) -> vec4f {
+    var c = vec4f(1.0, -3.0, 3.0, -1.0);
+    if n >= 2 && f == 0 {
+        c = vec4f(0.0, c.y + 2.0 * c.x, c.z - c.x, c.w);
+    }
+    if n >= 2 && f >= n - 2 {
+        c = vec4f(c.x, c.y - c.w, c.z + 2.0 * c.w, 0.0);
+    }
+    return c;
+}
+
+// Values at the stencil positions f − 1 … f + 2 of an axis of n cells, those beyond the axis
+// replaced by the linear extrapolation of the two edge cells.
+fn extrapolate_ghosts(v: vec4f, f: i32, n: i32) -> vec4f {
+    var w = v;
+    if n >= 2 && f == 0 {
+        w.x = 2.0 * w.y - w.z;
+    }
+    if n >= 2 && f >= n - 2 {
+        w.w = 2.0 * w.z - w.y;
+    }
+    return w;
 }
 
 // Weights `w` of the stencil cells f − 1 … f + 2 along an axis of n cells, with the weight of
