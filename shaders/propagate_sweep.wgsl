@@ -355,7 +355,8 @@ fn solve(c: vec3i, light: u32) {
     store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
-@compute @workgroup_size(64, 1, 1)
+// As many threads as SWEEP_WORKGROUP in src/gpu/propagate.rs.
+@compute @workgroup_size(256, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let t = gid.x + gid.y * step.row + step.offset;
     // The last box starting at or before thread t.

@@ -537,6 +537,10 @@ const ANCHOR_CELLS: f64 = (1u64 << 19) as f64;
 /// Threads per sweep dispatch before a batch is split over several dispatches.
 const MAX_THREADS_PER_DISPATCH: u64 = 1 << 30;
 
+/// Threads per workgroup of `propagate_sweep.wgsl` (its `@workgroup_size`). llvmpipe pays a
+/// fixed cost per workgroup, so larger groups amortise it over more cells.
+const SWEEP_WORKGROUP: u64 = 256;
+
 /// The same limit for the scheduler's work items (a batch's cells do not read each other, so
 /// any split between its boxes is valid): small enough that one dispatch fits an interactive
 /// frame budget on a software adapter, large enough that dispatch overhead stays negligible
@@ -677,9 +681,9 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
     let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
     let workgroups = |threads: u64| {
-        let groups = threads.div_ceil(64).max(1);
+        let groups = threads.div_ceil(SWEEP_WORKGROUP).max(1);
         let x = groups.min(65_535);
-        ([x as u32, groups.div_ceil(x) as u32, 1], x as u32 * 64)
+        ([x as u32, groups.div_ceil(x) as u32, 1], x as u32 * SWEEP_WORKGROUP as u32)
     };
     // Box `first` fields count threads from the start of the batch; a step starts at `offset`.
     let flush = |plan: &mut SweepPlan, first_box: usize, offset: u64, threads: u64| {
