@@ -28,9 +28,9 @@
 // rest's length and the whole path's transmittance, that is the interpolation's error in the
 // cell's transmittance. If it exceeds `step.tolerance`, X tries planes 2 and 4 times as far
 // (shorter rests; the segments already integrated are kept), and integrates its whole in-box
-// path directly only if those fail too: its value is then as exact as the `exact` scheme's, and the cells behind it
-// interpolate from exact values. The worst error along a ray stays within a small multiple
-// of the tolerance (tests/placements.rs). Segments X–P that cross a brick whose detail
+// path directly only if those fail too: its value is then as exact as the `exact` scheme's,
+// and the cells behind it interpolate from exact values. The worst error along a ray stays
+// within a small multiple of the tolerance (tests/placements.rs). Segments X–P that cross a brick whose detail
 // (occupancy.wgsl: how far σ_t departs from linear across a cell, in optical depth) exceeds
 // DETAIL_TOL, and whole in-box paths, are split at every axis' cell-centre planes, which makes
 // their integral exact for the trilinear medium.

@@ -71,6 +71,8 @@ fn invalid_values_name_the_field_and_its_position() {
         ("max: (2.0, 4.0, 2.0)", "max: (2.0, -4.0, 2.0)", "grid.max.y", 3),
         ("albedo: 1.0", "albedo: 1.5", "medium.albedo", 4),
         ("fov_y_deg: 40.0", "fov_y_deg: 0.0", "camera.fov_y_deg", 11),
+        ("render: (width: 640, height: 360),", "render: (width: 640, height: 360),\n    propagation: (sweep_tolerance: 0.0),", "propagation.sweep_tolerance", 13),
+        ("render: (width: 640, height: 360),", "render: (width: 640, height: 360),\n    propagation: (sweep_stride: 2),", "propagation.sweep_stride", 13),
     ];
     for (from, to, field, want_line) in cases {
         let text = EXAMPLE.replace(from, to);

@@ -106,7 +106,7 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         scene: Vec<String>,
         /// Schemes of the propagation suite by their record label, e.g. sweep8,sweep8r,exact
-        /// (default: giroud, sweep4, sweep8, sweep8r and exact).
+        /// (default: all of giroud, sweep4, sweep4r, sweep8, sweep8r and exact).
         #[arg(long, value_delimiter = ',')]
         scheme: Vec<String>,
         /// Print the records as JSON on stdout (progress lines go to stderr).
@@ -170,8 +170,9 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
         project.propagation.sweep_refine = refine;
     }
     if let Some(tolerance) = args.sweep_tolerance {
-        if !(1e-6..=0.1).contains(&tolerance) {
-            return Err(format!("--sweep-tolerance must be within 1e-6..=0.1 (default 5e-4), got {tolerance}").into());
+        let (range, default) = (crate::scene::SWEEP_TOLERANCE_RANGE, crate::scene::DEFAULT_SWEEP_TOLERANCE);
+        if !range.contains(&tolerance) {
+            return Err(format!("--sweep-tolerance must be within {:e}..={} (default {default:e}), got {tolerance}", range.start(), range.end()).into());
         }
         project.propagation.sweep_tolerance = tolerance;
     }

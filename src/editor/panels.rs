@@ -518,7 +518,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 let r = ui
                     .horizontal(|ui| {
                         let label = ui.label("tolerance");
-                        ui.add(egui::DragValue::new(&mut tolerance).range(1e-6..=0.1).speed(1e-5).custom_formatter(|v, _| format!("{v:.1e}")))
+                        ui.add(egui::DragValue::new(&mut tolerance).range(crate::scene::SWEEP_TOLERANCE_RANGE).speed(1e-5).custom_formatter(|v, _| format!("{v:.1e}")))
                             .labelled_by(label.id)
                     })
                     .inner

@@ -962,7 +962,7 @@ impl FogPipeline {
         if let Some(direction) = sun_direction(l) {
             return Some(OpvKey { position: direction, ev_generation: self.baked.ev_generation, scheme: Scheme::Sweep, stride: 0, refine: None, sun: true });
         }
-        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride, refine: project.propagation.sweep_refine.then_some(project.propagation.sweep_tolerance), sun: false })
+        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride, refine: project.propagation.refine_tolerance(), sun: false })
     }
 
     /// Lights whose OPV must be (re)propagated, with the inputs it will have; counts the rest.
@@ -997,7 +997,7 @@ impl FogPipeline {
             positions: &positions,
             directions: &directions,
             sweep_stride: project.propagation.sweep_stride,
-            sweep_refine: project.propagation.sweep_refine.then_some(project.propagation.sweep_tolerance),
+            sweep_refine: project.propagation.refine_tolerance(),
         };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
         let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> = targets.iter().map(|&(i, k)| self.changed_since(i, k)).collect();

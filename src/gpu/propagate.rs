@@ -930,4 +930,3 @@ mod tests {
         assert!(centre <= 33 / 5 + 1, "{centre}");
     }
 }
-

@@ -741,6 +741,16 @@ pub struct PropagationSettings {
 /// `PropagationSettings::sweep_tolerance`'s default.
 pub const DEFAULT_SWEEP_TOLERANCE: f32 = 5e-4;
 
+/// The values `PropagationSettings::sweep_tolerance` may take.
+pub const SWEEP_TOLERANCE_RANGE: std::ops::RangeInclusive<f32> = 1e-6..=0.1;
+
+impl PropagationSettings {
+    /// The tolerance of the sweep's error control, if `sweep_refine` turns it on.
+    pub fn refine_tolerance(&self) -> Option<f32> {
+        self.sweep_refine.then_some(self.sweep_tolerance)
+    }
+}
+
 impl Default for PropagationSettings {
     fn default() -> Self {
         Self { scheme: Scheme::default(), sweep_stride: 8, sweep_refine: true, sweep_tolerance: DEFAULT_SWEEP_TOLERANCE }

@@ -303,8 +303,12 @@ impl Project {
             return Err(err("propagation.sweep_stride", format!("must be within 3..=16, got {stride}")));
         }
         let tolerance = self.propagation.sweep_tolerance;
-        if !(1e-6..=0.1).contains(&tolerance) {
-            return Err(err("propagation.sweep_tolerance", format!("must be within 1e-6..=0.1 (default 5e-4), got {tolerance}")));
+        if !super::SWEEP_TOLERANCE_RANGE.contains(&tolerance) {
+            let (range, default) = (super::SWEEP_TOLERANCE_RANGE, super::DEFAULT_SWEEP_TOLERANCE);
+            return Err(err(
+                "propagation.sweep_tolerance",
+                format!("must be within {:e}..={} (default {default:e}), got {tolerance}", range.start(), range.end()),
+            ));
         }
         Ok(())
     }
