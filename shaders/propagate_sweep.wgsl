@@ -170,60 +170,65 @@ fn layer_mean(light: u32, a: u32, layer: i32, u: vec3f) -> vec2f {
     let ud = clamp(u[d], 0.0, f32(nd - 1));
     let fb = i32(floor(ub));
     let fd = i32(floor(ud));
-    // Stride 3 leaves no room for the wider stencil in the ordering: bilinear there.
+    // Stride 3 leaves no room for the wider stencil in the ordering: bilinear there, and the
+    // outer cells (not yet solved) are not read.
     let cubic = step.stride >= 4u;
-    let first = select(1, 0, cubic);
-    let last = select(3, 4, cubic);
     var wb = vec4f(0.0, 1.0 - (ub - f32(fb)), ub - f32(fb), 0.0);
     var wd = vec4f(0.0, 1.0 - (ud - f32(fd)), ud - f32(fd), 0.0);
     if cubic {
         wb = fold_ghosts(catmull_rom(ub - f32(fb)), fb, nb);
         wd = fold_ghosts(catmull_rom(ud - f32(fd)), fd, nd);
     }
-    // Third differences along b of each row and along d of each column, from coefficients
-    // that read no ghost position: a ghost holds the linear extrapolation of the edge cells.
-    let cb = third_difference(fb, nb);
-    let cd = third_difference(fd, nd);
-    let refine = cubic && step.refine != 0u;
-    var sum = 0.0;
-    var lo = 3.4e38;
-    var hi = 0.0;
-    var cell = vec3i(0);
-    cell[a] = layer;
-    var rows = vec4f(0.0);
-    var cols = vec4f(0.0);
-    for (var j = first; j < last; j++) {
-        cell[d] = clamp(fd + j - 1, 0, nd - 1);
-        var row = 0.0;
-        var diff = 0.0;
-        for (var i = first; i < last; i++) {
-            cell[b] = clamp(fb + i - 1, 0, nb - 1);
-            let m = load_mean(light, cell);
-            row += wb[i] * m;
-            if refine {
-                diff += cb[i] * m;
-                cols[i] += cd[j] * m;
-            }
-            if (i == 1 || i == 2) && (j == 1 || j == 2) {
-                lo = min(lo, m);
-                hi = max(hi, m);
-            }
-        }
-        sum += wd[j] * row;
-        rows[j] = diff;
-    }
-    let limited = clamp(sum, lo, hi);
+    // The stencil's four rows along b, written out so that every index is constant.
+    let ea = unit(a);
+    let eb = unit(b);
+    let ed = unit(d);
+    let cell = ea * layer;
+    let m1 = stencil_row(light, cell, eb, ed, fb, fd, nb, nd, cubic);
+    let m2 = stencil_row(light, cell, eb, ed, fb, fd + 1, nb, nd, cubic);
+    let lo = min(min(m1.y, m1.z), min(m2.y, m2.z));
+    let hi = max(max(m1.y, m1.z), max(m2.y, m2.z));
     if !cubic {
-        return vec2f(limited, hi - lo);
+        let sum = wd.y * dot(wb, m1) + wd.z * dot(wb, m2);
+        return vec2f(clamp(sum, lo, hi), hi - lo);
     }
-    if !refine {
+    let m0 = stencil_row(light, cell, eb, ed, fb, fd - 1, nb, nd, cubic);
+    let m3 = stencil_row(light, cell, eb, ed, fb, fd + 2, nb, nd, cubic);
+    let sum = dot(wd, vec4f(dot(wb, m0), dot(wb, m1), dot(wb, m2), dot(wb, m3)));
+    let limited = clamp(sum, lo, hi);
+    if step.refine == 0u {
         return vec2f(limited, 0.0);
     }
-    rows = extrapolate_ghosts(rows, fd, nd);
-    cols = extrapolate_ghosts(cols, fb, nb);
+    // Third differences along b of each row and along d of each column, from coefficients
+    // that read no ghost position; the ghost rows and columns then hold the linear
+    // extrapolation of the edge ones.
+    let cb = third_difference(fb, nb);
+    let cd = third_difference(fd, nd);
+    let rows = extrapolate_ghosts(vec4f(dot(cb, m0), dot(cb, m1), dot(cb, m2), dot(cb, m3)), fd, nd);
+    let cols = extrapolate_ghosts(cd.x * m0 + cd.y * m1 + cd.z * m2 + cd.w * m3, fb, nb);
     let e_b = max(max(abs(rows.x), abs(rows.y)), max(abs(rows.z), abs(rows.w)));
     let e_d = max(max(abs(cols.x), abs(cols.y)), max(abs(cols.z), abs(cols.w)));
     return vec2f(limited, e_b + e_d + abs(sum - limited));
+}
+
+// Mean in-box extinction of the stencil cells fb − 1 … fb + 2 along b (unit vector eb) in
+// row `row` along d (unit vector ed), both clamped to the grid, of the layer holding `layer`;
+// without `cubic` only the middle two.
+fn stencil_row(light: u32, layer: vec3i, eb: vec3i, ed: vec3i, fb: i32, row: i32, nb: i32, nd: i32, cubic: bool) -> vec4f {
+    let base = layer + ed * clamp(row, 0, nd - 1);
+    var m = vec4f(0.0);
+    m.y = load_mean(light, base + eb * clamp(fb, 0, nb - 1));
+    m.z = load_mean(light, base + eb * clamp(fb + 1, 0, nb - 1));
+    if cubic {
+        m.x = load_mean(light, base + eb * clamp(fb - 1, 0, nb - 1));
+        m.w = load_mean(light, base + eb * clamp(fb + 2, 0, nb - 1));
+    }
+    return m;
+}
+
+// The unit vector along axis i.
+fn unit(i: u32) -> vec3i {
+    return vec3i(vec3u(i) == vec3u(0u, 1u, 2u));
 }
 
 // Coefficients of the third difference v0 − 3v1 + 3v2 − v3 over the stencil cells f − 1 …
