@@ -360,7 +360,13 @@ fn solve(c: vec3i, light: u32) {
     store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
-// As many threads as SWEEP_WORKGROUP in src/gpu/propagate.rs.
+// Threads per workgroup: SWEEP_WORKGROUP in src/gpu/propagate.rs. Each thread solves
+// SWEEP_CELLS cells of its box (`const SWEEP_CELLS`, prepended by src/gpu/propagate.rs:
+// several on a CPU adapter, which pays a fixed cost per invocation). Consecutive threads take
+// consecutive cells, SWEEP_CHUNK threads at a time, so that neighbouring lanes follow nearby
+// paths and branch alike.
+const SWEEP_CHUNK: u32 = 32u;
+
 @compute @workgroup_size(256, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let t = gid.x + gid.y * step.row + step.offset;
@@ -376,20 +382,27 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
         }
     }
     let bx = boxes[lo];
-    let local = t - bx.first;
-    if t < bx.first || local >= bx.size.x * bx.size.y * bx.size.z {
+    let count = bx.size.x * bx.size.y * bx.size.z;
+    let threads = (count + SWEEP_CELLS - 1u) / SWEEP_CELLS;
+    if t < bx.first || t - bx.first >= threads {
         return;
     }
-    let c = bx.lo + vec3i(vec3u(local % bx.size.x, (local / bx.size.x) % bx.size.y, local / (bx.size.x * bx.size.y)));
-    if !in_grid(c) {
-        return;
-    }
-    let r = vec3f(c) - bx.anchor;
-    let ar = abs(r);
-    let a = largest_axis(ar);
-    let face = 2u * a + select(0u, 1u, r[a] < 0.0);
-    let batch = max(i32(floor((ar[a] - bx.level0) / bx.width)), 0);
-    if face == bx.face && batch == i32(bx.batch) {
-        solve(c, bx.light);
+    let lt = t - bx.first;
+    let chunk = lt / SWEEP_CHUNK;
+    let lanes = min(SWEEP_CHUNK, threads - chunk * SWEEP_CHUNK);
+    for (var k = 0u; k < SWEEP_CELLS; k++) {
+        let local = chunk * SWEEP_CHUNK * SWEEP_CELLS + k * lanes + lt % SWEEP_CHUNK;
+        if local >= count {
+            return;
+        }
+        let c = bx.lo + vec3i(vec3u(local % bx.size.x, (local / bx.size.x) % bx.size.y, local / (bx.size.x * bx.size.y)));
+        let r = vec3f(c) - bx.anchor;
+        let ar = abs(r);
+        let a = largest_axis(ar);
+        let face = 2u * a + select(0u, 1u, r[a] < 0.0);
+        let batch = max(i32(floor((ar[a] - bx.level0) / bx.width)), 0);
+        if in_grid(c) && face == bx.face && batch == i32(bx.batch) {
+            solve(c, bx.light);
+        }
     }
 }

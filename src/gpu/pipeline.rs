@@ -14,7 +14,7 @@ use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGp
 use super::opv_store::{OpvLayout, OpvVolumes, MAX_TEXTURE_BYTES};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
-use super::propagate::{PropagationInputs, PropagationJob, Propagator};
+use super::propagate::{sweep_cells_per_thread, PropagationInputs, PropagationJob, Propagator};
 use super::readback::read_texture;
 use super::slice::{Plane, SliceInputs, SliceParams, SliceSource, Slicer};
 use super::timer::{self, StageTimer};
@@ -369,7 +369,7 @@ impl FogPipeline {
         let device = &ctx.device;
         let injector = Injector::new(device);
         let stage_layout = OpvLayout { textures: 1, ..opv_layout };
-        let propagator = Propagator::new(device, stage_layout);
+        let propagator = Propagator::new(device, stage_layout, sweep_cells_per_thread(ctx.adapter_info.device_type));
         let marcher = Marcher::new(device, stage_layout);
         let slicer = Slicer::new(device, stage_layout);
         let timer = StageTimer::new(&ctx);
@@ -1144,7 +1144,7 @@ impl FogPipeline {
         if needed != self.stage_layout.textures || rows != self.stage_layout.rows {
             self.stage_layout = OpvLayout { textures: needed, rows, ..self.opv_layout };
             let device = &self.ctx.device;
-            self.propagator = Propagator::new(device, self.stage_layout);
+            self.propagator = Propagator::new(device, self.stage_layout, sweep_cells_per_thread(self.ctx.adapter_info.device_type));
             self.marcher = Marcher::new(device, self.stage_layout);
             self.slicer = Slicer::new(device, self.stage_layout);
             self.jobs = Jobs::default();

@@ -42,6 +42,8 @@ pub struct Propagator {
     exact: wgpu::ComputePipeline,
     directional: wgpu::ComputePipeline,
     uniform_align: u64,
+    /// Cells each sweep thread solves ([`sweep_cells_per_thread`]).
+    cells_per_thread: u32,
 }
 
 /// Simpson steps per cell edge of the `exact` scheme.
@@ -51,7 +53,9 @@ pub const EXACT_STEPS_PER_CELL: u32 = 4;
 pub(crate) const INTEGRATE: &str = include_str!("../../shaders/integrate_exact.wgsl");
 
 impl Propagator {
-    pub fn new(device: &wgpu::Device, opv: OpvLayout) -> Self {
+    /// `cells_per_thread`: see [`sweep_cells_per_thread`].
+    pub fn new(device: &wgpu::Device, opv: OpvLayout, cells_per_thread: u32) -> Self {
+        let cells_per_thread = cells_per_thread.max(1);
         let two = |a: bool, b: bool| [opv.layout_entries(EXTRA_BINDING, a), opv.layout_entries(EXTRA_BINDING_2, b)].concat();
         let giroud_layout = bind_group_layout_with(
             device,
@@ -93,7 +97,14 @@ impl Propagator {
         let sweep = compute_pipeline(
             device,
             "propagate_sweep",
-            &[&opv_mean, VOLUME_LOOKUP, sigma, INTEGRATE, include_str!("../../shaders/propagate_sweep.wgsl")],
+            &[
+                &sweep_cells_wgsl(cells_per_thread),
+                &opv_mean,
+                VOLUME_LOOKUP,
+                sigma,
+                INTEGRATE,
+                include_str!("../../shaders/propagate_sweep.wgsl"),
+            ],
             &sweep_layout,
         );
         let sweep_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
@@ -133,7 +144,7 @@ impl Propagator {
             &exact_layout,
         );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
-        Self { giroud_layout, giroud, sweep_layout, sweep, sweep_sampler, exact_layout, exact, directional, uniform_align }
+        Self { giroud_layout, giroud, sweep_layout, sweep, sweep_sampler, exact_layout, exact, directional, uniform_align, cells_per_thread }
     }
 
     /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
@@ -244,7 +255,8 @@ impl Propagator {
                         (l, position, first)
                     })
                     .collect();
-                let mut plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride, ITEM_THREADS);
+                let k = self.cells_per_thread as u64;
+                let mut plan = sweep_steps_from(inputs.grid, &lights, inputs.sweep_stride, k, ITEM_CELLS / k);
                 let (refine, tolerance) = inputs.sweep_refine.map_or((0, 0.0), |t| (1, t));
                 plan.steps.iter_mut().chain(plan.whole.iter_mut().map(|w| &mut w.1)).for_each(|s| {
                     s.refine = refine;
@@ -541,11 +553,28 @@ const MAX_THREADS_PER_DISPATCH: u64 = 1 << 30;
 /// fixed cost per workgroup, so larger groups amortise it over more cells.
 const SWEEP_WORKGROUP: u64 = 256;
 
-/// The same limit for the scheduler's work items (a batch's cells do not read each other, so
+/// The cells of one of the scheduler's work items (a batch's cells do not read each other, so
 /// any split between its boxes is valid): small enough that one dispatch fits an interactive
 /// frame budget on a software adapter, large enough that dispatch overhead stays negligible
 /// on a GPU.
-pub const ITEM_THREADS: u64 = 1 << 15;
+pub const ITEM_CELLS: u64 = 1 << 15;
+
+/// The declaration propagate_sweep.wgsl expects before it: its cells per thread.
+pub(crate) fn sweep_cells_wgsl(cells_per_thread: u32) -> String {
+    format!("const SWEEP_CELLS: u32 = {cells_per_thread}u;\n")
+}
+
+/// Cells each sweep thread solves on an adapter of `device_type`. A CPU adapter (llvmpipe)
+/// pays a fixed cost per invocation that is comparable with a cell's work, which several
+/// cells per thread amortise (`fogsmith bench --suite opv` measures it); a GPU wants one
+/// thread per cell.
+pub fn sweep_cells_per_thread(device_type: wgpu::DeviceType) -> u32 {
+    if device_type == wgpu::DeviceType::Cpu {
+        8
+    } else {
+        1
+    }
+}
 
 /// How one light's cells are ordered into batches of Chebyshev shells.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -670,13 +699,13 @@ pub struct SweepPlan {
 /// dispatch j solves batch j of every light that has one.
 pub fn sweep_steps(grid: &GridSpec, lights: &[(u32, Vec3)], stride: u32) -> SweepPlan {
     let all: Vec<(u32, Vec3, u32)> = lights.iter().map(|&(l, p)| (l, p, 0)).collect();
-    sweep_steps_from(grid, &all, stride, MAX_THREADS_PER_DISPATCH)
+    sweep_steps_from(grid, &all, stride, 1, MAX_THREADS_PER_DISPATCH)
 }
 
 /// [`sweep_steps`] where each light `(index, position, first)` starts at batch `first` (the
-/// batches before it are left as they are), with at most `max_threads` per dispatch where
-/// boxes allow.
-pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u32, max_threads: u64) -> SweepPlan {
+/// batches before it are left as they are), with `cells_per_thread` cells per thread and at
+/// most `max_threads` threads per dispatch where boxes allow.
+pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u32, cells_per_thread: u64, max_threads: u64) -> SweepPlan {
     let frames: Vec<(u32, ShellFrame, u32)> = lights.iter().map(|&(l, p, first)| (l, ShellFrame::new(grid, p, stride), first)).collect();
     let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
@@ -708,8 +737,8 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
         let (mut first_box, mut offset, mut threads) = (plan.boxes.len(), 0u64, 0u64);
         for &(light, frame, _) in frames.iter().filter(|(_, f, first)| batch < f.batches && batch >= *first) {
             for (face, (lo, size)) in (0..6).flat_map(|face| frame.face_boxes(grid, batch, face).into_iter().map(move |b| (face, b))) {
-                let cells = size.iter().map(|&s| s as u64).product::<u64>();
-                if threads - offset + cells > max_threads && threads > offset {
+                let box_threads = size.iter().map(|&s| s as u64).product::<u64>().div_ceil(cells_per_thread);
+                if threads - offset + box_threads > max_threads && threads > offset {
                     flush(&mut plan, first_box, offset, threads);
                     first_box = plan.boxes.len();
                     offset = threads;
@@ -726,7 +755,7 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
                     batch,
                     _pad: 0,
                 });
-                threads += cells;
+                threads += box_threads;
             }
         }
         flush(&mut plan, first_box, offset, threads);
