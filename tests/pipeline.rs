@@ -403,6 +403,35 @@ fn sweep_refine_changes_only_interpolations_beyond_its_tolerance() {
     }
 }
 
+/// The sweep gives the same optical depths, bit for bit, whatever the cells each thread
+/// solves: one (a GPU's default, which a CPU adapter otherwise never runs), three (chunks that
+/// end mid-box) and eight (a CPU adapter's default), plain and refined, for lights inside, on
+/// a face and outside a grid whose edges are not multiples of the chunk.
+#[test]
+fn sweep_is_the_same_for_any_cells_per_thread() {
+    let lights = [Vec3::new(0.2, -0.3, 0.1), Vec3::new(1.0, 0.4, -0.2), Vec3::new(-2.5, 1.7, 0.9)];
+    let mut p = small_scene(37, &lights);
+    p.grid.resolution.y = 29;
+    scatter(&mut p, 12, 60, 0.04, 0.4);
+    for refine in [false, true] {
+        p.propagation.sweep_refine = refine;
+        let mut opvs = Vec::new();
+        for cells in [1, 3, 8] {
+            let mut gpu = pipeline();
+            gpu.set_sweep_cells_per_thread(cells);
+            gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+            opvs.push((0..lights.len()).map(|l| gpu.read_opv(l).unwrap().data).collect::<Vec<_>>());
+        }
+        for (l, one) in opvs[0].iter().enumerate() {
+            assert!(one.iter().all(|v| v.is_finite() && *v > 0.0), "refine {refine}, light {l}: an optical depth is not positive");
+            for (cells, other) in [3, 8].iter().zip(&opvs[1..]) {
+                let differ = one.iter().zip(&other[l]).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+                assert_eq!(differ, 0, "refine {refine}, light {l}: {differ} cells differ between 1 and {cells} cells per thread");
+            }
+        }
+    }
+}
+
 /// OPVs spread over several textures (one or two lights per texture) or stacked in rows give
 /// the same optical depths, slices and image, bit for bit, as all lights stacked along z in
 /// one texture, for every scheme and after adding and removing lights.

@@ -329,6 +329,8 @@ pub struct FogPipeline {
     /// scene's OPVs fill, since every extra texture adds a branch to each OPV read (the march
     /// reads eight per light per sample).
     stage_layout: OpvLayout,
+    /// Cells each sweep thread solves (`sweep_cells_per_thread`, or the test setting).
+    sweep_cells: u32,
     /// See [`FogPipeline::peak_memory_bytes`].
     peak_memory: std::sync::atomic::AtomicU64,
     /// Bin edge of the last injection's particle lists (see `binning`).
@@ -369,7 +371,8 @@ impl FogPipeline {
         let device = &ctx.device;
         let injector = Injector::new(device);
         let stage_layout = OpvLayout { textures: 1, ..opv_layout };
-        let propagator = Propagator::new(device, stage_layout, sweep_cells_per_thread(ctx.adapter_info.device_type));
+        let sweep_cells = sweep_cells_per_thread(ctx.adapter_info.device_type);
+        let propagator = Propagator::new(device, stage_layout, sweep_cells);
         let marcher = Marcher::new(device, stage_layout);
         let slicer = Slicer::new(device, stage_layout);
         let timer = StageTimer::new(&ctx);
@@ -397,6 +400,7 @@ impl FogPipeline {
             peak_memory: Default::default(),
             opv_layout,
             stage_layout,
+            sweep_cells,
             bin_size: binning::BRICK,
             volumes_generation: 0,
         }
@@ -1144,7 +1148,7 @@ impl FogPipeline {
         if needed != self.stage_layout.textures || rows != self.stage_layout.rows {
             self.stage_layout = OpvLayout { textures: needed, rows, ..self.opv_layout };
             let device = &self.ctx.device;
-            self.propagator = Propagator::new(device, self.stage_layout, sweep_cells_per_thread(self.ctx.adapter_info.device_type));
+            self.propagator = Propagator::new(device, self.stage_layout, self.sweep_cells);
             self.marcher = Marcher::new(device, self.stage_layout);
             self.slicer = Slicer::new(device, self.stage_layout);
             self.jobs = Jobs::default();
@@ -1227,6 +1231,20 @@ impl FogPipeline {
     /// the brute-force injection, for measuring what binning saves. Off by default.
     pub fn set_brute_force_injection(&mut self, on: bool) {
         self.brute_force_injection = on;
+    }
+
+    /// Makes each sweep thread solve `cells` cells (at least one) instead of the adapter's
+    /// default (`sweep_cells_per_thread`), so that a CPU adapter can run the one-cell-per-thread
+    /// configuration a GPU uses. The optical depths are the same bit for bit; those on the GPU
+    /// are propagated again.
+    pub fn set_sweep_cells_per_thread(&mut self, cells: u32) {
+        let cells = cells.max(1);
+        if cells != self.sweep_cells {
+            self.sweep_cells = cells;
+            self.propagator = Propagator::new(&self.ctx.device, self.stage_layout, cells);
+            self.jobs = Jobs::default();
+            self.baked.opvs.iter_mut().for_each(|k| *k = None);
+        }
     }
 
     /// Where the injection sums the particles (see [`InjectPath`]).
