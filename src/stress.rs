@@ -120,7 +120,7 @@ pub const HOMOGENEOUS_BOUND: f64 = 1e-4;
 /// volumes a pipeline can hold on a 64³ grid, used to build cases just past them.
 pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> Vec<StressCase> {
     let mut cases = Vec::new();
-    let all = [Scheme::Sweep, Scheme::Giroud, Scheme::Exact];
+    let all = [Scheme::Sweep, Scheme::Giroud, Scheme::Exact, Scheme::Analytic];
     let cell = 2.0 / DEFAULT_RES as f32;
 
     // Homogeneous fog from none to very large, light inside the grid off the cell centres.

@@ -457,8 +457,8 @@ fn spread_equals_whole(layout: fogsmith::gpu::OpvLayout) {
     let mut p = small_scene(30, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-0.8, 0.3, 0.5), Vec3::new(0.1, -1.3, 0.2)]);
     p.grid.resolution.z = 28;
     scatter(&mut p, 11, 60, 0.1, 0.4);
-    for (step, scheme) in [Scheme::Sweep, Scheme::Giroud, Scheme::Exact, Scheme::Sweep].into_iter().enumerate() {
-        if step == 3 {
+    for (step, scheme) in [Scheme::Sweep, Scheme::Giroud, Scheme::Exact, Scheme::Analytic, Scheme::Sweep].into_iter().enumerate() {
+        if step == 4 {
             p.lights.remove(1);
             p.lights.push(fogsmith::scene::Light::new(Vec3::new(0.5, 1.2, -0.9), 3.0, Vec3::ONE));
         }
@@ -574,4 +574,21 @@ fn host_particle_sums_equal_the_adapter_gather() {
         assert!(inject_calls > 2, "grid {res}: a 1 µs budget must slice the injection ({inject_calls} calls)");
         assert_eq!(differ, 0, "grid {res}: {differ} cells differ between sliced and one-pass host injection");
     }
+}
+
+/// The `analytic` scheme cannot represent noise, which only the grid holds: it says so and
+/// names the fix instead of baking something else.
+#[test]
+fn analytic_scheme_refuses_noise_and_names_the_fix() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(16, &[Vec3::new(0.9, 0.9, 0.9)]);
+    p.medium.noise = Some(fogsmith::scene::Noise { amplitude: 0.5, frequency: 4.0, octaves: 2, seed: 1 });
+    p.particles.iter_mut().for_each(|q| q.noise = true);
+    let err = gpu.update(&p, &request(&p, Scheme::Analytic)).unwrap_err().to_string();
+    assert!(err.contains("analytic") && err.contains("noise") && err.contains("sweep"), "{err}");
+    // Without noise on any particle it bakes.
+    p.particles.iter_mut().for_each(|q| q.noise = false);
+    gpu.update(&p, &request(&p, Scheme::Analytic)).unwrap();
+    let opv = gpu.read_opv(0).unwrap();
+    assert!(opv.data.iter().all(|t| t.is_finite() && *t >= 0.0));
 }

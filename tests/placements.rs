@@ -41,7 +41,10 @@ const TIGHT_TOLERANCE_BOUNDS: [f64; 8] = [1e-3; 8];
 const PLAIN_SWEEP_SCHEME_BOUNDS: [f64; 8] = [1.5e-2, 1e-2, 2e-2, 6e-3, 4.5e-2, 3e-2, 6e-3, 4e-2];
 
 /// The same for particles of 6 to 10 cells radius, whose shadows the interpolation resolves:
-/// there every class stays below 2e-3.
+/// every class stays below 2e-3 on the first seed's scenes. Other seeds' scenes measured up
+/// to 8.2e-3 (beyond an edge, seed 3) and 3.3e-3 (beyond a face, seed 7): along the long paths
+/// of lights outside the box the interpolation errors add up even for resolved particles,
+/// which is why `sweep_refine` is on by default.
 const PLAIN_SWEEP_SCHEME_BOUNDS_RESOLVED: [f64; 8] = [1.2e-3, 1e-3, 1e-3, 5e-4, 2e-3, 1.5e-3, 5e-4, 1.5e-3];
 
 const CLASSES: [&str; 8] =
@@ -257,4 +260,66 @@ fn plain_sweep_is_bounded_for_every_light_placement() {
 #[test]
 fn plain_sweep_matches_an_inside_light_everywhere_for_resolved_particles() {
     check_sweep(6.0, None, PLAIN_SWEEP_SCHEME_BOUNDS_RESOLVED, &[SEED]);
+}
+
+/// The `analytic` scheme's largest transmittance error against the analytic gaussians and
+/// fog clipped to the box, per placement class. Nothing is interpolated or sampled, so what
+/// remains is f32 rounding, the erf approximation (1.5e-7 per evaluation, two per particle
+/// and brick) and the tails beyond the particles' cut-off: the worst class measured 5.0e-6
+/// over eight seeds (inside, seed 3). Computing a particle's closest distance as |d|² − t_c² instead, which
+/// cancels in f32, measured 5.8e-5.
+const ANALYTIC_BOUND: f64 = 2e-5;
+
+/// Worst transmittance error of the `analytic` scheme against the clipped analytic medium
+/// per placement class, on the scenes of `worst_by_class`, half of those with base fog given
+/// a height falloff.
+fn analytic_worst_by_class(min_radius: f32, seed: u64) -> Vec<f64> {
+    use fogsmith::measure::opv_error_against;
+    use fogsmith::reference::clipped_optical_depth_cells;
+    let mut gpu = pipeline();
+    let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
+    let mut worst = vec![0.0f64; CLASSES.len()];
+    let mut rng = Rng(seed);
+    for (g, &res) in grids.iter().enumerate() {
+        for seed in 0..2 {
+            let base = if (g + seed) % 2 == 0 { 0.0 } else { rng.range(0.02, 0.3) };
+            let (mut p, particles) = scene(&mut rng, res, base, min_radius);
+            if seed == 1 {
+                p.medium.height_falloff = rng.range(0.5, 3.0);
+                p.medium.height_origin = p.grid.min.y;
+            }
+            p.propagation.scheme = Scheme::Analytic;
+            gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
+            let cells = sample_cells(&p.grid, 6000);
+            for l in 0..p.lights.len() {
+                let reference = clipped_optical_depth_cells(&p, l, &cells);
+                let e = opv_error_against(l, &gpu.read_opv(l).unwrap(), &cells, &reference);
+                assert!(!e.nan_or_inf, "analytic {res} light {l}: NaN or infinity");
+                println!(
+                    "analytic {:>3}×{:>3}×{:>3} {particles:2} particles base {base:.3} falloff {:.2}  {:16}: {:.2e}",
+                    res.x,
+                    res.y,
+                    res.z,
+                    p.medium.height_falloff,
+                    CLASSES[l],
+                    e.transmittance_max_abs_error
+                );
+                worst[l] = worst[l].max(e.transmittance_max_abs_error);
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn analytic_scheme_is_exact_against_the_gaussians_for_every_light_placement() {
+    let seeds = std::env::var("PLACEMENT_SEED").map_or(vec![SEED, 7], |s| vec![s.parse().expect("PLACEMENT_SEED is a number")]);
+    for seed in seeds {
+        let worst = analytic_worst_by_class(1.0, seed);
+        println!("analytic, particle radii 1–10 cells, seed {seed}: worst transmittance error against the clipped gaussians");
+        for (class, w) in CLASSES.iter().zip(&worst) {
+            println!("  {class:16} {w:.2e}");
+            assert!(*w <= ANALYTIC_BOUND, "seed {seed}, analytic, light {class}: error {w:.3e} > {ANALYTIC_BOUND:e}");
+        }
+    }
 }

@@ -118,13 +118,14 @@ fn image_size(project: &Project, width: u32) -> (u32, u32) {
 }
 
 /// The propagation suite's schemes, (scheme, sweep stride, sweep_refine), by record label.
-const OPV_SCHEMES: [((Scheme, u32, bool), &str); 6] = [
+const OPV_SCHEMES: [((Scheme, u32, bool), &str); 7] = [
     ((Scheme::Giroud, 4, false), "giroud"),
     ((Scheme::Sweep, 4, false), "sweep4"),
     ((Scheme::Sweep, 4, true), "sweep4r"),
     ((Scheme::Sweep, 8, false), "sweep8"),
     ((Scheme::Sweep, 8, true), "sweep8r"),
     ((Scheme::Exact, 4, false), "exact"),
+    ((Scheme::Analytic, 4, false), "analytic"),
 ];
 
 fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
@@ -167,22 +168,28 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
             let medium = GridMedium64::for_project(&project, &ctx.gpu.read_ev()?);
             let exact: Vec<Vec<f64>> =
                 (0..project.lights.len()).map(|l| grid_light_depth_cells(&project, &medium, l, &cells)).collect();
-            let resolution = exact
-                .iter()
-                .enumerate()
-                .map(|(l, g)| depth_error(l, g, &clipped_optical_depth_cells(&project, l, &cells)).transmittance_max_abs_error)
-                .fold(0.0f64, f64::max);
+            let analytic: Vec<Vec<f64>> = (0..project.lights.len()).map(|l| clipped_optical_depth_cells(&project, l, &cells)).collect();
+            let resolution =
+                exact.iter().zip(&analytic).enumerate().map(|(l, (g, a))| depth_error(l, g, a).transmittance_max_abs_error).fold(0.0f64, f64::max);
             for &(scheme, stride, refine) in &schemes {
+                if scheme == Scheme::Analytic {
+                    if let Some(what) = crate::gpu::analytic_unsupported(&project) {
+                        log(&format!("opv    {name:8} {res:>3} analytic skipped: it cannot represent {what}"));
+                        continue;
+                    }
+                }
                 let mut p = project.clone();
                 p.propagation.scheme = scheme;
                 p.propagation.sweep_stride = stride;
                 p.propagation.sweep_refine = refine;
                 let (report, propagate_ms, runs) = median_propagation(ctx, &p)?;
-                let (mut max, mut mean) = (0.0f64, 0.0f64);
-                for (l, ex) in exact.iter().enumerate() {
-                    let e = opv_error_against(l, &ctx.gpu.read_opv(l)?, &cells, ex);
+                let (mut max, mut mean, mut truth) = (0.0f64, 0.0f64, 0.0f64);
+                for (l, (ex, an)) in exact.iter().zip(&analytic).enumerate() {
+                    let opv = ctx.gpu.read_opv(l)?;
+                    let e = opv_error_against(l, &opv, &cells, ex);
                     max = max.max(e.transmittance_max_abs_error);
                     mean += e.transmittance_mean_abs_error / exact.len() as f64;
+                    truth = truth.max(opv_error_against(l, &opv, &cells, an).transmittance_max_abs_error);
                 }
                 let label = match (scheme, refine) {
                     (Scheme::Sweep, false) => format!("sweep{stride}"),
@@ -191,13 +198,13 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
                 };
                 let r = project.grid.resolution;
                 log(&format!(
-                    "opv    {name:8} {:>3}×{:>3}×{:>3} {label:8} {propagate_ms:9.1} ms  scheme error mean {mean:.2e} max {max:.2e}  resolution error max {resolution:.2e}  ({} passes, median of {runs})",
+                    "opv    {name:8} {:>3}×{:>3}×{:>3} {label:8} {propagate_ms:9.1} ms  scheme error mean {mean:.2e} max {max:.2e}  resolution error max {resolution:.2e}  vs analytic max {truth:.2e}  ({} passes, median of {runs})",
                     r.x, r.y, r.z, report.counters.propagation_iterations
                 ));
                 out.push(json!({
                     "suite": "opv", "scene": name, "scheme_or_policy": label, "resolution": res,
                     "grid": r.to_array(), "lights": p.lights.len(),
-                    "time_ms": propagate_ms, "runs": runs, "error_mean": mean, "error_max": max,
+                    "time_ms": propagate_ms, "runs": runs, "error_mean": mean, "error_max": max, "error_vs_analytic_max": truth,
                     "resolution_error_max": resolution,
                     "samples": report.counters.cells_propagated,
                     "iterations": report.counters.propagation_iterations,

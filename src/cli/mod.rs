@@ -106,7 +106,7 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         scene: Vec<String>,
         /// Schemes of the propagation suite by their record label, e.g. sweep8,sweep8r,exact
-        /// (default: all of giroud, sweep4, sweep4r, sweep8, sweep8r and exact).
+        /// (default: all of giroud, sweep4, sweep4r, sweep8, sweep8r, exact and analytic).
         #[arg(long, value_delimiter = ',')]
         scheme: Vec<String>,
         /// Print the records as JSON on stdout (progress lines go to stderr).

@@ -496,8 +496,17 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
         use clap::ValueEnum;
         let current = state.session.project().propagation.scheme;
         egui::ComboBox::from_label("scheme").selected_text(current.to_string()).show_ui(ui, |ui| {
+            let unsupported = crate::gpu::analytic_unsupported(state.session.project());
             for s in Scheme::value_variants() {
-                if ui.selectable_label(*s == current, s.to_string()).clicked() && *s != current {
+                let usable = *s != Scheme::Analytic || unsupported.is_none();
+                let r = ui.add_enabled(usable, egui::Button::selectable(*s == current, s.to_string()));
+                let r = match unsupported {
+                    Some(what) if !usable => r.on_disabled_hover_text(format!(
+                        "Integrates particles and fog in closed form, so it cannot represent {what}, which only the grid holds"
+                    )),
+                    _ => r,
+                };
+                if r.clicked() && *s != current {
                     state.session.edit(NEW_STEP).propagation.scheme = *s;
                 }
             }

@@ -137,6 +137,24 @@ pub struct ExactParams {
     pub _pad: u32,
 }
 
+/// A particle of the `analytic` propagation (`propagate_analytic.wgsl`, which reads it as two
+/// vec4s): its centre and 1/r, then the amplitude ρ·r·√π/2 of its line integrals in x.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct AnalyticParticle {
+    pub centre_inv_radius: [f32; 4],
+    pub amplitude: [f32; 4],
+}
+
+impl AnalyticParticle {
+    pub fn new(p: &crate::scene::Particle) -> Self {
+        Self {
+            centre_inv_radius: p.center.extend(1.0 / p.radius).to_array(),
+            amplitude: [p.density * p.radius * (0.5 * std::f32::consts::PI.sqrt()), 0.0, 0.0, 0.0],
+        }
+    }
+}
+
 /// One plane of a sun's sweep (see `propagate_directional.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
@@ -188,7 +206,9 @@ mod tests {
             INTEGRATE,
             include_str!("../../shaders/propagate_directional.wgsl"),
         ];
-        let cases: [(&[&str], &str, usize); 10] = [
+        let analytic = [&opv_rw, include_str!("../../shaders/propagate_analytic.wgsl")];
+        let cases: [(&[&str], &str, usize); 11] = [
+            (&analytic, "AnalyticParams", std::mem::size_of::<ExactParams>()),
             (&directional, "PlaneParams", std::mem::size_of::<PlaneParams>()),
             (&sweep, "SweepBox", std::mem::size_of::<SweepBox>()),
             (&slice, "SliceParams", std::mem::size_of::<crate::gpu::slice::SliceParams>()),

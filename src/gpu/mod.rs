@@ -37,4 +37,4 @@ pub use opv_store::OpvLayout;
 pub use slice::{Plane, SliceSource};
 pub use gpu_types::{SweepBox, SweepStep};
 pub use propagate::{giroud_iterations, sweep_steps, ShellFrame, SweepPlan, EXACT_STEPS_PER_CELL};
-pub use pipeline::{human_bytes, light_has_opv, light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, InjectPath, Progress, HOST_MIN_ENTRIES_PER_BRICK, Stage, StageTimings};
+pub use pipeline::{analytic_unsupported, human_bytes, light_has_opv, light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, InjectPath, Progress, HOST_MIN_ENTRIES_PER_BRICK, Stage, StageTimings};

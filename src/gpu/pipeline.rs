@@ -705,6 +705,32 @@ impl FogPipeline {
                 ));
             }
         }
+        if request.scheme == Scheme::Analytic {
+            self.check_analytic(project)?;
+        }
+        Ok(())
+    }
+
+    /// The `analytic` scheme integrates particles and fog in closed form: it refuses what
+    /// only the grid holds, and lists longer than a storage binding.
+    fn check_analytic(&self, project: &Project) -> Result<(), GpuError> {
+        if let Some(what) = analytic_unsupported(project).or(self.base_layer.as_ref().map(|_| "an imported base volume")) {
+            return Err(GpuError::Invalid(format!(
+                "the analytic scheme integrates particles and fog in closed form and cannot represent {what}, which only the \
+                 grid holds; choose the sweep or exact scheme (propagation.scheme), or remove {what}"
+            )));
+        }
+        let bytes = binning::brick_list_entries(&project.grid, &project.particles) * 4;
+        let limit = self.ctx.max_binding_bytes();
+        if bytes > limit {
+            return Err(GpuError::Limit {
+                what: "the analytic scheme's particle lists".into(),
+                needed: bytes,
+                limit,
+                adapter: self.ctx.adapter_info.name.clone(),
+                suggestion: "use the sweep scheme, or fewer or smaller particles".into(),
+            });
+        }
         Ok(())
     }
 
@@ -966,7 +992,11 @@ impl FogPipeline {
         if let Some(direction) = sun_direction(l) {
             return Some(OpvKey { position: direction, ev_generation: self.baked.ev_generation, scheme: Scheme::Sweep, stride: 0, refine: None, sun: true });
         }
-        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride: project.propagation.sweep_stride, refine: project.propagation.refine_tolerance(), sun: false })
+        let (stride, refine) = match scheme {
+            Scheme::Sweep => (project.propagation.sweep_stride, project.propagation.refine_tolerance()),
+            _ => (0, None),
+        };
+        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride, refine, sun: false })
     }
 
     /// Lights whose OPV must be (re)propagated, with the inputs it will have; counts the rest.
@@ -1002,6 +1032,7 @@ impl FogPipeline {
             directions: &directions,
             sweep_stride: project.propagation.sweep_stride,
             sweep_refine: project.propagation.refine_tolerance(),
+            particles: &project.particles,
         };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
         let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> = targets.iter().map(|&(i, k)| self.changed_since(i, k)).collect();
@@ -1472,6 +1503,18 @@ pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
 }
 
 /// The medium's noise when it changes the EV (amplitude above 0), else None.
+/// What in `project` the `analytic` scheme cannot represent, which only the grid holds: the
+/// medium's noise on a visible particle, or an imported base volume.
+pub fn analytic_unsupported(project: &Project) -> Option<&'static str> {
+    if noise_of(project).is_some() && project.particles.iter().any(|p| p.noise && !p.hidden && p.density > 0.0) {
+        Some("the medium's noise")
+    } else if project.base_volume.is_some() {
+        Some("an imported base volume")
+    } else {
+        None
+    }
+}
+
 fn noise_of(project: &Project) -> Option<crate::scene::Noise> {
     project.medium.noise.filter(|n| n.amplitude > 0.0)
 }

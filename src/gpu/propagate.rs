@@ -1,12 +1,12 @@
-//! Opacity propagation: EV → one optical-depth volume (OPV) per light, by one of three
+//! Opacity propagation: EV → one optical-depth volume (OPV) per light, by one of four
 //! schemes (see [`Scheme`]). The OPVs live in 3D textures, several lights to a texture
 //! (see `opv_store`).
 
-use super::gpu_types::{ExactParams, PlaneParams, SweepBox, SweepStep};
+use super::gpu_types::{AnalyticParticle, ExactParams, PlaneParams, SweepBox, SweepStep};
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, VOLUME_LOOKUP};
 use super::opv_store::{OpvVolumes, OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
 use super::Counters;
-use crate::scene::{GridSpec, Scheme};
+use crate::scene::{GridSpec, Particle, Scheme};
 use bytemuck::Zeroable;
 use glam::{IVec3, Vec3};
 
@@ -30,6 +30,8 @@ pub struct PropagationInputs<'a> {
     pub sweep_stride: u32,
     /// The `sweep` scheme's error control: the tolerance of its interpolations, if on.
     pub sweep_refine: Option<f32>,
+    /// The particles, which the `analytic` scheme integrates in closed form.
+    pub particles: &'a [Particle],
 }
 
 pub struct Propagator {
@@ -40,6 +42,8 @@ pub struct Propagator {
     sweep_sampler: wgpu::Sampler,
     exact_layout: wgpu::BindGroupLayout,
     exact: wgpu::ComputePipeline,
+    analytic_layout: wgpu::BindGroupLayout,
+    analytic: wgpu::ComputePipeline,
     directional: wgpu::ComputePipeline,
     uniform_align: u64,
     /// Cells each sweep thread solves ([`sweep_cells_per_thread`]).
@@ -130,6 +134,23 @@ impl Propagator {
             &[&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")],
             &exact_layout,
         );
+        // The exact scheme's bindings plus the particles and the bricks' lists of them.
+        let analytic_layout = bind_group_layout_with(
+            device,
+            "propagate_analytic",
+            &[
+                Slot::Uniform,
+                Slot::Texture3d,
+                Slot::StorageRead,
+                Slot::UniformDynamic,
+                Slot::Opv { read_only: false },
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::StorageRead,
+            ],
+            opv.layout_entries(EXTRA_BINDING, false),
+        );
+        let analytic = compute_pipeline(device, "propagate_analytic", &[&opv_rw, include_str!("../../shaders/propagate_analytic.wgsl")], &analytic_layout);
         // Same bindings as the exact scheme, one plane of one sun per dispatch.
         let directional = compute_pipeline(
             device,
@@ -144,7 +165,20 @@ impl Propagator {
             &exact_layout,
         );
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
-        Self { giroud_layout, giroud, sweep_layout, sweep, sweep_sampler, exact_layout, exact, directional, uniform_align, cells_per_thread }
+        Self {
+            giroud_layout,
+            giroud,
+            sweep_layout,
+            sweep,
+            sweep_sampler,
+            exact_layout,
+            exact,
+            analytic_layout,
+            analytic,
+            directional,
+            uniform_align,
+            cells_per_thread,
+        }
     }
 
     /// Plans the propagation of the `active` lights as a list of dispatches, to be encoded in
@@ -294,7 +328,7 @@ impl Propagator {
                 let iterations = (plan.steps.len() - plan.whole.iter().map(|(r, _, _)| r.len() - 1).sum::<usize>()) as u32;
                 (work, plan.groups, units, iterations)
             }
-            Scheme::Exact => {
+            Scheme::Exact | Scheme::Analytic => {
                 let r = inputs.grid.resolution;
                 // One dispatch per light and slab of 4 layers, so the work can be spread.
                 let params: Vec<ExactParams> = active
@@ -308,16 +342,30 @@ impl Propagator {
                         })
                     })
                     .collect();
-                let groups = vec![[r.x.div_ceil(4), r.y.div_ceil(4), 1]; params.len()];
+                // The analytic scheme's workgroups are rows of 64 cells along x.
+                let g = if scheme == Scheme::Analytic { [r.x.div_ceil(64), r.y, 4] } else { [r.x.div_ceil(4), r.y.div_ceil(4), 1] };
+                let groups = vec![g; params.len()];
                 let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
-                (self.per_dispatch(device, inputs, &params, Which::Exact, &[], None), groups, units, 1)
+                let work = if scheme == Scheme::Analytic {
+                    let (offsets, items) = super::binning::brick_lists(inputs.grid, inputs.particles);
+                    let particles: Vec<AnalyticParticle> = inputs.particles.iter().map(AnalyticParticle::new).collect();
+                    let storage = |label: &str, bytes: &[u8]| super::pipeline::storage_buffer(device, label, bytes);
+                    let particles = storage("analytic particles", bytemuck::cast_slice(&particles));
+                    let offsets = storage("analytic brick offsets", bytemuck::cast_slice(&offsets));
+                    let items = storage("analytic brick items", bytemuck::cast_slice(&items));
+                    let extra = [particles.as_entire_binding(), offsets.as_entire_binding(), items.as_entire_binding()];
+                    self.per_dispatch(device, inputs, &params, Which::Analytic, &extra, Some(items.clone()))
+                } else {
+                    self.per_dispatch(device, inputs, &params, Which::Exact, &[], None)
+                };
+                (work, groups, units, 1)
             }
         };
         // Cells computed: the sweep's boxes (a partial sweep skips some), every cell otherwise.
         let cells = match scheme {
             Scheme::Sweep => units.iter().sum::<u64>(),
             Scheme::Giroud => cells * active.len() as u64 * iterations as u64,
-            Scheme::Exact => cells * active.len() as u64,
+            Scheme::Exact | Scheme::Analytic => cells * active.len() as u64,
         };
         PropagationJob { lights: active.to_vec(), work, groups, whole, units, next: 0, iterations, cells, suns: None }
     }
@@ -355,6 +403,7 @@ impl Propagator {
                     pass.set_pipeline(match which {
                         Which::Sweep => &self.sweep,
                         Which::Exact => &self.exact,
+                        Which::Analytic => &self.analytic,
                         Which::Directional => &self.directional,
                     });
                     let mut i = range.start;
@@ -437,6 +486,7 @@ impl Propagator {
                 [inputs.opv[0].extra_entries(EXTRA_BINDING), inputs.opv[1].extra_entries(EXTRA_BINDING_2)].concat(),
             ),
             Which::Exact | Which::Directional => (&self.exact_layout, inputs.opv[0].extra_entries(EXTRA_BINDING)),
+            Which::Analytic => (&self.analytic_layout, inputs.opv[0].extra_entries(EXTRA_BINDING)),
         };
         let bind_group = bind_group_with(device, "propagate", layout, &resources, segments);
         Work::PerDispatch { which, bind_group, stride, _buf: buf, _keep: keep }
@@ -447,6 +497,7 @@ impl Propagator {
 enum Which {
     Sweep,
     Exact,
+    Analytic,
     Directional,
 }
 
