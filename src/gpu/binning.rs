@@ -76,40 +76,6 @@ pub fn for_each_brick(dims: UVec3, (lo, hi): (UVec3, UVec3), mut f: impl FnMut(u
     }
 }
 
-/// Every visible particle's index listed in each 8³ brick its cut-off sphere overlaps, as a
-/// CSR pair over the whole grid: brick b lists `items[offsets[b]..offsets[b + 1]]`, indices
-/// into `particles`. The `analytic` propagation walks these along each path.
-pub fn brick_lists(grid: &GridSpec, particles: &[Particle]) -> (Vec<u32>, Vec<u32>) {
-    let dims = brick_dims(grid);
-    let mut counts = vec![0u32; dims.as_u64vec3().element_product() as usize];
-    let ranges: Vec<(u32, (UVec3, UVec3))> =
-        particles.iter().enumerate().filter_map(|(i, p)| brick_range(grid, p).map(|r| (i as u32, r))).collect();
-    for (_, range) in &ranges {
-        for_each_brick(dims, *range, |b| counts[b] += 1);
-    }
-    let mut offsets = Vec::with_capacity(counts.len() + 1);
-    let mut total = 0u32;
-    offsets.push(0);
-    for c in &counts {
-        total += c;
-        offsets.push(total);
-    }
-    let mut fill = offsets[..counts.len()].to_vec();
-    let mut items = vec![0u32; total as usize];
-    for (i, range) in &ranges {
-        for_each_brick(dims, *range, |b| {
-            items[fill[b] as usize] = *i;
-            fill[b] += 1;
-        });
-    }
-    (offsets, items)
-}
-
-/// List entries [`brick_lists`] makes, without making them.
-pub fn brick_list_entries(grid: &GridSpec, particles: &[Particle]) -> u64 {
-    particles.iter().filter_map(|p| brick_range(grid, p)).map(|(lo, hi)| (hi - lo + 1).as_u64vec3().element_product()).sum()
-}
-
 /// Particle counts per bin for one bin edge: the histogram the injection cuts its chunks
 /// from. The lists themselves are built one chunk of bricks at a time ([`BinCounts::fill`]),
 /// so memory is bounded by the chunk, not by the scene.
@@ -324,37 +290,3 @@ pub fn dirty_bricks(grid: &GridSpec, old: &[Particle], new: &[Particle]) -> Vec<
     dirty.iter().enumerate().filter(|(_, d)| **d).map(|(i, _)| i as u32).collect()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Each visible particle is listed once in every brick its cut-off sphere overlaps and
-    /// nowhere else; hidden particles nowhere.
-    #[test]
-    fn brick_lists_list_each_particle_in_the_bricks_it_overlaps() {
-        let grid = GridSpec { min: Vec3::ZERO, max: Vec3::new(2.0, 1.0, 0.5), resolution: UVec3::new(40, 20, 10) };
-        let mut particles = vec![
-            Particle::new(Vec3::new(0.3, 0.2, 0.1), 0.05, 1.0),
-            Particle::new(Vec3::new(1.5, 0.5, 0.25), 0.2, 3.0),
-            Particle::new(Vec3::new(-0.5, 0.5, 0.25), 0.1, 1.0),
-            Particle::new(Vec3::new(1.0, 0.5, 0.25), 0.3, 1.0),
-        ];
-        particles[3].hidden = true;
-        let (offsets, items) = brick_lists(&grid, &particles);
-        let dims = brick_dims(&grid);
-        assert_eq!(offsets.len() as u64, dims.as_u64vec3().element_product() + 1);
-        assert_eq!(*offsets.last().unwrap() as usize, items.len());
-        assert_eq!(brick_list_entries(&grid, &particles), items.len() as u64);
-        for (i, p) in particles.iter().enumerate() {
-            let mut want = Vec::new();
-            if let Some(range) = brick_range(&grid, p) {
-                for_each_brick(dims, range, |b| want.push(b));
-            }
-            let got: Vec<usize> = (0..offsets.len() - 1)
-                .filter(|&b| items[offsets[b] as usize..offsets[b + 1] as usize].contains(&(i as u32)))
-                .collect();
-            assert_eq!(got, want, "particle {i}");
-            assert_eq!(got.is_empty(), i >= 2, "particle {i}: only the first two are visible and reach the grid");
-        }
-    }
-}

@@ -705,22 +705,23 @@ impl FogPipeline {
                 ));
             }
         }
+        // The analytic scheme integrates particles and fog in closed form: it refuses what
+        // only the grid holds.
         if request.scheme == Scheme::Analytic {
-            self.check_analytic(project)?;
+            if let Some(what) = analytic_unsupported(project).or(self.base_layer.as_ref().map(|_| "an imported base volume")) {
+                return Err(GpuError::Invalid(format!(
+                    "the analytic scheme integrates particles and fog in closed form and cannot represent {what}, which only the \
+                     grid holds; choose the sweep or exact scheme (propagation.scheme), or remove {what}"
+                )));
+            }
         }
         Ok(())
     }
 
-    /// The `analytic` scheme integrates particles and fog in closed form: it refuses what
-    /// only the grid holds, and lists longer than a storage binding.
-    fn check_analytic(&self, project: &Project) -> Result<(), GpuError> {
-        if let Some(what) = analytic_unsupported(project).or(self.base_layer.as_ref().map(|_| "an imported base volume")) {
-            return Err(GpuError::Invalid(format!(
-                "the analytic scheme integrates particles and fog in closed form and cannot represent {what}, which only the \
-                 grid holds; choose the sweep or exact scheme (propagation.scheme), or remove {what}"
-            )));
-        }
-        let bytes = binning::brick_list_entries(&project.grid, &project.particles) * 4;
+    /// Refuses `analytic` particle lists longer than a storage binding; checked when a
+    /// propagation is planned, since counting them visits every particle.
+    fn check_analytic_lists(&self, project: &Project) -> Result<(), GpuError> {
+        let bytes = binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false).entries() * 4;
         let limit = self.ctx.max_binding_bytes();
         if bytes > limit {
             return Err(GpuError::Limit {
@@ -793,6 +794,9 @@ impl FogPipeline {
         // 4. Propagation, in batches of dispatches.
         if !targets.is_empty() {
             if self.jobs.propagate.is_none() {
+                if request.scheme == Scheme::Analytic {
+                    self.check_analytic_lists(project)?;
+                }
                 self.plan_propagation(project, request.scheme, targets);
                 self.note_memory();
             }
@@ -1502,7 +1506,6 @@ pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
     bound * project.render.exposure.max(1e-6) < CULL_RADIANCE
 }
 
-/// The medium's noise when it changes the EV (amplitude above 0), else None.
 /// What in `project` the `analytic` scheme cannot represent, which only the grid holds: the
 /// medium's noise on a visible particle, or an imported base volume.
 pub fn analytic_unsupported(project: &Project) -> Option<&'static str> {
@@ -1515,6 +1518,7 @@ pub fn analytic_unsupported(project: &Project) -> Option<&'static str> {
     }
 }
 
+/// The medium's noise when it changes the EV (amplitude above 0), else None.
 fn noise_of(project: &Project) -> Option<crate::scene::Noise> {
     project.medium.noise.filter(|n| n.amplitude > 0.0)
 }

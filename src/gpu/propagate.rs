@@ -347,12 +347,15 @@ impl Propagator {
                 let groups = vec![g; params.len()];
                 let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
                 let work = if scheme == Scheme::Analytic {
-                    let (offsets, items) = super::binning::brick_lists(inputs.grid, inputs.particles);
-                    let particles: Vec<AnalyticParticle> = inputs.particles.iter().map(AnalyticParticle::new).collect();
+                    // The injection's lists with bins of a whole brick, filled for every brick.
+                    use super::binning::{brick_dims, BinCounts, BRICK};
+                    let bricks: Vec<u32> = (0..brick_dims(inputs.grid).element_product()).collect();
+                    let lists = BinCounts::new(inputs.grid, inputs.particles, BRICK, false).fill(inputs.grid, inputs.particles, &bricks);
+                    let particles: Vec<AnalyticParticle> = lists.particles.iter().map(|&i| AnalyticParticle::new(&inputs.particles[i as usize])).collect();
                     let storage = |label: &str, bytes: &[u8]| super::pipeline::storage_buffer(device, label, bytes);
                     let particles = storage("analytic particles", bytemuck::cast_slice(&particles));
-                    let offsets = storage("analytic brick offsets", bytemuck::cast_slice(&offsets));
-                    let items = storage("analytic brick items", bytemuck::cast_slice(&items));
+                    let offsets = storage("analytic brick offsets", bytemuck::cast_slice(&lists.offsets));
+                    let items = storage("analytic brick items", bytemuck::cast_slice(&lists.items));
                     let extra = [particles.as_entire_binding(), offsets.as_entire_binding(), items.as_entire_binding()];
                     self.per_dispatch(device, inputs, &params, Which::Analytic, &extra, Some(items.clone()))
                 } else {
