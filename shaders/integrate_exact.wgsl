@@ -42,18 +42,22 @@ fn integrate_pieces(a: vec3f, b: vec3f, every_axis: bool) -> f32 {
     var acc = 0.0;
     var t0 = 0.0;
     let pieces = select(u32(adu[dominant]) + 4u, u32(adu.x) + u32(adu.y) + u32(adu.z) + 6u, every_axis);
-    for (var n = 0u; n < pieces; n++) {
+    // Two pieces per iteration: the loop's own cost per iteration is about that of a sample.
+    // A piece after the segment's end has h = 0 and adds nothing.
+    for (var n = 0u; n < pieces; n += 2u) {
         let t1 = min(min(next.x, next.y), min(next.z, 1.0));
-        let h = t1 - t0;
-        if h > 0.0 {
-            let s = sigma_pair(ua + du * (t0 + 0.5 * h), ua + du * (t0 + g0 * h), ua + du * (t0 + g1 * h));
-            acc += 0.5 * h * (s.x + s.y);
-        }
-        if t1 >= 1.0 {
+        next = select(next, next + step, next <= vec3f(t1));
+        let t2 = min(min(next.x, next.y), min(next.z, 1.0));
+        next = select(next, next + step, next <= vec3f(t2));
+        let h1 = t1 - t0;
+        let h2 = t2 - t1;
+        let s1 = sigma_pair(ua + du * (t0 + 0.5 * h1), ua + du * (t0 + g0 * h1), ua + du * (t0 + g1 * h1));
+        let s2 = sigma_pair(ua + du * (t1 + 0.5 * h2), ua + du * (t1 + g0 * h2), ua + du * (t1 + g1 * h2));
+        acc += 0.5 * (h1 * (s1.x + s1.y) + h2 * (s2.x + s2.y));
+        if t2 >= 1.0 {
             break;
         }
-        t0 = t1;
-        next = select(next, next + step, next <= vec3f(t1));
+        t0 = t2;
     }
     return acc * len;
 }
