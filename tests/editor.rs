@@ -1111,3 +1111,52 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
     assert_eq!(centres(&h), before, "a drag on empty space moves nothing");
     assert_eq!(h.state().session().undo_len(), undo);
 }
+
+/// The Inspector's scheme list offers `analytic` only where it can represent the medium:
+/// with noise on, the entry is disabled, its tooltip names the noise and a click leaves the
+/// scheme alone; without noise a click selects it as one undo step and the preview bakes
+/// with it.
+#[test]
+fn the_analytic_scheme_is_offered_only_where_it_can_represent_the_medium() {
+    use egui_kittest::kittest::NodeT;
+    use fogsmith::scene::Scheme;
+    let mut h = harness(demo());
+    let scheme = |h: &Harness<'_, EditorApp>| h.state().session().project().propagation.scheme;
+    assert_eq!(scheme(&h), Scheme::Sweep);
+    h.get_by_label("noise detail").click();
+    h.run_steps(3);
+    assert!(h.state().session().project().medium.noise.is_some(), "the checkbox turns noise on");
+    h.get_by_label("scheme").click();
+    h.run_steps(2);
+    let entry = h.get_by_label("analytic");
+    assert!(entry.accesskit_node().is_disabled(), "with noise the analytic entry is disabled");
+    entry.hover();
+    h.run_steps(3);
+    assert!(h.query_by_label_contains("cannot represent the medium's noise").is_some(), "its tooltip says why");
+    h.get_by_label("analytic").click();
+    h.run_steps(2);
+    assert_eq!(scheme(&h), Scheme::Sweep, "a click on the disabled entry changes nothing");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(3);
+    assert_eq!(h.state().session().project().medium.noise, None, "undo turns the noise off");
+    wait_idle(&mut h);
+    let sweep = h.state().pipeline().unwrap().read_opv(0).expect("OPV readback");
+    h.get_by_label("scheme").click();
+    h.run_steps(2);
+    let entry = h.get_by_label("analytic");
+    assert!(!entry.accesskit_node().is_disabled(), "without noise the analytic entry is enabled");
+    entry.click();
+    h.run_steps(2);
+    assert_eq!(scheme(&h), Scheme::Analytic, "a click selects it");
+    wait_idle(&mut h);
+    assert_eq!(h.state().gpu_error(), None);
+    let analytic = h.state().pipeline().unwrap().read_opv(0).expect("OPV readback");
+    let diff = sweep.data.iter().zip(&analytic.data).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+    assert!(diff > 1e-5 && analytic.data.iter().all(|t| t.is_finite() && *t >= 0.0), "the preview bakes with the analytic scheme: {diff:e}");
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(3);
+    assert_eq!(scheme(&h), Scheme::Sweep, "undo restores the sweep");
+}
