@@ -321,3 +321,31 @@ fn bench_refuses_unknown_scenes_and_schemes() {
         assert!(err.contains(&format!("{flag} {bad}")) && err.contains(known), "{err}");
     }
 }
+
+/// The propagation suite records each scheme's error against the grid's medium and against
+/// the gaussians clipped to the box, and plots time against both: on a thin street the
+/// refined sweep is within 1e-5 of its grid and `analytic` within 1e-5 of the gaussians,
+/// which the coarse grid misses by far more.
+#[test]
+fn bench_opv_measures_both_errors_and_plots_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().display().to_string();
+    let run = fogsmith()
+        .args(["bench", "--suite", "opv", "--quiet", "--resolution", "16", "--scene", "street", "--scheme", "sweep8r,analytic", "--out", &out])
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let records: Vec<serde_json::Value> = serde_json::from_slice(&std::fs::read(dir.path().join("bench.json")).unwrap()).unwrap();
+    let get = |scheme: &str, key: &str| {
+        let r = records.iter().find(|r| r["scheme_or_policy"] == scheme).unwrap_or_else(|| panic!("no {scheme} record"));
+        r[key].as_f64().unwrap_or_else(|| panic!("{scheme}: no {key}"))
+    };
+    let resolution = get("sweep8r", "resolution_error_max");
+    assert!(get("sweep8r", "error_max") < 1e-5 && resolution > 1e-2, "{records:?}");
+    assert!(get("analytic", "error_vs_analytic_max") < 1e-5, "{records:?}");
+    assert!((get("analytic", "error_max") - resolution).abs() < 1e-3, "against the grid, analytic shows the grid's resolution error: {records:?}");
+    for png in ["opv_pareto.png", "opv_pareto_gaussians.png"] {
+        let size = image::image_dimensions(dir.path().join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+        assert!(size.0 > 100 && size.1 > 100, "{png}: {size:?}");
+    }
+}
