@@ -104,22 +104,17 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
         Suite::Interaction => frame_times(&dir.join("interaction_frames.png"), records),
         Suite::Opv => {
             let by_scheme = |r: &Value| Some(format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy")));
-            loglog(
-                &dir.join("opv_pareto.png"),
-                "Opacity propagation: GPU time vs max scheme error (transmittance, vs the grid medium)",
-                "propagation time (ms, all lights)",
-                "max |exp(-T) - exp(-T_exact)|",
-                &group(records, by_scheme, |r| (num(r, "time_ms"), num(r, "error_max"))),
-            )?;
             // The grid's medium is not the scene's: against the gaussians themselves every
             // scheme but `analytic` also carries the grid's resolution error.
-            loglog(
-                &dir.join("opv_pareto_gaussians.png"),
-                "Opacity propagation: GPU time vs max error against the gaussians clipped to the box",
-                "propagation time (ms, all lights)",
-                "max |exp(-T) - exp(-T_analytic)|",
-                &group(records, by_scheme, |r| (num(r, "time_ms"), num(r, "error_vs_analytic_max"))),
-            )
+            let plots = [
+                ("opv_pareto.png", "max scheme error (transmittance, vs the grid medium)", "max |exp(-T) - exp(-T_exact)|", "error_max"),
+                ("opv_pareto_gaussians.png", "max error against the gaussians clipped to the box", "max |exp(-T) - exp(-T_analytic)|", "error_vs_analytic_max"),
+            ];
+            for (file, what, ylabel, key) in plots {
+                let series = group(records, by_scheme, |r| (num(r, "time_ms"), num(r, key)));
+                loglog(&dir.join(file), &format!("Opacity propagation: GPU time vs {what}"), "propagation time (ms, all lights)", ylabel, &series)?;
+            }
+            Ok(())
         }
         Suite::Kinds => loglog(
             &dir.join("kinds_pareto.png"),
