@@ -74,15 +74,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
         return;
     }
     let dir = (s - x) / len;
-    var inside = len;
-    for (var i = 0u; i < 3u; i++) {
-        if dir[i] > 0.0 {
-            inside = min(inside, (grid.max[i] - x[i]) / dir[i]);
-        } else if dir[i] < 0.0 {
-            inside = min(inside, (grid.min[i] - x[i]) / dir[i]);
-        }
-    }
-    inside = max(inside, 0.0);
+    let inside = min(box_exit(x, dir), len);
     let size = grid.cell * f32(BRICK);
     let bdims = vec3i((grid.dims + BRICK - 1u) / BRICK);
     var b = min(vec3i(floor((x - grid.min) / size)), bdims - 1);

@@ -289,4 +289,3 @@ pub fn dirty_bricks(grid: &GridSpec, old: &[Particle], new: &[Particle]) -> Vec<
     }
     dirty.iter().enumerate().filter(|(_, d)| **d).map(|(i, _)| i as u32).collect()
 }
-

@@ -718,10 +718,12 @@ impl FogPipeline {
         Ok(())
     }
 
-    /// Refuses `analytic` particle lists longer than a storage binding; checked when a
-    /// propagation is planned, since counting them visits every particle.
-    fn check_analytic_lists(&self, project: &Project) -> Result<(), GpuError> {
-        let bytes = binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false).entries() * 4;
+    /// The `analytic` scheme's particle lists, one per brick, built when a propagation is
+    /// planned (counting them visits every particle); refuses lists longer than a storage
+    /// binding.
+    fn analytic_lists(&self, project: &Project) -> Result<binning::ChunkBins, GpuError> {
+        let counts = binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false);
+        let bytes = counts.entries() * 4;
         let limit = self.ctx.max_binding_bytes();
         if bytes > limit {
             return Err(GpuError::Limit {
@@ -732,7 +734,8 @@ impl FogPipeline {
                 suggestion: "use the sweep scheme, or fewer or smaller particles".into(),
             });
         }
-        Ok(())
+        let bricks: Vec<u32> = (0..binning::brick_dims(&project.grid).element_product()).collect();
+        Ok(counts.fill(&project.grid, &project.particles, &bricks))
     }
 
     fn run_items(&mut self, project: &Project, request: &FrameRequest, deadline: Option<Instant>, previews: bool) -> Result<Progress, GpuError> {
@@ -794,10 +797,8 @@ impl FogPipeline {
         // 4. Propagation, in batches of dispatches.
         if !targets.is_empty() {
             if self.jobs.propagate.is_none() {
-                if request.scheme == Scheme::Analytic {
-                    self.check_analytic_lists(project)?;
-                }
-                self.plan_propagation(project, request.scheme, targets);
+                let lists = if request.scheme == Scheme::Analytic { Some(self.analytic_lists(project)?) } else { None };
+                self.plan_propagation(project, request.scheme, targets, lists.as_ref());
                 self.note_memory();
             }
             loop {
@@ -1021,7 +1022,7 @@ impl FogPipeline {
         targets
     }
 
-    fn plan_propagation(&mut self, project: &Project, scheme: Scheme, targets: Vec<(usize, OpvKey)>) {
+    fn plan_propagation(&mut self, project: &Project, scheme: Scheme, targets: Vec<(usize, OpvKey)>, analytic_lists: Option<&binning::ChunkBins>) {
         let Some(g) = &self.grid else { return };
         let positions: Vec<glam::Vec3> = project.lights.iter().map(|l| l.position).collect();
         let directions: Vec<Option<glam::Vec3>> = project.lights.iter().map(sun_direction).collect();
@@ -1037,6 +1038,7 @@ impl FogPipeline {
             sweep_stride: project.propagation.sweep_stride,
             sweep_refine: project.propagation.refine_tolerance(),
             particles: &project.particles,
+            analytic_lists,
         };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
         let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> = targets.iter().map(|&(i, k)| self.changed_since(i, k)).collect();

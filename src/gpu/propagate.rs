@@ -32,6 +32,9 @@ pub struct PropagationInputs<'a> {
     pub sweep_refine: Option<f32>,
     /// The particles, which the `analytic` scheme integrates in closed form.
     pub particles: &'a [Particle],
+    /// With the `analytic` scheme, each brick's list of them (the injection's bins of a whole
+    /// brick, filled for every brick).
+    pub analytic_lists: Option<&'a super::binning::ChunkBins>,
 }
 
 pub struct Propagator {
@@ -347,10 +350,7 @@ impl Propagator {
                 let groups = vec![g; params.len()];
                 let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
                 let work = if scheme == Scheme::Analytic {
-                    // The injection's lists with bins of a whole brick, filled for every brick.
-                    use super::binning::{brick_dims, BinCounts, BRICK};
-                    let bricks: Vec<u32> = (0..brick_dims(inputs.grid).element_product()).collect();
-                    let lists = BinCounts::new(inputs.grid, inputs.particles, BRICK, false).fill(inputs.grid, inputs.particles, &bricks);
+                    let lists = inputs.analytic_lists.expect("FogPipeline builds the analytic lists before it plans");
                     let particles: Vec<AnalyticParticle> = lists.particles.iter().map(|&i| AnalyticParticle::new(&inputs.particles[i as usize])).collect();
                     let storage = |label: &str, bytes: &[u8]| super::pipeline::storage_buffer(device, label, bytes);
                     let particles = storage("analytic particles", bytemuck::cast_slice(&particles));
