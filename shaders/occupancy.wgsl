@@ -7,7 +7,8 @@
 // anisotropic grids a particle can be resolved along one axis and not another). It is the
 // optical depth by which the medium departs from linear across one cell, large only for
 // features of a few cells (small particles, noise, an imported volume's fine structure): the
-// refined sweep (propagate_sweep.wgsl) integrates the segments that cross such bricks exactly.
+// refined sweep (propagate_sweep.wgsl) integrates exactly the segments that cross such bricks
+// where its error bound asks for it.
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;

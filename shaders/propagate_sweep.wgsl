@@ -30,10 +30,14 @@
 // (shorter rests; the segments already integrated are kept), and integrates its whole in-box
 // path directly only if those fail too: its value is then as exact as the `exact` scheme's,
 // and the cells behind it interpolate from exact values. The worst error along a ray stays
-// within a small multiple of the tolerance (tests/placements.rs). Segments X–P that cross a brick whose detail
-// (occupancy.wgsl: how far σ_t departs from linear across a cell, in optical depth) exceeds
-// DETAIL_TOL, and whole in-box paths, are split at every axis' cell-centre planes, which makes
-// their integral exact for the trilinear medium.
+// within a small multiple of the tolerance (tests/placements.rs). Whole in-box paths, and
+// segments X–P whose bound on the error of splitting at axis a's planes only exceeds
+// DETAIL_TOL, are split at every axis' cell-centre planes, which makes their integral exact
+// for the trilinear medium. That bound is the largest detail of the bricks the segment
+// crosses (occupancy.wgsl: how far σ_t departs from linear across a cell, in optical depth),
+// times the square of the ray's lateral rate, times the transmittance of the rest: an error
+// in a cell's optical depth reaches its own and the cells behind it only through that
+// attenuation.
 //
 // Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
 // units, around the light, or around a far light's anchor on the same line) closer to the
@@ -96,24 +100,12 @@ fn store(light: u32, c: vec3i, t: f32, mean: f32) {
     mean_in_store(light, vec3u(c), mean);
 }
 
-fn detail_at(x: vec3f) -> bool {
-    let c = clamp(vec3i(floor((x - grid.min) / grid.cell)), vec3i(0), vec3i(grid.dims) - 1);
+// The detail of the brick holding cell c (clamped to the grid).
+fn detail_cell(cell: vec3i) -> f32 {
+    let c = clamp(cell, vec3i(0), vec3i(grid.dims) - 1);
     let bdims = (grid.dims + BRICK - 1u) / BRICK;
     let b = vec3u(c) / BRICK;
-    return brick_max[b.x + bdims.x * (b.y + bdims.y * b.z) + bdims.x * bdims.y * bdims.z] > DETAIL_TOL;
-}
-
-// Whether the segment from x along dir of length len crosses a brick with detail, sampled
-// every half brick.
-fn detail_along(x: vec3f, dir: vec3f, len: f32) -> bool {
-    let h = 0.5 * f32(BRICK) * min(grid.cell.x, min(grid.cell.y, grid.cell.z));
-    let n = u32(ceil(len / h));
-    for (var k = 0u; k <= n; k++) {
-        if detail_at(x + dir * min(f32(k) * h, len)) {
-            return true;
-        }
-    }
-    return false;
+    return brick_max[b.x + bdims.x * (b.y + bdims.y * b.z) + bdims.x * bdims.y * bdims.z];
 }
 
 struct Exit {
@@ -271,9 +263,10 @@ fn fold_ghosts(w: vec4f, f: i32, n: i32) -> vec4f {
     return v;
 }
 
-// Detail (optical depth by which σ_t departs from linear across a cell, occupancy.wgsl) above
-// which a brick's segments are integrated exactly with refine. Above this the plain
-// integration of a segment X–P measured errors beyond 1e-3 on the placements test's scenes.
+// The bound (detail × lateral rate² × transmittance, see the top of this file) above which a
+// segment X–P is integrated exactly with refine. On a diagonal ray in clear air it is the
+// detail itself, where the plain integration of a segment measured errors beyond 1e-3 on the
+// placements test's scenes.
 const DETAIL_TOL: f32 = 2.5e-4;
 // With refine, the planes tried before the whole path: 1, 2 and 4 times the stride.
 const PLANES: u32 = 3u;
@@ -329,21 +322,34 @@ fn solve(c: vec3i, light: u32) {
     let usable = mag[a] >= stride + 0.5 && !kink;
     let tries = select(1u, PLANES, step.refine != 0u);
     var near = 0.0;
+    var near_cell = c;
     var t_in = 0.0;
+    // Splitting a segment only at axis a's planes leaves kinks where it crosses the other
+    // axes' planes: their count and their slope jumps each grow with the ray's lateral rate
+    // (cells along b per cell along a), so the error grows with its square; 1 on a diagonal.
+    let ma = mag[a] * mag[a];
+    let lateral = 0.5 * (dot(mag, mag) - ma) / ma;
     for (var r = 0u; ; r++) {
         var far = inside;
         var m = vec2f(0.0);
+        var up = vec3f(0.0);
         let n = layers * f32(1u << r);
         let at = len * n / mag[e];
         let plane = c[e] + i32(n) * i32(sign(v[e]));
         let interpolate = usable && r < tries && at < inside && plane >= 0 && plane < i32(grid.dims[e]);
         if interpolate {
             far = at;
-            m = layer_mean(light, e, plane, (x + dir * at - grid.min) / grid.cell - 0.5) * (inside - at);
+            up = (x + dir * at - grid.min) / grid.cell - 0.5;
+            m = layer_mean(light, e, plane, up) * (inside - at);
         }
         var exact = !interpolate;
         if step.refine != 0u && interpolate {
-            exact = select(detail_along(x + dir * near, dir, at - near), detail_at(x) || detail_at(x + dir * at), r == 0u);
+            // The bricks at the segment's ends and middle. Its error in the cell's
+            // transmittance is at most that in optical depth times exp(−rest).
+            let far_cell = vec3i(floor(up + 0.5));
+            let detail = max(max(detail_cell(near_cell), detail_cell(far_cell)), detail_cell((near_cell + far_cell) / 2));
+            near_cell = far_cell;
+            exact = detail * lateral * exp(-m.x) > DETAIL_TOL;
         }
         t_in += integrate_pieces(x + dir * far, x + dir * near, exact);
         near = far;

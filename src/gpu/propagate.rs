@@ -686,9 +686,9 @@ impl ShellFrame {
 
     /// Boxes of cells (lo, size), one per layer of the face's axis, that together hold every
     /// cell of `batch` on `face`: a layer is listed where the shader's own batch arithmetic
-    /// (f32, as in [`claim`](Self::claim)) can place it in `batch`, and its box spans the
-    /// cells whose offset from the anchor along the other axes is at most the layer's, plus
-    /// one cell. Cells of a layer all share the face axis' offset, so few threads are idle.
+    /// (f32, as in [`claim`](Self::claim)) can place it in `batch`, and its box spans exactly
+    /// the layer's cells that `claim` gives to the face. Cells of a layer all share the face
+    /// axis' offset, so few threads are idle.
     fn face_boxes(&self, grid: &GridSpec, batch: u32, face: u32) -> Vec<([i32; 3], [u32; 3])> {
         let n = grid.resolution.as_ivec3();
         let axis = (face / 2) as usize;
@@ -719,8 +719,25 @@ impl ShellFrame {
             let mut empty = false;
             for i in (0..3).filter(|&i| i != axis) {
                 let c = self.anchor[i] as f64;
-                let from = ((c - reach).floor() as i64 - 1).max(0);
-                let to = ((c + reach).ceil() as i64 + 1).min(n[i] as i64 - 1);
+                // The face's own cells along axis i, as the shader's largest_axis assigns
+                // them in f32 (ties go to the lower axis), form an interval around the anchor
+                // inside these bounds; the shader runs every listed cell, claimed or not.
+                let on_face = |x: i64| {
+                    let ri = (x as f32 - self.anchor[i]).abs();
+                    if i < axis {
+                        ri < r.abs()
+                    } else {
+                        ri <= r.abs()
+                    }
+                };
+                let mut from = ((c - reach).floor() as i64 - 1).max(0);
+                let mut to = ((c + reach).ceil() as i64 + 1).min(n[i] as i64 - 1);
+                while from <= to && !on_face(from) {
+                    from += 1;
+                }
+                while to >= from && !on_face(to) {
+                    to -= 1;
+                }
                 if from > to {
                     empty = true;
                     break;
@@ -966,7 +983,8 @@ mod tests {
         out
     }
 
-    /// Every cell is solved by exactly one box of the plan, after every cell it reads.
+    /// Every cell is solved by exactly one box of the plan, after every cell it reads, and a
+    /// box lists only cells of its own face (the shader runs every listed cell).
     #[test]
     fn sweep_plan_solves_each_cell_once_after_its_inputs() {
         for (res, stride) in [(UVec3::new(12, 12, 12), 3), (UVec3::new(20, 9, 5), 8), (UVec3::new(40, 6, 6), 16), (UVec3::new(17, 17, 17), 5)] {
@@ -975,6 +993,16 @@ mod tests {
                 let frame = ShellFrame::new(&grid, light, stride);
                 let plan = sweep_steps(&grid, &[(0, light)], stride);
                 assert!(plan.steps.len() as u32 <= frame.batches, "{light}");
+                for b in &plan.boxes {
+                    for k in 0..b.size[2] as i32 {
+                        for j in 0..b.size[1] as i32 {
+                            for i in 0..b.size[0] as i32 {
+                                let c = [b.lo[0] + i, b.lo[1] + j, b.lo[2] + k];
+                                assert_eq!(frame.claim(c).1, b.face, "{res} {light}: cell {c:?} listed for face {}", b.face);
+                            }
+                        }
+                    }
+                }
                 let n = res.as_ivec3();
                 for k in 0..n.z {
                     for j in 0..n.y {
