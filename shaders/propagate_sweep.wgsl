@@ -43,9 +43,10 @@
 // units, around the light, or around a far light's anchor on the same line) closer to the
 // light than X. Shells are processed in batches of stride − 3 (1 for stride 3, which
 // interpolates bilinearly), one dispatch per batch covering all lights: each dispatch lists
-// boxes (one per layer of each face of the batch's shells, spanning that layer's part of the
-// shell plus one cell), and a thread solves its cell only if the cell's own batch and face are
-// the box's, so each cell is solved exactly once per light.
+// boxes (one per layer of each face of the batch's shells, spanning exactly that layer's part
+// of the shell), and a thread solves its cell only if the cell's own batch and face are the
+// box's, so each cell is solved exactly once per light (a layer next to a batch boundary can be
+// listed in both batches).
 //
 // σ_t comes from `sigma_pair`, defined by sweep_sigma_filtered.wgsl (hardware trilinear
 // filtering) or sweep_sigma_loads.wgsl (eight texel loads) depending on the adapter, and the
