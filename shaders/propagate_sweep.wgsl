@@ -33,10 +33,10 @@
 // within a small multiple of the tolerance (tests/placements.rs). Whole in-box paths, and
 // segments X–P whose bound on the error of splitting at axis a's planes only exceeds
 // DETAIL_TOL, are split at every axis' cell-centre planes, which makes their integral exact
-// for the trilinear medium. That bound is the largest detail of the bricks the segment
-// crosses (occupancy.wgsl: how far σ_t departs from linear across a cell, in optical depth),
-// times the square of the ray's lateral rate, times the transmittance of the rest: an error
-// in a cell's optical depth reaches its own and the cells behind it only through that
+// for the trilinear medium. That bound is the largest detail of the bricks at the segment's
+// ends and middle (occupancy.wgsl: how far σ_t departs from linear across a cell, in optical
+// depth), times the square of the ray's lateral rate, times the transmittance of the rest: an
+// error in a cell's optical depth reaches its own and the cells behind it only through that
 // attenuation.
 //
 // Order: the cells P's interpolation reads lie at least stride − 2 Chebyshev shells (in cell
@@ -265,8 +265,8 @@ fn fold_ghosts(w: vec4f, f: i32, n: i32) -> vec4f {
 }
 
 // The bound (detail × lateral rate² × transmittance, see the top of this file) above which a
-// segment X–P is integrated exactly with refine. On a diagonal ray in clear air it is the
-// detail itself, where the plain integration of a segment measured errors beyond 1e-3 on the
+// segment X–P is integrated exactly with refine. On a ray along a cell's body diagonal, in
+// clear air, it is the detail itself, where the plain integration of a segment measured errors beyond 1e-3 on the
 // placements test's scenes.
 const DETAIL_TOL: f32 = 2.5e-4;
 // With refine, the planes tried before the whole path: 1, 2 and 4 times the stride.
