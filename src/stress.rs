@@ -21,8 +21,8 @@
 use crate::gpu::{FogPipeline, FrameRequest, GpuError};
 use crate::measure::{ev_error, opv_error, sample_cells};
 use crate::scene::{
-    Camera, GridSpec, Light, LightKind, Medium, Particle, Project, Scheme, StepPolicy, Volume, MAX_COORDINATE, MAX_EXTINCTION,
-    MAX_INTENSITY,
+    Camera, GridSpec, Light, LightKind, Medium, Particle, Project, Scheme, StepPolicy, Volume, MAX_COORDINATE,
+    MAX_EXTINCTION, MAX_INTENSITY,
 };
 use glam::{UVec3, Vec3};
 use serde::Serialize;
@@ -161,16 +161,21 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
             cases.push(bake(name.to_string(), p, s, Some(HOMOGENEOUS_BOUND), true));
         }
     }
-    for (name, field, mut p) in [
-        ("light at 1e30 m", "lights[0].position", base(8)),
-        ("base fog 1e30/m", "medium.base_extinction", base(8)),
-    ] {
+    for (name, field, mut p) in
+        [("light at 1e30 m", "lights[0].position", base(8)), ("base fog 1e30/m", "medium.base_extinction", base(8))]
+    {
         p.lights.push(light(Vec3::new(1e30, -1e30, 1e29)));
         if field.starts_with("medium") {
             p.lights[0].position = Vec3::ZERO;
             p.medium.base_extinction = 1e30;
         }
-        cases.push(StressCase { name: name.into(), project: p, scheme: Scheme::Sweep, expect: Expect::Refused(field), reference_cells: 0 });
+        cases.push(StressCase {
+            name: name.into(),
+            project: p,
+            scheme: Scheme::Sweep,
+            expect: Expect::Refused(field),
+            reference_cells: 0,
+        });
     }
     for (name, lo, hi) in [("grid 1e-6 m across", -5e-7f32, 5e-7f32), ("grid 4e8 m across", -2e8, 2e8)] {
         let mut p = base(16);
@@ -186,13 +191,30 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
         // A very bright light on a cell centre, seen straight on from inside the fog.
         let mut p = base(DEFAULT_RES);
         p.medium.base_extinction = 0.3;
-        p.camera = Camera { position: Vec3::new(-0.5, 0.1, 0.2), target: center(&p, [20, 17, 15]), up: Vec3::Y, fov_y_deg: 30.0 };
+        p.camera = Camera {
+            position: Vec3::new(-0.5, 0.1, 0.2),
+            target: center(&p, [20, 17, 15]),
+            up: Vec3::Y,
+            fov_y_deg: 30.0,
+        };
         p.render.width = 25;
         p.render.height = 17;
         p.lights.push(Light::new(p.camera.target, 1e12, Vec3::ONE));
-        cases.push(bake("1e12 W/sr light on a cell centre, seen straight on".into(), p.clone(), Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        cases.push(bake(
+            "1e12 W/sr light on a cell centre, seen straight on".into(),
+            p.clone(),
+            Scheme::Sweep,
+            Some(HOMOGENEOUS_BOUND),
+            true,
+        ));
         p.lights[0].intensity = MAX_INTENSITY;
-        cases.push(bake("1e15 W/sr light on a cell centre, seen straight on".into(), p.clone(), Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        cases.push(bake(
+            "1e15 W/sr light on a cell centre, seen straight on".into(),
+            p.clone(),
+            Scheme::Sweep,
+            Some(HOMOGENEOUS_BOUND),
+            true,
+        ));
         p.lights[0].intensity = 3e38;
         p.lights[0].color = Vec3::splat(10.0);
         cases.push(StressCase {
@@ -215,9 +237,21 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
         p.camera.position *= scale;
         p.lights[0] = Light::new(center(&p, [40, 33, 30]), MAX_INTENSITY, Vec3::ONE);
         p.camera.target = p.lights[0].position;
-        cases.push(bake("1e15 W/sr light in a 2e-5 m grid, albedo 0, seen straight on".into(), p.clone(), Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        cases.push(bake(
+            "1e15 W/sr light in a 2e-5 m grid, albedo 0, seen straight on".into(),
+            p.clone(),
+            Scheme::Sweep,
+            Some(HOMOGENEOUS_BOUND),
+            true,
+        ));
         p.medium.albedo = 1.0;
-        cases.push(bake("1e15 W/sr light in a 2e-5 m grid, seen straight on".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        cases.push(bake(
+            "1e15 W/sr light in a 2e-5 m grid, seen straight on".into(),
+            p,
+            Scheme::Sweep,
+            Some(HOMOGENEOUS_BOUND),
+            true,
+        ));
     }
     {
         // Camera inside the fog looking straight at a light: the middle pixel's ray passes
@@ -225,11 +259,22 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
         // in exact arithmetic and must stay finite).
         let mut p = base(DEFAULT_RES);
         p.medium.base_extinction = 0.5;
-        p.camera = Camera { position: Vec3::new(-0.6, -0.2, 0.3), target: Vec3::new(0.4, 0.3, -0.1), up: Vec3::Y, fov_y_deg: 50.0 };
+        p.camera = Camera {
+            position: Vec3::new(-0.6, -0.2, 0.3),
+            target: Vec3::new(0.4, 0.3, -0.1),
+            up: Vec3::Y,
+            fov_y_deg: 50.0,
+        };
         p.render.width = 25;
         p.render.height = 17;
         p.lights.push(light(p.camera.target));
-        cases.push(bake("camera in fog looking at a light".into(), p.clone(), Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        cases.push(bake(
+            "camera in fog looking at a light".into(),
+            p.clone(),
+            Scheme::Sweep,
+            Some(HOMOGENEOUS_BOUND),
+            true,
+        ));
         p.lights[0].position = p.camera.position;
         cases.push(bake("camera in fog at a light".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
     }
@@ -289,7 +334,13 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
         let mut on_face = light(Vec3::new(p.grid.max.x, 0.1, -0.2));
         on_face.kind = LightKind::Spot { direction: -Vec3::X, angle_deg: 90.0, blend: 1.0 };
         p.lights.push(on_face);
-        cases.push(bake("spot on a face, 90° cone, full blend".into(), p, Scheme::Sweep, Some(HOMOGENEOUS_BOUND), true));
+        cases.push(bake(
+            "spot on a face, 90° cone, full blend".into(),
+            p,
+            Scheme::Sweep,
+            Some(HOMOGENEOUS_BOUND),
+            true,
+        ));
     }
 
     // One particle: density × radius (in cells), light in its densest cell.
@@ -305,7 +356,13 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
             p.lights.push(light(Vec3::new(0.8, 0.7, 0.6)));
             let resolved = radius_cells >= 2.0 && density * cell <= 1.0;
             let bound = if resolved { Some(RESOLVED_BOUND) } else { None };
-            cases.push(bake(format!("particle c {density:e}/m r {radius_cells:e} cells"), p, Scheme::Sweep, bound, false));
+            cases.push(bake(
+                format!("particle c {density:e}/m r {radius_cells:e} cells"),
+                p,
+                Scheme::Sweep,
+                bound,
+                false,
+            ));
         }
     }
 
@@ -389,7 +446,8 @@ pub fn random_case(seed: u64) -> StressCase {
         let point = |spread: f32, u1: f32, u2: f32, u3: f32, u4: f32| {
             mid + (Vec3::new(u1, u2, u3) - 0.5) * size * log(-3.0, spread, u4)
         };
-        p.medium.base_extinction = if u() < 0.2 { 0.0 } else { log(-6.0, 12.0, u()) / size.max(1e-6) }.min(MAX_EXTINCTION);
+        p.medium.base_extinction =
+            if u() < 0.2 { 0.0 } else { log(-6.0, 12.0, u()) / size.max(1e-6) }.min(MAX_EXTINCTION);
         p.medium.anisotropy = (u() - 0.5) * 1.98;
         p.medium.albedo = u();
         for _ in 0..(u() * 5.0) as usize {
@@ -400,7 +458,11 @@ pub fn random_case(seed: u64) -> StressCase {
         }
         for _ in 0..1 + (u() * 3.0) as usize {
             let at = point(3.0, u(), u(), u(), u());
-            let mut l = Light::new(at.clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE)), log(-3.0, 15.0, u()), Vec3::new(u(), u(), u()));
+            let mut l = Light::new(
+                at.clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE)),
+                log(-3.0, 15.0, u()),
+                Vec3::new(u(), u(), u()),
+            );
             let (kind, dir) = (u(), Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5));
             let dir = if u() < 0.3 { Vec3::AXES[(u() * 3.0) as usize % 3] * dir.signum() } else { dir };
             if kind < 0.25 {
@@ -414,12 +476,14 @@ pub fn random_case(seed: u64) -> StressCase {
             p.medium.height_falloff = log(-3.0, 6.0, u()) / size.max(1e-6);
             p.medium.height_origin = point(2.0, u(), u(), u(), u()).y;
         }
-        p.camera.position = point(2.0, u(), u(), u(), u()).clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE));
+        p.camera.position =
+            point(2.0, u(), u(), u(), u()).clamp(Vec3::splat(-MAX_COORDINATE), Vec3::splat(MAX_COORDINATE));
         p.camera.target = if u() < 0.3 { p.lights[0].position } else { mid };
         p.camera.fov_y_deg = 1.0 + 170.0 * u();
         p.render.width = 1 + (u() * 20.0) as u32;
         p.render.height = 1 + (u() * 20.0) as u32;
-        p.render.step_policy = [StepPolicy::Fixed, StepPolicy::TwoLevel, StepPolicy::Adaptive][(u() * 3.0) as usize % 3];
+        p.render.step_policy =
+            [StepPolicy::Fixed, StepPolicy::TwoLevel, StepPolicy::Adaptive][(u() * 3.0) as usize % 3];
         p.render.skip_empty = u() < 0.5;
         let scheme = [Scheme::Sweep, Scheme::Giroud, Scheme::Exact][(u() * 3.0) as usize % 3];
         if p.validate(crate::scene::MAX_RESOLUTION_DEFAULT).is_ok() {
@@ -455,7 +519,8 @@ pub fn run_case(gpu: &mut FogPipeline, case: &StressCase) -> StressResult {
             let msg = e.to_string();
             let limit_error = matches!(e, GpuError::Limit { .. } | GpuError::Invalid(_));
             result.passed = limit_error && msg.contains(what);
-            result.detail = if result.passed { format!("refused: {msg}") } else { format!("refused with the wrong error: {msg}") };
+            result.detail =
+                if result.passed { format!("refused: {msg}") } else { format!("refused with the wrong error: {msg}") };
         }
         (Expect::Refused(_), Ok(_)) => result.detail = "accepted a scene past the adapter's limits".into(),
         (Expect::Bake { .. }, Err(e)) => result.detail = format!("bake failed: {e}"),
@@ -563,7 +628,11 @@ fn monotone_violation(p: &Project, opv: &Volume, light: Vec3) -> Option<String> 
 }
 
 /// Runs every case in order, calling `progress` after each.
-pub fn run_matrix(gpu: &mut FogPipeline, cases: &[StressCase], mut progress: impl FnMut(&StressResult)) -> Vec<StressResult> {
+pub fn run_matrix(
+    gpu: &mut FogPipeline,
+    cases: &[StressCase],
+    mut progress: impl FnMut(&StressResult),
+) -> Vec<StressResult> {
     cases
         .iter()
         .map(|c| {

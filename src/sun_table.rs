@@ -53,7 +53,8 @@ pub fn f_between(u: f64, v0: f64, v1: f64) -> f64 {
 }
 
 /// Exponent offsets 2^k at which the integrands exp(−u tan ξ) and exp(−u cot η) are split.
-pub(crate) const KNEES: [f64; 14] = [1.0 / 64.0, 1.0 / 16.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0, 512.0];
+pub(crate) const KNEES: [f64; 14] =
+    [1.0 / 64.0, 1.0 / 16.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0, 512.0];
 
 /// Angles η where u·(cot η − cot0) equals each of [`KNEES`].
 pub(crate) fn knees_cot(u: f64, cot0: f64) -> Vec<f64> {
@@ -247,4 +248,3 @@ pub const GPU_TABLE_SIZE: usize = 64;
 /// Where the far term exceeds this fraction of the near one, the Remapped evaluation
 /// integrates the short bracket directly instead of subtracting.
 pub const SHORT_RATIO: f64 = 0.5;
-

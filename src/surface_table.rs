@@ -454,7 +454,10 @@ mod tests {
             assert_eq!(embedded.len(), computed.len(), "{name} table ({file}): size");
             let peak = computed.iter().fold(0.0f32, |m, v| m.max(v.abs()));
             for (n, (a, b)) in embedded.iter().zip(&computed).enumerate() {
-                assert!(b.is_finite() && (a - b).abs() <= 1e-6 * peak, "{name} table ({file}) entry {n}: embedded {a}, quadrature {b}");
+                assert!(
+                    b.is_finite() && (a - b).abs() <= 1e-6 * peak,
+                    "{name} table ({file}) entry {n}: embedded {a}, quadrature {b}"
+                );
             }
         }
     }

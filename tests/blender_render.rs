@@ -29,7 +29,11 @@ fn root() -> &'static Path {
 fn venv_python() -> PathBuf {
     let py = root().join(".venv/bin/python");
     let ok = Command::new(&py).args(["-c", "import bpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    assert!(ok, "this test needs Blender's bpy 4.5 in the project's test venv ({}), which is missing: run ./setup.sh", py.display());
+    assert!(
+        ok,
+        "this test needs Blender's bpy 4.5 in the project's test venv ({}), which is missing: run ./setup.sh",
+        py.display()
+    );
     py
 }
 
@@ -40,8 +44,17 @@ fn random_scene(seed: u64) -> Project {
     let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
     let centre = Vec3::new(r.range(-1.0, 1.0), r.range(0.0, 2.0), r.range(-1.0, 1.0));
     let mut p = Project {
-        grid: GridSpec { min: centre - Vec3::splat(1.5), max: centre + Vec3::splat(1.5), resolution: UVec3::new(40, 36, 44) },
-        medium: Medium { base_extinction: 0.0, albedo: r.range(0.5, 1.0), anisotropy: r.range(-0.3, 0.6), ..Medium::default() },
+        grid: GridSpec {
+            min: centre - Vec3::splat(1.5),
+            max: centre + Vec3::splat(1.5),
+            resolution: UVec3::new(40, 36, 44),
+        },
+        medium: Medium {
+            base_extinction: 0.0,
+            albedo: r.range(0.5, 1.0),
+            anisotropy: r.range(-0.3, 0.6),
+            ..Medium::default()
+        },
         ..Default::default()
     };
     p.particles = (0..6)
@@ -64,7 +77,12 @@ fn random_scene(seed: u64) -> Project {
 
 fn run(cmd: &mut Command, what: &str) -> String {
     let out = cmd.output().unwrap_or_else(|e| panic!("{what}: {e}"));
-    assert!(out.status.success(), "{what} failed: {}\n{}", String::from_utf8_lossy(&out.stderr), String::from_utf8_lossy(&out.stdout));
+    assert!(
+        out.status.success(),
+        "{what} failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
@@ -74,7 +92,12 @@ fn read_exr_rgb(path: &Path) -> Vec<[f32; 3]> {
     let layer = &image.layer_data[0];
     assert_eq!((layer.size.0, layer.size.1), (W, H));
     let ch = |name: &str| -> Vec<f32> {
-        let c = layer.channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap_or_else(|| panic!("no channel {name}"));
+        let c = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .unwrap_or_else(|| panic!("no channel {name}"));
         c.sample_data.values_as_f32().collect()
     };
     let (r, g, b) = (ch("R"), ch("G"), ch("B"));
@@ -84,7 +107,10 @@ fn read_exr_rgb(path: &Path) -> Vec<[f32; 3]> {
 fn read_f32_rgb(path: &Path) -> Vec<[f32; 3]> {
     let bytes = std::fs::read(path).unwrap();
     assert_eq!(bytes.len(), W * H * 12, "{}", path.display());
-    bytes.chunks_exact(12).map(|c| [0, 1, 2].map(|i| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap()))).collect()
+    bytes
+        .chunks_exact(12)
+        .map(|c| [0, 1, 2].map(|i| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap())))
+        .collect()
 }
 
 /// Luminance-like sum of the channels, box-smoothed over `r`×`r` blocks (noise averages out,
@@ -119,15 +145,50 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
         let usd = dir.join(format!("s{seed}.usda"));
         let exr = dir.join(format!("s{seed}.exr"));
         let (w, h) = (W.to_string(), H.to_string());
-        run(Command::new(bin).args(["export", ron.to_str().unwrap(), "--preset", "blender", "--usd", usd.to_str().unwrap(), "--width", &w, "--height", &h]), "fogsmith export");
-        run(Command::new(bin).args(["render", ron.to_str().unwrap(), "-o", exr.to_str().unwrap(), "--width", &w, "--height", &h, "--scheme", "exact"]), "fogsmith render");
+        run(
+            Command::new(bin).args([
+                "export",
+                ron.to_str().unwrap(),
+                "--preset",
+                "blender",
+                "--usd",
+                usd.to_str().unwrap(),
+                "--width",
+                &w,
+                "--height",
+                &h,
+            ]),
+            "fogsmith export",
+        );
+        run(
+            Command::new(bin).args([
+                "render",
+                ron.to_str().unwrap(),
+                "-o",
+                exr.to_str().unwrap(),
+                "--width",
+                &w,
+                "--height",
+                &h,
+                "--scheme",
+                "exact",
+            ]),
+            "fogsmith render",
+        );
         let fog = read_exr_rgb(&exr);
         let mut cycles = Vec::new();
         for s in [1, 2] {
             let out = dir.join(format!("s{seed}_cycles{s}.f32"));
             let script = root().join("tests/blender_render.py");
             let log = run(
-                Command::new(&py).arg(script).args([usd.to_str().unwrap(), out.to_str().unwrap(), &w, &h, &SAMPLES.to_string(), &s.to_string()]),
+                Command::new(&py).arg(script).args([
+                    usd.to_str().unwrap(),
+                    out.to_str().unwrap(),
+                    &w,
+                    &h,
+                    &SAMPLES.to_string(),
+                    &s.to_string(),
+                ]),
                 "Cycles render",
             );
             eprintln!("seed {seed} cycles {s}: {}", log.lines().last().unwrap_or(""));
@@ -143,14 +204,19 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
         // Noise of the mean of both Cycles renders, from the per-pixel difference of the two:
         // Var(mean) = Var(d)/4 / N for d = c1 − c2 over N independent pixels.
         let n = (W * H) as f64;
-        let d: Vec<f64> = (0..W * H).map(|i| cycles[0][i].iter().zip(&cycles[1][i]).map(|(a, b)| (a - b) as f64).sum::<f64>() / 3.0).collect();
+        let d: Vec<f64> = (0..W * H)
+            .map(|i| cycles[0][i].iter().zip(&cycles[1][i]).map(|(a, b)| (a - b) as f64).sum::<f64>() / 3.0)
+            .collect();
         let var_d = d.iter().map(|v| v * v).sum::<f64>() / n;
         let sigma_mean = (var_d / 4.0 / n).sqrt();
         let ratio = mc / mf;
         let allowance = 0.02;
         let bound = allowance + 4.0 * sigma_mean / mf;
         eprintln!("seed {seed}: mean Fogsmith {mf:.5}, Cycles {m1:.5} / {m2:.5}, ratio {ratio:.4}, bound ±{bound:.4} (noise σ of the mean {:.4})", sigma_mean / mf);
-        assert!((ratio - 1.0).abs() <= bound, "seed {seed}: Cycles/Fogsmith mean radiance {ratio:.4}, allowed 1 ± {bound:.4}");
+        assert!(
+            (ratio - 1.0).abs() <= bound,
+            "seed {seed}: Cycles/Fogsmith mean radiance {ratio:.4}, allowed 1 ± {bound:.4}"
+        );
 
         // Per block of 4×4 pixels: Cycles' noise of the block's mean, σ, is estimated from the
         // two renders' block differences pooled over the 3×3 neighbouring blocks (the noise
@@ -198,7 +264,10 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
         let table: String = bf
             .chunks(cols)
             .zip(b1.chunks(cols))
-            .map(|(f, c)| f.iter().zip(c).map(|(a, b)| format!("{:>4.0}/{:<4.0}", a * 1e4, b * 1e4)).collect::<Vec<_>>().join(" ") + "\n")
+            .map(|(f, c)| {
+                f.iter().zip(c).map(|(a, b)| format!("{:>4.0}/{:<4.0}", a * 1e4, b * 1e4)).collect::<Vec<_>>().join(" ")
+                    + "\n"
+            })
             .collect();
         assert!(
             bad.is_empty(),

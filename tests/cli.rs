@@ -15,7 +15,8 @@ fn demo(name: &str) -> PathBuf {
 
 fn json_of(out: &std::process::Output) -> serde_json::Value {
     assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 /// `--sweep-refine false|true` and `--sweep-tolerance` override the project's settings
@@ -52,7 +53,17 @@ fn render_every_demo_prints_json_and_writes_the_image() {
         let name = &format!("{stem}.ron");
         let png = dir.path().join(format!("{stem}.png"));
         let out = fogsmith()
-            .args(["render", demo(name).to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "64", "--height", "36", "--json"])
+            .args([
+                "render",
+                demo(name).to_str().unwrap(),
+                "-o",
+                png.to_str().unwrap(),
+                "--width",
+                "64",
+                "--height",
+                "36",
+                "--json",
+            ])
             .output()
             .unwrap();
         let v = json_of(&out);
@@ -71,7 +82,10 @@ fn render_every_demo_prints_json_and_writes_the_image() {
 
 #[test]
 fn verify_reports_errors_against_the_reference() {
-    let out = fogsmith().args(["verify", demo("cornell.ron").to_str().unwrap(), "--width", "32", "--cells", "5000", "--json"]).output().unwrap();
+    let out = fogsmith()
+        .args(["verify", demo("cornell.ron").to_str().unwrap(), "--width", "32", "--cells", "5000", "--json"])
+        .output()
+        .unwrap();
     let v = json_of(&out);
     assert!(v["ev_max_rel_error"].as_f64().unwrap() < 1e-3, "{v}");
     let opv = v["opv"].as_array().unwrap();
@@ -114,11 +128,38 @@ fn errors_are_clear_and_exit_nonzero() {
     let cases: Vec<(Vec<String>, &str)> = vec![
         (vec!["render".into(), "/nonexistent/x.ron".into(), "-o".into(), "x.png".into()], "/nonexistent/x.ron"),
         (vec!["render".into(), bad.display().to_string(), "-o".into(), "x.png".into()], "particles[0].radius"),
-        (vec!["render".into(), demo("cornell.ron").display().to_string(), "-o".into(), dir.path().join("x.bmp").display().to_string()], "unsupported output format"),
-        (vec!["render".into(), demo("cornell.ron").display().to_string(), "-o".into(), "x.png".into(), "--width".into(), "0".into()], "--width"),
+        (
+            vec![
+                "render".into(),
+                demo("cornell.ron").display().to_string(),
+                "-o".into(),
+                dir.path().join("x.bmp").display().to_string(),
+            ],
+            "unsupported output format",
+        ),
+        (
+            vec![
+                "render".into(),
+                demo("cornell.ron").display().to_string(),
+                "-o".into(),
+                "x.png".into(),
+                "--width".into(),
+                "0".into(),
+            ],
+            "--width",
+        ),
         (vec!["export".into(), demo("cornell.ron").display().to_string()], "nothing to export"),
         (
-            vec!["export".into(), demo("cornell.ron").display().to_string(), "--vdb".into(), "/nonexistent-dir/x.vdb".into(), "--width".into(), "16".into(), "--height".into(), "16".into()],
+            vec![
+                "export".into(),
+                demo("cornell.ron").display().to_string(),
+                "--vdb".into(),
+                "/nonexistent-dir/x.vdb".into(),
+                "--width".into(),
+                "16".into(),
+                "--height".into(),
+                "16".into(),
+            ],
             "/nonexistent-dir/x.vdb",
         ),
     ];
@@ -157,10 +198,15 @@ fn ctrl_c_cancels_an_export_and_leaves_existing_files_untouched() {
     let out = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(130), "stderr: {stderr}");
-    assert_eq!(stderr.trim().lines().last(), Some("fogsmith: cancelled by Ctrl+C; no output file was changed"), "{stderr}");
+    assert_eq!(
+        stderr.trim().lines().last(),
+        Some("fogsmith: cancelled by Ctrl+C; no output file was changed"),
+        "{stderr}"
+    );
     assert!(out.stdout.is_empty(), "no JSON for a cancelled export");
     assert_eq!(std::fs::read(&vdb).unwrap(), b"the previous export");
-    let left: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let left: Vec<String> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(left.len(), 2, "only the project and the old output remain: {left:?}");
 }
 
@@ -169,14 +215,25 @@ fn export_json_is_the_summary_alone_and_no_temporary_remains() {
     let dir = tempfile::tempdir().unwrap();
     let vdb = dir.path().join("room.vdb");
     let out = fogsmith()
-        .args(["export", demo("cornell.ron").to_str().unwrap(), "--vdb", vdb.to_str().unwrap(), "--width", "32", "--height", "18", "--json"])
+        .args([
+            "export",
+            demo("cornell.ron").to_str().unwrap(),
+            "--vdb",
+            vdb.to_str().unwrap(),
+            "--width",
+            "32",
+            "--height",
+            "18",
+            "--json",
+        ])
         .output()
         .unwrap();
     let v = json_of(&out);
     assert!(v.get("vdb").is_some(), "{v}");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains('%') && !stderr.contains("wrote"), "no bar or note with --json and no terminal: {stderr}");
-    let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let names: Vec<String> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(names, vec!["room.vdb".to_string()]);
 }
 
@@ -193,9 +250,13 @@ fn json_is_the_same_with_a_progress_bar_on_a_terminal() {
     let without = json_of(&piped);
     for quiet in [false, true] {
         let cmd = format!("{bin} {args}{} > {}", if quiet { " --quiet" } else { "" }, json.display());
-        let out = Command::new("script").args(["-qec", &cmd, "/dev/null"]).output().expect("script (util-linux) runs a command on a pseudo-terminal");
+        let out = Command::new("script")
+            .args(["-qec", &cmd, "/dev/null"])
+            .output()
+            .expect("script (util-linux) runs a command on a pseudo-terminal");
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
-        let with: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).expect("stdout is the JSON alone");
+        let with: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).unwrap()).expect("stdout is the JSON alone");
         let keys = |v: &serde_json::Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
         assert_eq!(keys(&with), keys(&without));
         assert_eq!(with["width"], without["width"]);
@@ -212,7 +273,20 @@ fn render_and_info_report_gpu_memory() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("c.png");
     let cloud = demo("cloud.ron");
-    let out = fogsmith().args(["render", cloud.to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "48", "--height", "27", "--json"]).output().unwrap();
+    let out = fogsmith()
+        .args([
+            "render",
+            cloud.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--width",
+            "48",
+            "--height",
+            "27",
+            "--json",
+        ])
+        .output()
+        .unwrap();
     let v = json_of(&out);
     let cells: u64 = v["grid"].as_array().unwrap().iter().map(|n| n.as_u64().unwrap()).product();
     let lights = v["lights"].as_u64().unwrap();
@@ -238,7 +312,8 @@ fn base_volume_project(dir: &Path, seed: u64) -> PathBuf {
     let mut rng = common::Rng(seed);
     let mut p = common::small_scene(20, &[Vec3::new(rng.range(-1.5, 1.5), 1.6, rng.range(-1.5, 1.5))]);
     p.particles = (0..5).map(|_| Particle::new(rng.v(-0.35, 0.35), rng.range(0.2, 0.3), rng.range(1.0, 5.0))).collect();
-    let layer_grid = GridSpec { min: Vec3::new(-1.3, -0.9, -1.1), max: Vec3::new(0.9, 1.4, 1.2), resolution: UVec3::new(7, 6, 9) };
+    let layer_grid =
+        GridSpec { min: Vec3::new(-1.3, -0.9, -1.1), max: Vec3::new(0.9, 1.4, 1.2), resolution: UVec3::new(7, 6, 9) };
     let (c, w) = (rng.v(-0.4, 0.4), rng.range(0.3, 0.6));
     let data = (0..layer_grid.cell_count() as usize)
         .map(|n| {
@@ -296,7 +371,8 @@ fn a_wrong_base_volume_in_the_reference_is_detected() {
     let measure = |exact: &Medium64| {
         let (ev_rel, _) = ev_error_with(exact, &project, &ev, &cells);
         let opv = opv_errors_with(&project, exact, 0, &ev, &opv, &cells).total.transmittance_max_abs_error;
-        let img = image_error(&image, &render_reference_with(&project, exact, 24, 18, &RefRenderOptions::default())).rel_rmse;
+        let img =
+            image_error(&image, &render_reference_with(&project, exact, 24, 18, &RefRenderOptions::default())).rel_rmse;
         (ev_rel, opv, img)
     };
     let honest = measure(&Medium64::for_project(&project, Some(&layer)));
@@ -304,8 +380,14 @@ fn a_wrong_base_volume_in_the_reference_is_detected() {
     let without = measure(&Medium64::for_project(&project, None));
     println!("honest {honest:?}, scale 5% off {scaled:?}, left out {without:?}");
     assert!(honest.0 < 1e-4 && honest.1 < 0.01 && honest.2 < 0.01, "{honest:?}");
-    assert!(scaled.0 > 0.02 && scaled.1 > 2.0 * honest.1 && scaled.2 > 2.0 * honest.2, "a 5% scale error: {scaled:?} vs {honest:?}");
-    assert!(without.0 > 0.5 && without.1 > 0.05 && without.2 > 0.1 && without.2 > 3.0 * honest.2, "{without:?} vs {honest:?}");
+    assert!(
+        scaled.0 > 0.02 && scaled.1 > 2.0 * honest.1 && scaled.2 > 2.0 * honest.2,
+        "a 5% scale error: {scaled:?} vs {honest:?}"
+    );
+    assert!(
+        without.0 > 0.5 && without.1 > 0.05 && without.2 > 0.1 && without.2 > 3.0 * honest.2,
+        "{without:?} vs {honest:?}"
+    );
 }
 
 /// The propagation suite's `--scene` and `--scheme` filters refuse names they do not know,
@@ -331,19 +413,37 @@ fn bench_opv_measures_both_errors_and_plots_both() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().display().to_string();
     let run = fogsmith()
-        .args(["bench", "--suite", "opv", "--quiet", "--resolution", "16", "--scene", "street", "--scheme", "sweep8r,analytic", "--out", &out])
+        .args([
+            "bench",
+            "--suite",
+            "opv",
+            "--quiet",
+            "--resolution",
+            "16",
+            "--scene",
+            "street",
+            "--scheme",
+            "sweep8r,analytic",
+            "--out",
+            &out,
+        ])
         .output()
         .unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let records: Vec<serde_json::Value> = serde_json::from_slice(&std::fs::read(dir.path().join("bench.json")).unwrap()).unwrap();
+    let records: Vec<serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(dir.path().join("bench.json")).unwrap()).unwrap();
     let get = |scheme: &str, key: &str| {
-        let r = records.iter().find(|r| r["scheme_or_policy"] == scheme).unwrap_or_else(|| panic!("no {scheme} record"));
+        let r =
+            records.iter().find(|r| r["scheme_or_policy"] == scheme).unwrap_or_else(|| panic!("no {scheme} record"));
         r[key].as_f64().unwrap_or_else(|| panic!("{scheme}: no {key}"))
     };
     let resolution = get("sweep8r", "resolution_error_max");
     assert!(get("sweep8r", "error_max") < 1e-5 && resolution > 1e-2, "{records:?}");
     assert!(get("analytic", "error_vs_analytic_max") < 1e-5, "{records:?}");
-    assert!((get("analytic", "error_max") - resolution).abs() < 1e-3, "against the grid, analytic shows the grid's resolution error: {records:?}");
+    assert!(
+        (get("analytic", "error_max") - resolution).abs() < 1e-3,
+        "against the grid, analytic shows the grid's resolution error: {records:?}"
+    );
     for png in ["opv_pareto.png", "opv_pareto_gaussians.png"] {
         let size = image::image_dimensions(dir.path().join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert!(size.0 > 100 && size.1 > 100, "{png}: {size:?}");

@@ -40,17 +40,28 @@ fn progressive_harness() -> Harness<'static, EditorApp> {
 }
 
 /// A 1280×800 editor window on the pipeline's adapter, before its first frame.
-fn build(start: StartProject, options: EditorOptions, quality: Quality, scale: PreviewScale) -> Harness<'static, EditorApp> {
-    Harness::builder().with_size(Vec2::new(1280.0, 800.0)).wgpu_setup(fogsmith::editor::wgpu_setup()).build_eframe(|cc| {
-        let mut app = EditorApp::new(cc, start, options);
-        app.set_quality(quality);
-        app.set_preview_scale(scale);
-        app
-    })
+fn build(
+    start: StartProject,
+    options: EditorOptions,
+    quality: Quality,
+    scale: PreviewScale,
+) -> Harness<'static, EditorApp> {
+    Harness::builder().with_size(Vec2::new(1280.0, 800.0)).wgpu_setup(fogsmith::editor::wgpu_setup()).build_eframe(
+        |cc| {
+            let mut app = EditorApp::new(cc, start, options);
+            app.set_quality(quality);
+            app.set_preview_scale(scale);
+            app
+        },
+    )
 }
 
 fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {
-    h.state().pipeline().expect("the editor shares egui-wgpu's device with the pipeline").read_ev().expect("EV readback")
+    h.state()
+        .pipeline()
+        .expect("the editor shares egui-wgpu's device with the pipeline")
+        .read_ev()
+        .expect("EV readback")
 }
 
 fn max_diff(a: &Volume, b: &Volume) -> f32 {
@@ -372,11 +383,21 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
     assert_eq!([shown.width, shown.height], status.shown_size);
     let p = h.state().session().project().clone();
     let mut fresh = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("an adapter"));
-    let request = fogsmith::gpu::FrameRequest { width: shown.width, height: shown.height, ..fogsmith::gpu::FrameRequest::for_project(&p) };
+    let request = fogsmith::gpu::FrameRequest {
+        width: shown.width,
+        height: shown.height,
+        ..fogsmith::gpu::FrameRequest::for_project(&p)
+    };
     fresh.update(&p, &request).unwrap();
     let want = fresh.read_image().unwrap();
-    let (diff, peak) = shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).fold((0f32, 0f32), |(d, m), (a, b)| (d.max((a - b).abs()), m.max(b.abs())));
-    let differing = shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    let (diff, peak) = shown
+        .rgba
+        .iter()
+        .flatten()
+        .zip(want.rgba.iter().flatten())
+        .fold((0f32, 0f32), |(d, m), (a, b)| (d.max((a - b).abs()), m.max(b.abs())));
+    let differing =
+        shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
     eprintln!("converged vs fresh: max difference {diff:e} of peak {peak:e}, {differing} values differ");
     assert!(differing == 0, "the converged preview equals a fresh bake: max difference {diff:e} of peak {peak:e}, {differing} values differ");
 }
@@ -393,7 +414,8 @@ fn a_stroke_stops_where_the_button_is_released() {
     let mut h = harness(demo());
     let rect = h.state().viewport_rect().expect("viewport");
     h.state_mut().set_tool(Tool::Paint);
-    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.1, density: 2.0, spacing: 0.3, jitter: 0.0, ..Default::default() };
+    *h.state_mut().brush_mut() =
+        fogsmith::editor::tools::Brush { radius: 0.1, density: 2.0, spacing: 0.3, jitter: 0.0, ..Default::default() };
     let before = h.state().session().project().particles.len();
     let undo_before = h.state().session().undo_len();
     let (a, b) = (rect.center() - Vec2::new(60.0, 0.0), rect.center() + Vec2::new(20.0, 0.0));
@@ -406,7 +428,12 @@ fn a_stroke_stops_where_the_button_is_released() {
         h.step();
     }
     // One frame holds the release and the moves after it, as when frames are slow.
-    h.input_mut().events.push(Event::PointerButton { pos: b, button: PointerButton::Primary, pressed: false, modifiers: Modifiers::NONE });
+    h.input_mut().events.push(Event::PointerButton {
+        pos: b,
+        button: PointerButton::Primary,
+        pressed: false,
+        modifiers: Modifiers::NONE,
+    });
     h.input_mut().events.push(Event::PointerMoved(far - Vec2::new(100.0, 0.0)));
     h.input_mut().events.push(Event::PointerMoved(far));
     h.step();
@@ -418,7 +445,10 @@ fn a_stroke_stops_where_the_button_is_released() {
     assert!(particles.len() > before + 5, "the stroke painted: {before} → {}", particles.len());
     for p in &particles[before..] {
         let s = screen_of(&h, p.center);
-        assert!(s.x >= a.x - 1.0 && s.x <= b.x + 1.0 && (s.y - a.y).abs() < 1.0, "a dab at {s:?} lies off the stroke {a:?} → {b:?}");
+        assert!(
+            s.x >= a.x - 1.0 && s.x <= b.x + 1.0 && (s.y - a.y).abs() < 1.0,
+            "a dab at {s:?} lies off the stroke {a:?} → {b:?}"
+        );
     }
     assert_eq!(h.state().session().undo_len(), undo_before + 1, "the stroke is one undo step");
     h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
@@ -427,7 +457,12 @@ fn a_stroke_stops_where_the_button_is_released() {
 }
 
 fn wheel(modifiers: Modifiers) -> Event {
-    Event::MouseWheel { unit: egui::MouseWheelUnit::Point, delta: Vec2::new(0.0, 50.0), phase: egui::TouchPhase::Move, modifiers }
+    Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: Vec2::new(0.0, 50.0),
+        phase: egui::TouchPhase::Move,
+        modifiers,
+    }
 }
 
 /// Alt is read per wheel event: an Alt+wheel that starts and ends within one frame changes
@@ -448,7 +483,12 @@ fn alt_wheel_changes_density_only() {
     let f = (100.0f32 * 0.002).exp();
     let p = &h.state().session().project().particles[24];
     assert_eq!(p.radius, project.particles[24].radius, "Alt+wheel leaves the radius alone");
-    assert!((p.density / project.particles[24].density - f).abs() < 1e-4, "density × {f}: {} → {}", project.particles[24].density, p.density);
+    assert!(
+        (p.density / project.particles[24].density - f).abs() < 1e-4,
+        "density × {f}: {} → {}",
+        project.particles[24].density,
+        p.density
+    );
     let d = p.density;
     h.input_mut().events.push(wheel(Modifiers::ALT));
     h.input_mut().events.push(wheel(Modifiers::NONE));
@@ -527,7 +567,10 @@ fn reset_layout_escape_and_the_viewport_tab() {
     h.run_steps(2);
     h.get_by_label("Reset layout").click();
     h.run_steps(2);
-    assert!(h.state().dock.find_tab(&fogsmith::editor::Tab::Slices).is_some(), "one click on Reset layout restores the panels");
+    assert!(
+        h.state().dock.find_tab(&fogsmith::editor::Tab::Slices).is_some(),
+        "one click on Reset layout restores the panels"
+    );
 
     h.get_by_label("preview").click();
     h.run_steps(2);
@@ -536,7 +579,10 @@ fn reset_layout_escape_and_the_viewport_tab() {
     h.run_steps(2);
     assert!(h.query_by_label("wait for full").is_none(), "Escape closes the drop-down");
 
-    assert!(!h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Viewport), "the Viewport tab has no close button");
+    assert!(
+        !h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Viewport),
+        "the Viewport tab has no close button"
+    );
     assert!(h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Slices));
 }
 
@@ -627,7 +673,11 @@ fn an_export_waits_for_the_bake_and_can_be_cancelled() {
     wait_idle(&mut h);
     h.run_steps(2);
     assert!(path.exists(), "the export completes: {:?}", h.state().messages());
-    assert!(h.state().messages().iter().any(|(_, m)| m.contains("Exported") && m.contains("fog.vdb")), "{:?}", h.state().messages());
+    assert!(
+        h.state().messages().iter().any(|(_, m)| m.contains("Exported") && m.contains("fog.vdb")),
+        "{:?}",
+        h.state().messages()
+    );
     let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(names.len(), 1, "no temporary file remains: {names:?}");
 }
@@ -670,7 +720,10 @@ fn names_follow_stable_ids_after_deletions() {
 
     // New objects take fresh ids, never one of a deleted object.
     let before_max = project.particles.iter().map(|p| p.id).max().unwrap();
-    let n = h.state_mut().session_mut().add_particles(0, [fogsmith::scene::Particle::new(glam::Vec3::new(0.0, 1.0, 0.0), 0.2, 1.0)]);
+    let n = h
+        .state_mut()
+        .session_mut()
+        .add_particles(0, [fogsmith::scene::Particle::new(glam::Vec3::new(0.0, 1.0, 0.0), 0.2, 1.0)]);
     let added = h.state().session().project().particles[n - 1].id;
     assert!(added > before_max, "new particle id {added} is above every id used before ({before_max})");
 }
@@ -688,7 +741,12 @@ fn an_imported_vdb_shows_in_the_ev_and_its_slice() {
     let dir = tempfile::tempdir().unwrap();
     let vdb = dir.path().join("base.vdb");
     let volume = Volume::new(grid, layer.clone());
-    write_vdb(&vdb, &[VdbGrid::from_volume("smoke", &volume), VdbGrid::from_volume("density", &volume)], &VdbOptions::default()).unwrap();
+    write_vdb(
+        &vdb,
+        &[VdbGrid::from_volume("smoke", &volume), VdbGrid::from_volume("density", &volume)],
+        &VdbOptions::default(),
+    )
+    .unwrap();
 
     h.state_mut().import_vdb(vdb.clone());
     h.run_steps(2);
@@ -716,7 +774,11 @@ fn an_imported_vdb_shows_in_the_ev_and_its_slice() {
     h.state_mut().session_mut().edit(0).base_volume =
         Some(fogsmith::scene::BaseVolume { path: dir.path().join("gone.vdb"), grid: "density".into(), scale: 1.0 });
     h.run_steps(3);
-    assert!(h.state().messages().iter().any(|(error, m)| *error && m.contains("gone.vdb")), "{:?}", h.state().messages());
+    assert!(
+        h.state().messages().iter().any(|(error, m)| *error && m.contains("gone.vdb")),
+        "{:?}",
+        h.state().messages()
+    );
 }
 
 /// Particles reaching outside the grid box: the viewport warns with their count, and "Fit grid
@@ -772,13 +834,21 @@ fn every_command_shortcut_dispatches_and_is_on_the_help_sheet() {
             }
             seen.push((s, c));
             let ctx = egui::Context::default();
-            let event = Event::Key { key: s.logical_key, physical_key: None, pressed: true, repeat: false, modifiers: s.modifiers };
+            let event = Event::Key {
+                key: s.logical_key,
+                physical_key: None,
+                pressed: true,
+                repeat: false,
+                modifiers: s.modifiers,
+            };
             let input = egui::RawInput { events: vec![event], ..Default::default() };
             let mut got = Vec::new();
             let _ = ctx.run_ui(input, |ui| got = Command::pressed(ui.ctx(), false, true));
             assert_eq!(got, vec![c], "{} dispatches {c:?}", format_shortcut(&s));
             assert!(
-                sheet.iter().any(|(keys, what)| what == c.text() && keys.split(" / ").any(|k| k == format_shortcut(&s))),
+                sheet
+                    .iter()
+                    .any(|(keys, what)| what == c.text() && keys.split(" / ").any(|k| k == format_shortcut(&s))),
                 "{c:?} ({}) is on the help sheet",
                 format_shortcut(&s)
             );
@@ -830,7 +900,10 @@ fn the_slice_plane_shows_in_the_viewport_and_the_slice_names_its_axes() {
     let c = Axis::Z.colour();
     let towards = |i: usize, target: u8| (target as i32 - without[i]).signum() * (with[i] - without[i]);
     assert!(with != without, "the quad tints the viewport: {without:?} → {with:?}");
-    assert!(towards(2, c.b()) > 0 && towards(0, c.r()) >= 0, "tinted towards the z colour {c:?}: {without:?} → {with:?}");
+    assert!(
+        towards(2, c.b()) > 0 && towards(0, c.r()) >= 0,
+        "tinted towards the z colour {c:?}: {without:?} → {with:?}"
+    );
 
     h.get_by_label("x -1.00 … 1.00 m");
     h.get_by_label("y 0.00 … 2.00 m");
@@ -859,12 +932,23 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let wisp = project.particles.last().unwrap().clone();
     let pos = screen_of(&h, wisp.center);
     h.state_mut().set_tool(Tool::Paint);
-    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush { radius: 0.05, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Fog, noise: true };
+    *h.state_mut().brush_mut() = fogsmith::editor::tools::Brush {
+        radius: 0.05,
+        density: 1.0,
+        spacing: 0.5,
+        jitter: 0.0,
+        depth: PaintDepth::Fog,
+        noise: true,
+    };
     let ev = read_ev(&h);
-    let expected = fog_depth_point(&ev, vp.position, vp.ray(pos), FOG_DEPTH_TAU).expect("the ray through the puff reaches τ = 0.5");
+    let expected = fog_depth_point(&ev, vp.position, vp.ray(pos), FOG_DEPTH_TAU)
+        .expect("the ray through the puff reaches τ = 0.5");
     let cam = project.camera.position;
     let (d_hit, d_wisp) = ((expected - cam).length(), (wisp.center - cam).length());
-    assert!(d_hit < d_wisp && d_hit > d_wisp - 2.2 * wisp.radius, "the fog begins in front of the puff's centre: {d_hit} vs {d_wisp}");
+    assert!(
+        d_hit < d_wisp && d_hit > d_wisp - 2.2 * wisp.radius,
+        "the fog begins in front of the puff's centre: {d_hit} vs {d_wisp}"
+    );
 
     h.event(Event::PointerMoved(pos));
     h.run_steps(2);
@@ -908,7 +992,10 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let on_plane = added[0];
     let centre = (project.grid.min + project.grid.max) * 0.5;
     let depth = |p: glam::Vec3| (p - vp.position).dot(vp.forward);
-    assert!((depth(on_plane) - depth(centre)).abs() < 1e-4, "on the working plane: {on_plane:?} (plane through {centre:?})");
+    assert!(
+        (depth(on_plane) - depth(centre)).abs() < 1e-4,
+        "on the working plane: {on_plane:?} (plane through {centre:?})"
+    );
     assert!((depth(on_plane) - depth(painted)).abs() > 0.05, "not at the fog depth");
 }
 
@@ -974,7 +1061,9 @@ fn centres(h: &Harness<'_, EditorApp>) -> Vec<glam::Vec3> {
 
 /// Whether a gizmo handle is drawn lit (under the pointer).
 fn lit(h: &Harness<'_, EditorApp>) -> bool {
-    h.output().shapes.iter().any(|s| matches!(&s.shape, egui::Shape::LineSegment { stroke, .. } if stroke.color == fogsmith::editor::gizmo::LIT))
+    h.output().shapes.iter().any(
+        |s| matches!(&s.shape, egui::Shape::LineSegment { stroke, .. } if stroke.color == fogsmith::editor::gizmo::LIT),
+    )
 }
 
 fn texts(h: &Harness<'_, EditorApp>) -> Vec<String> {
@@ -1012,9 +1101,13 @@ fn the_gizmo_x_arrow_moves_the_selection_along_x_as_one_undo_step() {
         h.step();
     }
     let mid = h.state().session().project().particles[24].center;
-    assert!(mid.x > p0.x && mid.y == p0.y && mid.z == p0.z, "mid-drag the particle has moved along x only: {p0} → {mid}");
+    assert!(
+        mid.x > p0.x && mid.y == p0.y && mid.z == p0.z,
+        "mid-drag the particle has moved along x only: {p0} → {mid}"
+    );
     let shown = texts(&h);
-    let values = shown.iter().find(|t| t.starts_with("Δx ")).unwrap_or_else(|| panic!("the drag values show: {shown:?}"));
+    let values =
+        shown.iter().find(|t| t.starts_with("Δx ")).unwrap_or_else(|| panic!("the drag values show: {shown:?}"));
     let dx: f32 = values["Δx ".len()..].split(' ').next().and_then(|v| v.parse().ok()).expect("Δx is a number");
     assert!((dx - (mid.x - p0.x)).abs() < 1e-3, "Δx reads {dx} m, moved {} m: {values}", mid.x - p0.x);
     assert!(values.contains("Δy +0.000 m") && values.contains("Δz +0.000 m"), "{values}");
@@ -1052,7 +1145,10 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
         press(&mut h, grab, PointerButton::Primary, true);
         h.event(Event::PointerMoved(grab + Vec2::new(70.0, 0.0)));
         h.step();
-        assert!(h.state().session().project().particles[24].center.x > p0.x + 0.05, "{cancel}: the drag moves the particle first");
+        assert!(
+            h.state().session().project().particles[24].center.x > p0.x + 0.05,
+            "{cancel}: the drag moves the particle first"
+        );
         if cancel == "escape" {
             h.key_press(egui::Key::Escape);
         } else {
@@ -1069,7 +1165,11 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
         assert_eq!(h.state().session().project().particles[24].center, p0, "{cancel} puts the particle back");
         assert_eq!(h.state().session().undo_len(), undo, "{cancel}: a cancelled drag leaves no undo step");
         assert!(!h.state().session().can_redo(), "{cancel}: nor a redo step");
-        assert_eq!(h.state().session().selection.particles.iter().copied().collect::<Vec<_>>(), vec![24], "{cancel} keeps the selection");
+        assert_eq!(
+            h.state().session().selection.particles.iter().copied().collect::<Vec<_>>(),
+            vec![24],
+            "{cancel} keeps the selection"
+        );
     }
 
     // Ctrl held: the displacement is a whole number of grid cells along x.
@@ -1082,13 +1182,21 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
     h.step();
     let shown = texts(&h);
     assert!(shown.iter().any(|t| t.contains("snapped")), "the drag values say they are snapped: {shown:?}");
-    h.event(Event::PointerButton { pos: grab + Vec2::new(47.0, 3.0), button: PointerButton::Primary, pressed: false, modifiers: Modifiers::CTRL });
+    h.event(Event::PointerButton {
+        pos: grab + Vec2::new(47.0, 3.0),
+        button: PointerButton::Primary,
+        pressed: false,
+        modifiers: Modifiers::CTRL,
+    });
     h.step();
     h.event(Event::ModifiersChanged(Modifiers::NONE));
     h.step();
     let d = h.state().session().project().particles[24].center - p0;
     let cells = d.x / cell;
-    assert!(d.x > 0.0 && (cells - cells.round()).abs() < 1e-3 && d.y == 0.0 && d.z == 0.0, "snapped to {cell} m cells: {d}");
+    assert!(
+        d.x > 0.0 && (cells - cells.round()).abs() < 1e-3 && d.y == 0.0 && d.z == 0.0,
+        "snapped to {cell} m cells: {d}"
+    );
     h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
     h.run_steps(2);
     assert_eq!(h.state().session().project().particles[24].center, p0);
@@ -1155,7 +1263,10 @@ fn the_analytic_scheme_is_offered_only_where_it_can_represent_the_medium() {
     assert_eq!(h.state().gpu_error(), None);
     let analytic = h.state().pipeline().unwrap().read_opv(0).expect("OPV readback");
     let diff = sweep.data.iter().zip(&analytic.data).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
-    assert!(diff > 1e-5 && analytic.data.iter().all(|t| t.is_finite() && *t >= 0.0), "the preview bakes with the analytic scheme: {diff:e}");
+    assert!(
+        diff > 1e-5 && analytic.data.iter().all(|t| t.is_finite() && *t >= 0.0),
+        "the preview bakes with the analytic scheme: {diff:e}"
+    );
     h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
     h.run_steps(3);
     assert_eq!(scheme(&h), Scheme::Sweep, "undo restores the sweep");

@@ -90,7 +90,11 @@ fn a_killed_editor_leaves_its_unsaved_work_in_a_recovery_file() {
     let recovery = recovery.expect("the editor wrote a recovery file for its unsaved work");
     assert_eq!(recovery.original.as_deref(), Some(project_path.as_path()));
     assert_eq!(recovery.project.particles.len(), project.particles.len() + 7, "the stroke is in the recovery file");
-    assert_eq!(recovery.project.particles[..project.particles.len()], project.particles[..], "the earlier work is intact");
+    assert_eq!(
+        recovery.project.particles[..project.particles.len()],
+        project.particles[..],
+        "the earlier work is intact"
+    );
     let after = fogsmith::scene::recovery::find_recoveries(&state);
     assert_eq!(after.len(), 1, "the killed editor could not remove its recovery file");
 }

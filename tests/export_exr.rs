@@ -17,14 +17,23 @@ fn tests_dir() -> PathBuf {
 /// without them fails loudly: `./setup.sh` installs them.
 fn openexr_python() -> PathBuf {
     let py = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", "import OpenEXR; OpenEXR.File"]).output().map(|o| o.status.success()).unwrap_or(false);
+    let ok = Command::new(&py)
+        .args(["-c", "import OpenEXR; OpenEXR.File"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
     assert!(ok, "{} cannot import OpenEXR: run ./setup.sh (it installs PyPI openexr into .venv)", py.display());
     py
 }
 
 fn openexr_read(path: &Path) -> Value {
     let out = Command::new(openexr_python()).arg(tests_dir().join("exr_check.py")).arg(path).output().unwrap();
-    assert!(out.status.success(), "OpenEXR could not read {}: {}", path.display(), String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "OpenEXR could not read {}: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
@@ -53,15 +62,21 @@ fn f32s(s: &FlatSamples) -> Vec<f32> {
 }
 
 fn test_volume(seed: f32) -> Volume {
-    let grid = GridSpec { min: Vec3::new(-1.0, 0.0, 2.0), max: Vec3::new(2.25, 1.75, 4.75), resolution: UVec3::new(13, 7, 11) };
-    let data = (0..grid.cell_count()).map(|n| ((n as f32 * 0.731 + seed).sin() * 3.0).max(0.0) + n as f32 * 1e-3).collect();
+    let grid = GridSpec {
+        min: Vec3::new(-1.0, 0.0, 2.0),
+        max: Vec3::new(2.25, 1.75, 4.75),
+        resolution: UVec3::new(13, 7, 11),
+    };
+    let data =
+        (0..grid.cell_count()).map(|n| ((n as f32 * 0.731 + seed).sin() * 3.0).max(0.0) + n as f32 * 1e-3).collect();
     Volume::new(grid, data)
 }
 
 #[test]
 fn render_exr_float_and_half() {
     let (w, h) = (17usize, 9usize);
-    let rgba: Vec<[f32; 4]> = (0..w * h).map(|n| [n as f32 * 0.37, 1e-3 * n as f32, 100.0 + n as f32, (n % 5) as f32 * 0.25]).collect();
+    let rgba: Vec<[f32; 4]> =
+        (0..w * h).map(|n| [n as f32 * 0.37, 1e-3 * n as f32, 100.0 + n as f32, (n % 5) as f32 * 0.25]).collect();
     let dir = tempfile::tempdir().unwrap();
     for half in [false, true] {
         let path = dir.path().join(if half { "render_half.exr" } else { "render.exr" });
@@ -150,7 +165,12 @@ fn slices_exr_is_exact_with_a_layer_per_quantity_and_slice() {
         for (q, v) in [("density", &ev), ("optical_depth_0", &opv)] {
             for k in 0..nz {
                 let name = slice_channel_name(q, k as u32, nz as u32);
-                let values: Vec<f32> = o["channels"][&name]["values"].as_array().unwrap_or_else(|| panic!("OpenEXR: no {name}")).iter().map(|x| x.as_f64().unwrap() as f32).collect();
+                let values: Vec<f32> = o["channels"][&name]["values"]
+                    .as_array()
+                    .unwrap_or_else(|| panic!("OpenEXR: no {name}"))
+                    .iter()
+                    .map(|x| x.as_f64().unwrap() as f32)
+                    .collect();
                 assert_eq!(values, expected(v, k), "OpenEXR {name}");
             }
         }
@@ -163,9 +183,15 @@ fn atlas_exr_tiles_slices_and_records_the_layout() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("atlas.exr");
     let layout = write_atlas_exr(&path, &ev).unwrap();
-    assert_eq!(layout, AtlasLayout { tiles_x: 4, tiles_y: 3, tile_width: 13, tile_height: 7, slices: 11, width: 52, height: 21 });
+    assert_eq!(
+        layout,
+        AtlasLayout { tiles_x: 4, tiles_y: 3, tile_width: 13, tile_height: 7, slices: 11, width: 52, height: 21 }
+    );
     assert_eq!(AtlasLayout::for_resolution([8, 8, 16]).tiles_x, 4);
-    assert_eq!(AtlasLayout::for_resolution([8, 8, 17]), AtlasLayout { tiles_x: 5, tiles_y: 4, tile_width: 8, tile_height: 8, slices: 17, width: 40, height: 32 });
+    assert_eq!(
+        AtlasLayout::for_resolution([8, 8, 17]),
+        AtlasLayout { tiles_x: 5, tiles_y: 4, tile_width: 8, tile_height: 8, slices: 17, width: 40, height: 32 }
+    );
     let [nx, ny, nz] = ev.dims();
     let expected = |x: usize, y: usize| -> f32 {
         let (tx, ty) = (x / nx as usize, y / ny as usize);
@@ -188,7 +214,10 @@ fn atlas_exr_tiles_slices_and_records_the_layout() {
         }
     }
     assert_eq!(attributes.other.get(&Text::from("fogsmith/atlas_tiles")), Some(&AttributeValue::IntVec2(Vec2(4, 3))));
-    assert_eq!(attributes.other.get(&Text::from("fogsmith/atlas_tile_size")), Some(&AttributeValue::IntVec2(Vec2(13, 7))));
+    assert_eq!(
+        attributes.other.get(&Text::from("fogsmith/atlas_tile_size")),
+        Some(&AttributeValue::IntVec2(Vec2(13, 7)))
+    );
     assert_eq!(attributes.other.get(&Text::from("fogsmith/atlas_slices")), Some(&AttributeValue::I32(11)));
     {
         let header = exrheader(&path);
@@ -198,7 +227,8 @@ fn atlas_exr_tiles_slices_and_records_the_layout() {
     }
     {
         let o = openexr_read(&path);
-        let got: Vec<f32> = o["channels"]["Y"]["values"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32).collect();
+        let got: Vec<f32> =
+            o["channels"]["Y"]["values"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32).collect();
         assert_eq!(got, values);
         assert!(o["header"]["fogsmith/atlas_tiles"].as_str().unwrap().contains('4'), "{}", o["header"]);
     }
@@ -219,17 +249,34 @@ fn atlas_exr_records_the_export_frame() {
                 let path = dir.path().join(format!("atlas_{frame}.exr").replace([' ', ','], "_"));
                 write_atlas_exr_in_frame(&path, &ev, &frame).unwrap();
                 let (_, _, attributes) = read_channels(&path);
-                let get = |k: &str| attributes.other.get(&Text::from(k)).unwrap_or_else(|| panic!("{frame}: no {k}")).clone();
+                let get =
+                    |k: &str| attributes.other.get(&Text::from(k)).unwrap_or_else(|| panic!("{frame}: no {k}")).clone();
                 assert_eq!(get("fogsmith/up_axis"), AttributeValue::Text(Text::from(frame.up_name())), "{frame}");
-                assert_eq!(get("fogsmith/handedness"), AttributeValue::Text(Text::from(frame.handedness_name())), "{frame}");
+                assert_eq!(
+                    get("fogsmith/handedness"),
+                    AttributeValue::Text(Text::from(frame.handedness_name())),
+                    "{frame}"
+                );
                 assert_eq!(get("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()), "{frame}");
-                let AttributeValue::Matrix4x4(m) = get("fogsmith/index_to_world") else { panic!("{frame}: index_to_world is not a m44f") };
+                let AttributeValue::Matrix4x4(m) = get("fogsmith/index_to_world") else {
+                    panic!("{frame}: index_to_world is not a m44f")
+                };
                 let [nx, ny, nz] = ev.dims();
                 for (i, j, k) in [(0, 0, 0), (nx - 1, 0, 0), (0, ny - 1, 0), (0, 0, nz - 1), (2, 3, 4)] {
-                    let w: Vec<f64> = (0..3).map(|b| i as f64 * m[b] as f64 + j as f64 * m[4 + b] as f64 + k as f64 * m[8 + b] as f64 + m[12 + b] as f64).collect();
+                    let w: Vec<f64> = (0..3)
+                        .map(|b| {
+                            i as f64 * m[b] as f64
+                                + j as f64 * m[4 + b] as f64
+                                + k as f64 * m[8 + b] as f64
+                                + m[12 + b] as f64
+                        })
+                        .collect();
                     let c = frame.point(ev.grid.cell_center(i, j, k).to_array().map(f64::from));
                     for b in 0..3 {
-                        assert!((w[b] - c[b]).abs() < 1e-5 * frame.scale() * 5.0, "{frame}: cell ({i}, {j}, {k}) -> {w:?}, want {c:?}");
+                        assert!(
+                            (w[b] - c[b]).abs() < 1e-5 * frame.scale() * 5.0,
+                            "{frame}: cell ({i}, {j}, {k}) -> {w:?}, want {c:?}"
+                        );
                     }
                 }
             }

@@ -45,7 +45,8 @@ fn every_texel_reads_back_with_the_ktx2_crate() {
             let info = write_ktx2(&path, &vol, format).unwrap();
             let bytes = std::fs::read(&path).unwrap();
             assert_eq!(bytes.len() as u64, info.bytes);
-            let reader = ktx2::Reader::new(bytes).unwrap_or_else(|e| panic!("seed {seed} {format:?}: ktx2 rejects the file: {e:?}"));
+            let reader = ktx2::Reader::new(bytes)
+                .unwrap_or_else(|e| panic!("seed {seed} {format:?}: ktx2 rejects the file: {e:?}"));
             let h = reader.header();
             let (want_format, texel_bytes) = match format {
                 Ktx2Format::R16f => (ktx2::Format::R16_SFLOAT, 2),
@@ -148,6 +149,8 @@ fn bad_volumes_give_clear_errors() {
         assert!(e.contains(needle) && e.contains("x.ktx2"), "{bad}: {e}");
         assert!(!path.exists(), "a refused export left a file");
     }
-    let e = write_ktx2(&dir.path().join("no-such-dir/x.ktx2"), &Volume::new(grid, vec![0.5; 8]), Ktx2Format::R8).unwrap_err().to_string();
+    let e = write_ktx2(&dir.path().join("no-such-dir/x.ktx2"), &Volume::new(grid, vec![0.5; 8]), Ktx2Format::R8)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("no-such-dir"), "{e}");
 }

@@ -22,8 +22,16 @@ fn root() -> &'static Path {
 /// The venv's Python, which must import `module`: a missing venv fails the test loudly.
 fn venv_python(module: &str) -> PathBuf {
     let py = root().join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", &format!("import {module}")]).output().map(|o| o.status.success()).unwrap_or(false);
-    assert!(ok, "these tests need `{module}` in the project's test venv ({}), which is missing: run ./setup.sh", py.display());
+    let ok = Command::new(&py)
+        .args(["-c", &format!("import {module}")])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    assert!(
+        ok,
+        "these tests need `{module}` in the project's test venv ({}), which is missing: run ./setup.sh",
+        py.display()
+    );
     py
 }
 
@@ -32,7 +40,8 @@ fn run_checker(module: &str, script: &str, stages: &[PathBuf]) -> Vec<Value> {
     let out = Command::new(venv_python(module)).arg(root().join("tests").join(script)).args(stages).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{script} failed: {}\n{stdout}", String::from_utf8_lossy(&out.stderr));
-    let v: Vec<Value> = stdout.lines().filter(|l| l.starts_with('{')).map(|l| serde_json::from_str(l).unwrap()).collect();
+    let v: Vec<Value> =
+        stdout.lines().filter(|l| l.starts_with('{')).map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(v.len(), stages.len(), "{script}: {stdout}");
     v
 }
@@ -42,8 +51,17 @@ fn random_project(seed: u64) -> Project {
     let mut p = Project::default();
     let min = r.v(-3.0, 1.0);
     let max = min + r.v(0.5, 3.0);
-    p.grid = GridSpec { min, max, resolution: UVec3::new(8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32) };
-    p.medium = Medium { base_extinction: r.range(0.0, 0.2), albedo: r.f(), anisotropy: r.range(-0.5, 0.8), ..Medium::default() };
+    p.grid = GridSpec {
+        min,
+        max,
+        resolution: UVec3::new(8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32),
+    };
+    p.medium = Medium {
+        base_extinction: r.range(0.0, 0.2),
+        albedo: r.f(),
+        anisotropy: r.range(-0.5, 0.8),
+        ..Medium::default()
+    };
     let n = 1 + (r.f() * 3.0) as usize;
     p.lights = (0..n).map(|_| Light::new(r.v(-4.0, 4.0), r.range(0.5, 50.0), r.v(0.2, 1.0))).collect();
     if n > 1 {
@@ -58,7 +76,12 @@ fn random_project(seed: u64) -> Project {
     }
     for _ in 0..(r.f() * 3.0) as usize {
         let a = r.v(-2.0, 2.0);
-        p.surfaces.boxes.push(SurfaceBox { min: a, max: a + r.v(0.1, 1.5), albedo: r.v(0.0, 1.0), ..SurfaceBox::default() });
+        p.surfaces.boxes.push(SurfaceBox {
+            min: a,
+            max: a + r.v(0.1, 1.5),
+            albedo: r.v(0.0, 1.0),
+            ..SurfaceBox::default()
+        });
     }
     p
 }
@@ -81,14 +104,33 @@ fn write_stage(dir: &Path, name: &str, p: &Project, frame: Frame) -> (PathBuf, P
     let lights: Vec<(&Volume, LightInfo)> = p
         .lights
         .iter()
-        .map(|l| (&opv, LightInfo { id: l.id, position: l.position.to_array(), intensity: l.intensity, color: l.color.to_array() }.in_frame(&frame)))
+        .map(|l| {
+            (
+                &opv,
+                LightInfo {
+                    id: l.id,
+                    position: l.position.to_array(),
+                    intensity: l.intensity,
+                    color: l.color.to_array(),
+                }
+                .in_frame(&frame),
+            )
+        })
         .collect();
-    let grids = grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: false });
+    let grids =
+        grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: false });
     let vdb = dir.join(format!("{name}.vdb"));
     write_vdb(&vdb, &grids, &VdbOptions { frame, ..Default::default() }).unwrap();
-    let fields: Vec<UsdField> = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
+    let fields: Vec<UsdField> =
+        grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
     let usd = dir.join(format!("{name}.usda"));
-    let opts = UsdOptions { vdb_asset: asset_path(&usd, &vdb), fields: fields.clone(), frame, width: p.render.width, height: p.render.height };
+    let opts = UsdOptions {
+        vdb_asset: asset_path(&usd, &vdb),
+        fields: fields.clone(),
+        frame,
+        width: p.render.width,
+        height: p.render.height,
+    };
     write_usd(&usd, p, &opts).unwrap();
     (usd, vdb, fields)
 }
@@ -136,7 +178,12 @@ fn usd_core_reads_random_projects_in_every_frame() {
         assert_eq!(v["metersPerUnit"].as_f64().unwrap(), frame.meters_per_unit(), "{tag}");
         assert_eq!(v["defaultPrim"], "/World", "{tag}");
         assert_eq!(v["creator"], "fogsmith", "{tag}");
-        assert_eq!(v["validation_errors"].as_array().unwrap().len(), 0, "{tag}: USD's validators report {}", v["validation_errors"]);
+        assert_eq!(
+            v["validation_errors"].as_array().unwrap().len(),
+            0,
+            "{tag}: USD's validators report {}",
+            v["validation_errors"]
+        );
         assert!(v["validators"].as_u64().unwrap() > 0, "{tag}");
 
         // The volume and its fields, each resolving to the VDB.
@@ -162,7 +209,12 @@ fn usd_core_reads_random_projects_in_every_frame() {
             assert_eq!(o["fieldClass"], if f.density { "fogVolume" } else { "unknown" }, "{tag} {}", f.name);
             assert_eq!(o["fieldDataType"], "float", "{tag}");
             let resolved = PathBuf::from(o["resolved"].as_str().unwrap());
-            assert_eq!(resolved.canonicalize().unwrap(), vdb.canonicalize().unwrap(), "{tag} {}: the asset does not resolve to the VDB", f.name);
+            assert_eq!(
+                resolved.canonicalize().unwrap(),
+                vdb.canonicalize().unwrap(),
+                "{tag} {}: the asset does not resolve to the VDB",
+                f.name
+            );
         }
 
         // Lights: visible ones only, at their positions in the frame, intensity 4·I.
@@ -172,7 +224,10 @@ fn usd_core_reads_random_projects_in_every_frame() {
         for (i, l) in visible {
             let o = &lights[&format!("Light_{i}")];
             close(vec3(&o["position"]), frame.point(p64(l.position)), tol, &format!("{tag} light {i}"));
-            assert!((o["intensity"].as_f64().unwrap() - 4.0 * l.intensity as f64).abs() <= 1e-5 * l.intensity as f64, "{tag} light {i}: {o}");
+            assert!(
+                (o["intensity"].as_f64().unwrap() - 4.0 * l.intensity as f64).abs() <= 1e-5 * l.intensity as f64,
+                "{tag} light {i}: {o}"
+            );
             close(vec3(&o["color"]), p64(l.color), 1e-7, &format!("{tag} light {i} colour"));
             assert_eq!(o["normalize"], true, "{tag}");
             assert_eq!(o["treatAsPoint"], true, "{tag}");
@@ -189,7 +244,10 @@ fn usd_core_reads_random_projects_in_every_frame() {
         assert!((fov_y - p.camera.fov_y_deg as f64).abs() < 1e-3, "{tag}: fov_y {fov_y} vs {}", p.camera.fov_y_deg);
         let half = |deg: f64| (deg.to_radians() * 0.5).tan();
         let aspect = p.render.width as f64 / p.render.height as f64;
-        assert!((half(c["fov_x_deg"].as_f64().unwrap()) / half(fov_y) - aspect).abs() < 1e-4 * aspect, "{tag}: fov_x {c}");
+        assert!(
+            (half(c["fov_x_deg"].as_f64().unwrap()) / half(fov_y) - aspect).abs() < 1e-4 * aspect,
+            "{tag}: fov_x {c}"
+        );
 
         // Surfaces: meshes at their places with their diffuse albedo.
         let meshes = v["meshes"].as_object().unwrap();
@@ -247,8 +305,24 @@ fn blender_imports_random_projects_in_every_frame_to_the_same_places() {
         want.sort();
         assert_eq!(names, want, "{tag}: Blender's grids");
         // World position of the density grid's voxel (0, 0, 0): matrix_world · matrix_object · 0.
-        let mw: Vec<[f64; 4]> = vol["matrix_world"].as_array().unwrap().iter().map(|r| { let r = r.as_array().unwrap(); [0, 1, 2, 3].map(|i| r[i].as_f64().unwrap()) }).collect();
-        let mo: Vec<[f64; 4]> = vol["grids"]["density"]["matrix_object"].as_array().unwrap().iter().map(|r| { let r = r.as_array().unwrap(); [0, 1, 2, 3].map(|i| r[i].as_f64().unwrap()) }).collect();
+        let mw: Vec<[f64; 4]> = vol["matrix_world"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| {
+                let r = r.as_array().unwrap();
+                [0, 1, 2, 3].map(|i| r[i].as_f64().unwrap())
+            })
+            .collect();
+        let mo: Vec<[f64; 4]> = vol["grids"]["density"]["matrix_object"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| {
+                let r = r.as_array().unwrap();
+                [0, 1, 2, 3].map(|i| r[i].as_f64().unwrap())
+            })
+            .collect();
         let local = [mo[0][3], mo[1][3], mo[2][3]];
         let world = [0, 1, 2].map(|a| mw[a][0] * local[0] + mw[a][1] * local[1] + mw[a][2] * local[2] + mw[a][3]);
         close(world, blender.point(p64(p.grid.cell_center(0, 0, 0))), tol, &format!("{tag} voxel 0"));
@@ -264,7 +338,10 @@ fn blender_imports_random_projects_in_every_frame_to_the_same_places() {
             assert_eq!(o["type"], "POINT", "{tag}");
             close(vec3(&o["position"]), blender.point(p64(l.position)), tol, &format!("{tag} light {i}"));
             let power = 4.0 * std::f64::consts::PI * l.intensity as f64;
-            assert!((o["energy"].as_f64().unwrap() - power).abs() <= 1e-5 * power, "{tag} light {i}: {o} want {power} W");
+            assert!(
+                (o["energy"].as_f64().unwrap() - power).abs() <= 1e-5 * power,
+                "{tag} light {i}: {o} want {power} W"
+            );
             close(vec3(&o["color"]), p64(l.color), 1e-6, &format!("{tag} light {i} colour"));
         }
 
@@ -311,13 +388,21 @@ fn cli_exports_a_usd_stage_with_its_vdb() {
     let ktx = ktx2::Reader::new(std::fs::read(dir.path().join("cornell.ktx2")).unwrap()).unwrap();
     let grid = fogsmith::scene::io::load_project(&root().join("projects/cornell.ron")).unwrap().grid;
     let h = ktx.header();
-    assert_eq!((h.pixel_width, h.pixel_height, h.pixel_depth), (grid.resolution.x, grid.resolution.y, grid.resolution.z));
-    assert!(std::fs::read_to_string(dir.path().join("cornell.fogvolume.ron")).unwrap().contains("density_texture: \"cornell.ktx2\""));
+    assert_eq!(
+        (h.pixel_width, h.pixel_height, h.pixel_depth),
+        (grid.resolution.x, grid.resolution.y, grid.resolution.z)
+    );
+    assert!(std::fs::read_to_string(dir.path().join("cornell.fogvolume.ron"))
+        .unwrap()
+        .contains("density_texture: \"cornell.ktx2\""));
     let vdb = dir.path().join("cornell.vdb");
     let v = &run_checker("pxr.Usd", "usd_check.py", std::slice::from_ref(&usd))[0];
     assert_eq!(v["upAxis"], "Z");
     assert_eq!(v["fields"]["density"]["path"], "./cornell.vdb");
-    assert_eq!(PathBuf::from(v["fields"]["density"]["resolved"].as_str().unwrap()).canonicalize().unwrap(), vdb.canonicalize().unwrap());
+    assert_eq!(
+        PathBuf::from(v["fields"]["density"]["resolved"].as_str().unwrap()).canonicalize().unwrap(),
+        vdb.canonicalize().unwrap()
+    );
     let p = fogsmith::scene::io::load_project(&project).unwrap();
     assert_eq!(v["lights"].as_object().unwrap().len(), p.lights.iter().filter(|l| !l.hidden).count());
     for (name, g) in [("density", "fog volume"), ("optical_depth_0", "unknown")] {

@@ -5,7 +5,7 @@ use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use fogsmith::export::vdb::{
     grids_from_volumes, half_round, write_vdb, GridClass, GridSelection, VdbCompression, VdbGrid, VdbOptions,
 };
-use fogsmith::export::vdb_read::{read_vdb_grid, list_vdb_grids, resample_into};
+use fogsmith::export::vdb_read::{list_vdb_grids, read_vdb_grid, resample_into};
 use fogsmith::export::LightInfo;
 use fogsmith::scene::{GridSpec, Volume};
 use glam::{UVec3, Vec3};
@@ -57,7 +57,12 @@ fn light() -> LightInfo {
 
 fn opv_of(ev: &Volume) -> Volume {
     // Any smooth positive field does: the writer does not care where it came from.
-    let data = ev.data.iter().enumerate().map(|(n, v)| if n % 7 == 0 { 0.0 } else { v * 0.37 + (n % 11) as f32 * 0.01 }).collect();
+    let data = ev
+        .data
+        .iter()
+        .enumerate()
+        .map(|(n, v)| if n % 7 == 0 { 0.0 } else { v * 0.37 + (n % 11) as f32 * 0.01 })
+        .collect();
     Volume::new(ev.grid, data)
 }
 
@@ -69,7 +74,12 @@ fn run_check(path: &Path, grid: &GridSpec) -> Value {
         .args([r.x.to_string(), r.y.to_string(), r.z.to_string()])
         .output()
         .expect("run vdb_check.py");
-    assert!(out.status.success(), "OpenVDB could not read {}: {}", path.display(), String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "OpenVDB could not read {}: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).expect("vdb_check.py prints JSON")
 }
 
@@ -89,12 +99,17 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
     let opv = opv_of(&ev);
     let frame = opts.frame;
     let lights = [(&opv, light().in_frame(&frame))];
-    let grids = grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: true });
+    let grids =
+        grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: true });
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(format!("{tag}.vdb"));
     let stats = write_vdb(&path, &grids, &opts).unwrap();
     assert_eq!(stats.bytes, std::fs::metadata(&path).unwrap().len());
-    eprintln!("{tag}: {} bytes, {:?}", stats.bytes, stats.grids.iter().map(|g| (&g.name, g.active_voxels, g.leaves, g.tiles)).collect::<Vec<_>>());
+    eprintln!(
+        "{tag}: {} bytes, {:?}",
+        stats.bytes,
+        stats.grids.iter().map(|g| (&g.name, g.active_voxels, g.leaves, g.tiles)).collect::<Vec<_>>()
+    );
 
     // Our own reader first: every voxel, active or not.
     for g in &grids {
@@ -104,7 +119,9 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
         assert_eq!(class.as_deref(), Some(g.class.as_str()), "{tag} {}", g.name);
         // Index -> world: every corner of the grid lands on its cell centre in the frame.
         let r = g.spec.resolution;
-        for (i, j, k) in [(0, 0, 0), (r.x - 1, 0, 0), (0, r.y - 1, 0), (0, 0, r.z - 1), (r.x - 1, r.y - 1, r.z - 1), (3, 5, 7)] {
+        for (i, j, k) in
+            [(0, 0, 0), (r.x - 1, 0, 0), (0, r.y - 1, 0), (0, 0, r.z - 1), (r.x - 1, r.y - 1, r.z - 1), (3, 5, 7)]
+        {
             // The centre in f64: min + (i + ½)·(max − min)/res, carried into the frame.
             let (lo, hi) = (g.spec.min.as_dvec3(), g.spec.max.as_dvec3());
             let ijk = [i, j, k];
@@ -112,7 +129,12 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
             let c = frame.point(centre);
             let w = back.transform.index_to_world([i as f64, j as f64, k as f64]);
             for a in 0..3 {
-                assert!((w[a] - c[a]).abs() <= 1e-9 * frame.scale() * 10.0, "{tag} {} index {:?} -> {w:?}, want {c:?}", g.name, (i, j, k));
+                assert!(
+                    (w[a] - c[a]).abs() <= 1e-9 * frame.scale() * 10.0,
+                    "{tag} {} index {:?} -> {w:?}, want {c:?}",
+                    g.name,
+                    (i, j, k)
+                );
             }
         }
         let mut active = 0u64;
@@ -144,7 +166,11 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
     assert_eq!(report["file_metadata"]["creator"], "fogsmith");
     assert_eq!(report["file_metadata"]["up_axis"], frame.up_name(), "{tag}");
     assert_eq!(report["file_metadata"]["handedness"], frame.handedness_name(), "{tag}");
-    assert_eq!(report["file_metadata"]["meters_per_unit"].as_str().unwrap().parse::<f64>().unwrap(), frame.meters_per_unit(), "{tag}");
+    assert_eq!(
+        report["file_metadata"]["meters_per_unit"].as_str().unwrap().parse::<f64>().unwrap(),
+        frame.meters_per_unit(),
+        "{tag}"
+    );
     for (g, s) in grids.iter().zip(&stats.grids) {
         let o = read.iter().find(|o| o["name"] == g.name.as_str()).unwrap();
         assert_eq!(o["value_type"], "float", "{tag} {}", g.name);
@@ -178,7 +204,12 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
                 }
             }
         }
-        let bbox: Vec<Vec<i64>> = o["bbox"].as_array().unwrap().iter().map(|c| c.as_array().unwrap().iter().map(|x| x.as_i64().unwrap()).collect()).collect();
+        let bbox: Vec<Vec<i64>> = o["bbox"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_array().unwrap().iter().map(|x| x.as_i64().unwrap()).collect())
+            .collect();
         assert_eq!(bbox, vec![lo.to_vec(), hi.to_vec()], "{tag} {} bbox", g.name);
         // Transform: voxel size and index -> world of a few voxels = the cell centres, carried
         // into the export frame.
@@ -192,7 +223,10 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
             let xyz: Vec<f64> = w[1].as_array().unwrap().iter().map(f).collect();
             let c = frame.point(g.spec.cell_center(ijk[0], ijk[1], ijk[2]).to_array().map(f64::from));
             for a in 0..3 {
-                assert!((xyz[a] - c[a]).abs() < 1e-5 * frame.scale(), "{tag} index {ijk:?} -> {xyz:?}, cell centre {c:?}");
+                assert!(
+                    (xyz[a] - c[a]).abs() < 1e-5 * frame.scale(),
+                    "{tag} index {ijk:?} -> {xyz:?}, cell centre {c:?}"
+                );
             }
         }
         // Every voxel's value and active state.
@@ -200,7 +234,13 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
         let act = o["active_mask"].as_array().unwrap();
         for (n, v) in g.values.iter().enumerate() {
             let (want, on) = expected(*v, g.background, &opts);
-            assert_eq!(values[n].as_u64().unwrap() as u32, want.to_bits(), "{tag} {} OpenVDB value at cell {n}: {} vs {want}", g.name, f32::from_bits(values[n].as_u64().unwrap() as u32));
+            assert_eq!(
+                values[n].as_u64().unwrap() as u32,
+                want.to_bits(),
+                "{tag} {} OpenVDB value at cell {n}: {} vs {want}",
+                g.name,
+                f32::from_bits(values[n].as_u64().unwrap() as u32)
+            );
             assert_eq!(act[n].as_bool().unwrap(), on, "{tag} {} OpenVDB active at cell {n}", g.name);
         }
     }
@@ -210,7 +250,11 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
 /// in OpenVDB's order, and a tree with none.
 #[test]
 fn openvdb_reads_several_root_nodes_and_an_empty_grid() {
-    let grid = GridSpec { min: Vec3::new(-100.0, 0.0, 0.0), max: Vec3::new(105.0, 0.1, 0.05), resolution: UVec3::new(4100, 2, 1) };
+    let grid = GridSpec {
+        min: Vec3::new(-100.0, 0.0, 0.0),
+        max: Vec3::new(105.0, 0.1, 0.05),
+        resolution: UVec3::new(4100, 2, 1),
+    };
     let mut data = vec![0.0f32; grid.cell_count() as usize];
     for (n, i) in [0u32, 7, 8, 4095, 4096, 4099].into_iter().enumerate() {
         data[grid.index(i, 1, 0)] = 1.0 + n as f32;
@@ -249,7 +293,12 @@ fn cube_max() -> Vec3 {
 
 #[test]
 fn openvdb_reads_float_uncompressed() {
-    check_against_openvdb("float_none", CUBE_MIN, cube_max(), VdbOptions { compression: VdbCompression::None, ..Default::default() });
+    check_against_openvdb(
+        "float_none",
+        CUBE_MIN,
+        cube_max(),
+        VdbOptions { compression: VdbCompression::None, ..Default::default() },
+    );
 }
 
 #[test]
@@ -260,12 +309,22 @@ fn openvdb_reads_float_zip() {
 #[test]
 fn openvdb_reads_half_zip_and_half_uncompressed() {
     check_against_openvdb("half_zip", CUBE_MIN, cube_max(), VdbOptions { half: true, ..Default::default() });
-    check_against_openvdb("half_none", CUBE_MIN, cube_max(), VdbOptions { half: true, compression: VdbCompression::None, ..Default::default() });
+    check_against_openvdb(
+        "half_none",
+        CUBE_MIN,
+        cube_max(),
+        VdbOptions { half: true, compression: VdbCompression::None, ..Default::default() },
+    );
 }
 
 #[test]
 fn openvdb_reads_threshold_no_tiles_and_non_cubic_cells() {
-    check_against_openvdb("threshold", CUBE_MIN, cube_max(), VdbOptions { threshold: 0.05, tiles: false, ..Default::default() });
+    check_against_openvdb(
+        "threshold",
+        CUBE_MIN,
+        cube_max(),
+        VdbOptions { threshold: 0.05, tiles: false, ..Default::default() },
+    );
     check_against_openvdb("non_cubic", Vec3::new(-3.0, 0.0, 1.0), Vec3::new(1.0, 2.5, 2.0), VdbOptions::default());
 }
 
@@ -287,8 +346,18 @@ fn openvdb_and_our_reader_read_every_export_frame() {
     }
     for frame in frames {
         let tag = format!("{}{}{}", frame.up_name(), frame.meters_per_unit(), frame.handedness_name());
-        check_against_openvdb(&format!("cubic_{tag}"), CUBE_MIN, cube_max(), VdbOptions { frame, ..Default::default() });
-        check_against_openvdb(&format!("non_cubic_{tag}"), Vec3::new(-3.0, 0.0, 1.0), Vec3::new(1.0, 2.5, 2.0), VdbOptions { frame, half: true, ..Default::default() });
+        check_against_openvdb(
+            &format!("cubic_{tag}"),
+            CUBE_MIN,
+            cube_max(),
+            VdbOptions { frame, ..Default::default() },
+        );
+        check_against_openvdb(
+            &format!("non_cubic_{tag}"),
+            Vec3::new(-3.0, 0.0, 1.0),
+            Vec3::new(1.0, 2.5, 2.0),
+            VdbOptions { frame, half: true, ..Default::default() },
+        );
     }
 }
 
@@ -297,11 +366,16 @@ fn optical_depth_grids_are_not_fog_volumes() {
     let ev = test_volume(CUBE_MIN, cube_max());
     let opv = opv_of(&ev);
     let lights = [(&opv, light())];
-    let grids = grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: true });
+    let grids =
+        grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: true });
     let classes: Vec<_> = grids.iter().map(|g| (g.name.as_str(), g.class)).collect();
     assert_eq!(
         classes,
-        [("density", GridClass::FogVolume), ("optical_depth_0", GridClass::Unknown), ("transmittance_0", GridClass::Unknown)]
+        [
+            ("density", GridClass::FogVolume),
+            ("optical_depth_0", GridClass::Unknown),
+            ("transmittance_0", GridClass::Unknown)
+        ]
     );
 }
 
@@ -383,7 +457,11 @@ fn imports_files_written_by_openvdb() {
                     let p = [0, 1, 2].map(|a| s[a].as_i64().unwrap() - (lo[a] - margin) as i64);
                     if (0..3).all(|a| p[a] >= 0 && p[a] < res[a] as i64) {
                         let v = dense[spec.index(p[0] as u32, p[1] as u32, p[2] as u32)];
-                        assert_eq!(v.to_bits(), (2.0 * f32::from_bits(s[5].as_u64().unwrap() as u32)).to_bits(), "{file} {name} resampled at {p:?}");
+                        assert_eq!(
+                            v.to_bits(),
+                            (2.0 * f32::from_bits(s[5].as_u64().unwrap() as u32)).to_bits(),
+                            "{file} {name} resampled at {p:?}"
+                        );
                     }
                 }
             }
@@ -423,7 +501,11 @@ fn imports_files_written_by_openvdb() {
                     mean += 0.125 * value[&p] as f64;
                 }
                 let got = dense[spec.index(i, j, k)] as f64;
-                assert!((got - mean).abs() <= 1e-5 * mean.abs().max(1e-3), "trilinear at cell {:?}: {got} vs {mean}", [i, j, k]);
+                assert!(
+                    (got - mean).abs() <= 1e-5 * mean.abs().max(1e-3),
+                    "trilinear at cell {:?}: {got} vs {mean}",
+                    [i, j, k]
+                );
             }
         }
     }
@@ -467,7 +549,9 @@ fn our_file(opts: VdbOptions) -> Vec<u8> {
 fn damaged_files_give_errors_not_panics() {
     use fogsmith::export::vdb_read::read_vdb_grid_from_bytes as read;
     let p = Path::new("damaged.vdb");
-    for opts in [VdbOptions::default(), VdbOptions { compression: VdbCompression::None, half: true, ..Default::default() }] {
+    for opts in
+        [VdbOptions::default(), VdbOptions { compression: VdbCompression::None, half: true, ..Default::default() }]
+    {
         let good = our_file(opts);
         assert!(read(p, &good, None).is_ok());
         // Every truncation.

@@ -60,14 +60,61 @@ enum Edit {
 }
 
 const TOKENS: &[&str] = &[
-    "(", ")", "[", "]", "{", "}", ",", ":", "\"", "//", "/*", "*/", "-", ".", "e", "\n", "é", "\u{0}", "\\",
-    "Some(", "None", "true", "r#\"", "'", "#![enable(implicit_some)]", "particles: [", "lights: []",
-    "resolution: (4096, 4096, 4096)", "resolution: (0, 1, 1)", "version: 3", "version: 2", "scheme: warp",
+    "(",
+    ")",
+    "[",
+    "]",
+    "{",
+    "}",
+    ",",
+    ":",
+    "\"",
+    "//",
+    "/*",
+    "*/",
+    "-",
+    ".",
+    "e",
+    "\n",
+    "é",
+    "\u{0}",
+    "\\",
+    "Some(",
+    "None",
+    "true",
+    "r#\"",
+    "'",
+    "#![enable(implicit_some)]",
+    "particles: [",
+    "lights: []",
+    "resolution: (4096, 4096, 4096)",
+    "resolution: (0, 1, 1)",
+    "version: 3",
+    "version: 2",
+    "scheme: warp",
     "base_volume: (path: \"/nonexistent.vdb\")",
 ];
 const NUMBERS: &[&str] = &[
-    "NaN", "inf", "-inf", "1e39", "-1e39", "3.4e38", "1e-45", "-0.0", "0", "-1", "4294967296", "4294967295",
-    "18446744073709551616", "99999999999999999999999", "1e308", "0x10", "1_000", ".5", "5.", "+1",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e39",
+    "-1e39",
+    "3.4e38",
+    "1e-45",
+    "-0.0",
+    "0",
+    "-1",
+    "4294967296",
+    "4294967295",
+    "18446744073709551616",
+    "99999999999999999999999",
+    "1e308",
+    "0x10",
+    "1_000",
+    ".5",
+    "5.",
+    "+1",
 ];
 
 fn edit() -> impl Strategy<Value = Edit> {
@@ -98,11 +145,16 @@ fn apply(text: &str, edits: &[Edit]) -> String {
             }
             Edit::ReplaceNumber(a, t) => {
                 let starts: Vec<usize> = (0..chars.len())
-                    .filter(|&i| chars[i].is_ascii_digit() && (i == 0 || !chars[i - 1].is_ascii_alphanumeric() && chars[i - 1] != '.'))
+                    .filter(|&i| {
+                        chars[i].is_ascii_digit()
+                            && (i == 0 || !chars[i - 1].is_ascii_alphanumeric() && chars[i - 1] != '.')
+                    })
                     .collect();
                 if let Some(&s) = starts.get(a % starts.len().max(1)) {
                     let mut end = s;
-                    while end < chars.len() && (chars[end].is_ascii_alphanumeric() || chars[end] == '.' || chars[end] == '-') {
+                    while end < chars.len()
+                        && (chars[end].is_ascii_alphanumeric() || chars[end] == '.' || chars[end] == '-')
+                    {
                         end += 1;
                     }
                     chars.splice(s..end, t.chars());
@@ -129,7 +181,8 @@ fn check_project_text(text: &str) -> Result<(), String> {
         Ok(p) => {
             p.validate(MAX_RESOLUTION_DEFAULT).map_err(|e| format!("accepted an invalid project ({e}):\n{text}"))?;
             let saved = to_ron_string(&p).map_err(|e| format!("could not serialise an accepted project: {e}"))?;
-            let back = parse_project(&saved, origin).map_err(|e| format!("saved text does not load ({e}):\n{saved}"))?;
+            let back =
+                parse_project(&saved, origin).map_err(|e| format!("saved text does not load ({e}):\n{saved}"))?;
             if back != p {
                 return Err(format!("save/load changed the project:\n{text}"));
             }
@@ -282,13 +335,18 @@ fn mutated_vdb_files_never_panic_and_errors_name_the_file() {
 
 /// A small grid with a dense blob, written by our writer: the corpus seeds.
 fn seed_volume() -> Volume {
-    let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::new(9, 8, 8) };
+    let grid =
+        GridSpec { min: Vec3::new(-1.0, 0.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::new(9, 8, 8) };
     let mut data = Vec::new();
     for k in 0..8 {
         for j in 0..8 {
             for i in 0..9 {
                 let x = grid.cell_center(i, j, k);
-                data.push(if i >= 8 { 0.5 } else { 3.0 * (-(x - Vec3::new(0.2, 0.5, 0.0)).length_squared() * 4.0).exp() });
+                data.push(if i >= 8 {
+                    0.5
+                } else {
+                    3.0 * (-(x - Vec3::new(0.2, 0.5, 0.0)).length_squared() * 4.0).exp()
+                });
             }
         }
     }
@@ -304,7 +362,10 @@ fn write_corpus() {
     for (name, opts) in [
         ("float_zip.vdb", VdbOptions::default()),
         ("half_none.vdb", VdbOptions { compression: VdbCompression::None, half: true, ..Default::default() }),
-        ("float_none_notiles.vdb", VdbOptions { compression: VdbCompression::None, tiles: false, threshold: 0.01, ..Default::default() }),
+        (
+            "float_none_notiles.vdb",
+            VdbOptions { compression: VdbCompression::None, tiles: false, threshold: 0.01, ..Default::default() },
+        ),
     ] {
         let (bytes, _) = encode_vdb(Path::new(name), &[VdbGrid::from_volume("density", &v)], &opts).unwrap();
         std::fs::write(dir.join(name), bytes).unwrap();
@@ -321,15 +382,23 @@ fn importing_negative_or_non_finite_density_is_refused() {
         let mut v = seed_volume();
         v.data[100] = bad;
         let path = dir.path().join("bad.vdb");
-        fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &v)], &VdbOptions { tiles: false, ..Default::default() })
-            .unwrap();
+        fogsmith::export::vdb::write_vdb(
+            &path,
+            &[VdbGrid::from_volume("density", &v)],
+            &VdbOptions { tiles: false, ..Default::default() },
+        )
+        .unwrap();
         let target = GridSpec { resolution: UVec3::new(9, 8, 8), min: v.grid.min, max: v.grid.max };
         let err = import_density(&path, None, &target, 1.0).unwrap_err().to_string();
-        assert!(err.contains("bad.vdb") && err.contains("\"density\"") && err.contains("negative or not finite"), "{err}");
+        assert!(
+            err.contains("bad.vdb") && err.contains("\"density\"") && err.contains("negative or not finite"),
+            "{err}"
+        );
     }
     // A finite grid whose scaled values overflow f32.
     let path = dir.path().join("scaled.vdb");
-    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &seed_volume())], &VdbOptions::default()).unwrap();
+    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &seed_volume())], &VdbOptions::default())
+        .unwrap();
     let err = import_density(&path, None, &target, 3e38).unwrap_err().to_string();
     assert!(err.contains("not finite"), "{err}");
     assert!(import_density(&path, None, &target, 2.0).is_ok());
@@ -362,7 +431,8 @@ fn bad_paths_give_clear_errors() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("/nonexistent/dir/out.vdb") && err.contains("cannot write"), "{err}");
-    let err = fogsmith::export::vdb_read::read_vdb_grid(Path::new("/nonexistent/in.vdb"), None).unwrap_err().to_string();
+    let err =
+        fogsmith::export::vdb_read::read_vdb_grid(Path::new("/nonexistent/in.vdb"), None).unwrap_err().to_string();
     assert!(err.contains("/nonexistent/in.vdb") && err.contains("cannot read"), "{err}");
     let ron = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/minimal.ron");
     let err = fogsmith::export::vdb_read::read_vdb_grid(&ron, None).unwrap_err().to_string();
@@ -373,7 +443,10 @@ fn bad_paths_give_clear_errors() {
 #[test]
 fn huge_declared_sizes_are_refused() {
     for (text, field) in [
-        ("Project(grid: (min: (0,0,0), max: (1,1,1), resolution: (4294967295, 4294967295, 4294967295)))", "grid.resolution.x"),
+        (
+            "Project(grid: (min: (0,0,0), max: (1,1,1), resolution: (4294967295, 4294967295, 4294967295)))",
+            "grid.resolution.x",
+        ),
         ("Project(render: (width: 4294967295))", "render.width"),
         ("Project(render: (near_steps: 4000000000))", "render.near_steps"),
     ] {
@@ -388,10 +461,14 @@ fn huge_declared_sizes_are_refused() {
 fn base_volume_on_a_huge_grid_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("base.vdb");
-    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &seed_volume())], &VdbOptions::default()).unwrap();
+    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &seed_volume())], &VdbOptions::default())
+        .unwrap();
     let huge = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(4096) };
     let err = import_density(&path, None, &huge, 1.0).unwrap_err().to_string();
-    assert!(err.contains("base.vdb") && err.contains("4096×4096×4096") && err.contains("lower grid.resolution"), "{err}");
+    assert!(
+        err.contains("base.vdb") && err.contains("4096×4096×4096") && err.contains("lower grid.resolution"),
+        "{err}"
+    );
 }
 
 /// Saving a project of a version this build does not write is an error, not a debug panic.
@@ -408,8 +485,11 @@ fn saving_a_foreign_version_is_an_error() {
 #[test]
 fn cli_refuses_an_oversized_grid_before_loading_its_base_volume() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("base.vdb"), std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/float_zip.vdb")).unwrap())
-        .unwrap();
+    std::fs::write(
+        dir.path().join("base.vdb"),
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/float_zip.vdb")).unwrap(),
+    )
+    .unwrap();
     let project = dir.path().join("big.ron");
     std::fs::write(
         &project,
@@ -437,10 +517,19 @@ fn half_float_overflow_is_refused() {
     v.data[3] = 1e5;
     let path = dir.path().join("dense.vdb");
     let half = VdbOptions { half: true, ..Default::default() };
-    let err = fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("optical_depth", &v)], &half).unwrap_err().to_string();
-    assert!(err.contains("dense.vdb") && err.contains("\"optical_depth\"") && err.contains("65504") && err.contains("full floats"), "{err}");
+    let err = fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("optical_depth", &v)], &half)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("dense.vdb")
+            && err.contains("\"optical_depth\"")
+            && err.contains("65504")
+            && err.contains("full floats"),
+        "{err}"
+    );
     assert!(!path.exists());
-    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("optical_depth", &v)], &VdbOptions::default()).unwrap();
+    fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("optical_depth", &v)], &VdbOptions::default())
+        .unwrap();
 
     let exr = dir.path().join("bright.exr");
     let mut rgba = vec![[0.5f32, 0.5, 0.5, 1.0]; 16];
@@ -457,7 +546,8 @@ fn deeply_nested_and_long_text_is_an_error() {
         format!("Project(particles: {}", "[".repeat(100_000)),
         format!("Project(grid: {}", "(".repeat(100_000)),
         format!("Project(camera: (fov_y_deg: {}))", "9".repeat(100_000)),
-        format!("Project(particles: [{}])", "(center: (0, 0, 0), radius: 1, density: 1),".repeat(20_000)) + "(radius: -1)",
+        format!("Project(particles: [{}])", "(center: (0, 0, 0), radius: 1, density: 1),".repeat(20_000))
+            + "(radius: -1)",
     ] {
         check_project_text(&text).unwrap();
         assert!(parse_project(&text, Path::new("deep.ron")).is_err());

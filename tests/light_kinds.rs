@@ -12,7 +12,8 @@ fn parse(text: &str) -> Result<Project, String> {
 
 #[test]
 fn files_without_the_new_fields_load_as_before() {
-    let p = parse("Project(version: 1, medium: (base_extinction: 0.1), lights: [(position: (0, 1, 0), intensity: 3)])").unwrap();
+    let p = parse("Project(version: 1, medium: (base_extinction: 0.1), lights: [(position: (0, 1, 0), intensity: 3)])")
+        .unwrap();
     assert_eq!(p.lights[0].kind, LightKind::Point);
     assert_eq!(p.medium.height_falloff, 0.0);
     assert_eq!(p.medium.height_origin, 0.0);

@@ -65,7 +65,10 @@ fn spot_cone_matches_reference_at_its_edge() {
 /// Absolute RMSE over all channels of the GPU image of `project` against the reference.
 fn abs_rmse(project: &Project) -> f64 {
     let (image, reference, _) = render_both(project);
-    let e = image_error(&fogsmith::gpu::Image { width: project.render.width, height: project.render.height, rgba: image }, &reference);
+    let e = image_error(
+        &fogsmith::gpu::Image { width: project.render.width, height: project.render.height, rgba: image },
+        &reference,
+    );
     let mean = reference.iter().flatten().sum::<f64>() / (3 * reference.len()) as f64;
     e.rel_rmse * mean
 }
@@ -129,7 +132,6 @@ fn spot_pointing_away_from_the_grid_costs_nothing() {
     assert!(!e.nan_or_inf);
     assert!(e.rel_rmse < 0.02, "{}", e.rel_rmse);
 }
-
 
 fn sun(direction: Vec3) -> LightKind {
     LightKind::Directional { direction }
@@ -216,7 +218,10 @@ fn sun_opv_matches_the_erf_integral_and_height_fog_closed_form() {
             p.medium.height_falloff = 0.7 + 0.2 * n as f32;
             p.medium.height_origin = -1.0;
             let (tr, rel) = sun_opv_error(&mut gpu, &p);
-            println!("  with height fog k {}: transmittance max error {tr:.2e}, depth max relative error {rel:.2e}", p.medium.height_falloff);
+            println!(
+                "  with height fog k {}: transmittance max error {tr:.2e}, depth max relative error {rel:.2e}",
+                p.medium.height_falloff
+            );
             assert!(tr < 0.02, "{d} with height fog: {tr}");
         }
     }
@@ -233,7 +238,8 @@ fn sun_image_matches_reference() {
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
-    let e = image_error(&fogsmith::gpu::Image { width: p.render.width, height: p.render.height, rgba: image }, &reference);
+    let e =
+        image_error(&fogsmith::gpu::Image { width: p.render.width, height: p.render.height, rgba: image }, &reference);
     println!("sun image: relative RMSE {:.4}, max abs {:.3e}", e.rel_rmse, e.max_abs_error);
     assert!(e.rel_rmse < 0.02, "{}", e.rel_rmse);
 }
@@ -244,7 +250,9 @@ fn sun_image_matches_reference() {
 fn suns_and_height_fog_never_give_nan() {
     let mut gpu = pipeline();
     for d in [Vec3::X, -Vec3::Z, Vec3::new(1.0, 1e-7, 0.0), Vec3::new(1.0, 0.2, 0.0), -Vec3::Y] {
-        for (beta, k, y0) in [(0.0f32, 0.0f32, 0.0f32), (0.05, 0.0, 0.0), (0.05, 1e4, 0.0), (1e3, 1e5, 1e8), (0.05, 50.0, 2.0)] {
+        for (beta, k, y0) in
+            [(0.0f32, 0.0f32, 0.0f32), (0.05, 0.0, 0.0), (0.05, 1e4, 0.0), (1e3, 1e5, 1e8), (0.05, 50.0, 2.0)]
+        {
             let mut p = small_scene(16, &[Vec3::ZERO]);
             p.lights[0].kind = sun(d);
             p.medium.base_extinction = beta;
@@ -265,7 +273,6 @@ fn suns_and_height_fog_never_give_nan() {
     }
 }
 
-
 /// Exponential height fog (physics.md §9) through the grid, around it and beyond it, lit by a
 /// point light, over a floor: the GPU image against the reference, which integrates the
 /// height fog in closed form along every path. Measured 3.1 % (1.3 % for the same scene in
@@ -280,7 +287,8 @@ fn height_fog_image_matches_reference() {
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
-    let e = image_error(&fogsmith::gpu::Image { width: p.render.width, height: p.render.height, rgba: image }, &reference);
+    let e =
+        image_error(&fogsmith::gpu::Image { width: p.render.width, height: p.render.height, rgba: image }, &reference);
     println!("height fog image: relative RMSE {:.4}, max abs {:.3e}", e.rel_rmse, e.max_abs_error);
     assert!(e.rel_rmse < 0.05, "{}", e.rel_rmse);
 }
@@ -314,7 +322,8 @@ fn point_lights_outside_the_box_in_height_fog_match_quadrature() {
         p.medium.height_origin = rng.range(-1.5, 0.5);
         let m = p.medium;
         let beta = |y: f64| {
-            let e = (-(m.height_falloff as f64) * (y - m.height_origin as f64)).min(fogsmith::scene::MAX_HEIGHT_EXPONENT);
+            let e =
+                (-(m.height_falloff as f64) * (y - m.height_origin as f64)).min(fogsmith::scene::MAX_HEIGHT_EXPONENT);
             m.base_extinction as f64 * e.exp()
         };
         let s = position.as_dvec3();
@@ -341,7 +350,8 @@ fn point_lights_outside_the_box_in_height_fog_match_quadrature() {
                 }
             }
         }
-        let old: f64 = exact.iter().zip(&constant_outside).map(|(a, b)| ((-a).exp() - (-b).exp()).abs()).fold(0.0, f64::max);
+        let old: f64 =
+            exact.iter().zip(&constant_outside).map(|(a, b)| ((-a).exp() - (-b).exp()).abs()).fold(0.0, f64::max);
         for scheme in [Scheme::Sweep, Scheme::Exact] {
             p.propagation.scheme = scheme;
             gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();

@@ -19,7 +19,12 @@ fn bake(gpu: &mut FogPipeline, p: &Project) -> (Volume, u64) {
 
 /// A project with no lights (only the EV is compared) on `grid`.
 fn scene(grid: GridSpec, base: f32, particles: Vec<Particle>, noise: Option<Noise>) -> Project {
-    let mut p = Project { grid, medium: Medium { base_extinction: base, noise, ..Medium::default() }, particles, ..Project::default() };
+    let mut p = Project {
+        grid,
+        medium: Medium { base_extinction: base, noise, ..Medium::default() },
+        particles,
+        ..Project::default()
+    };
     p.render.width = 8;
     p.render.height = 8;
     p
@@ -88,12 +93,16 @@ fn compare(p: &Project, ev: &Volume) -> (f64, f64) {
                         }
                     }
                 }
-                let want = base + plain + noise.map_or(noisy, |n| if noisy > 0.0 { noisy * n.modulation(x) } else { 0.0 });
+                let want =
+                    base + plain + noise.map_or(noisy, |n| if noisy > 0.0 { noisy * n.modulation(x) } else { 0.0 });
                 let got = ev.get(i, j, k) as f64;
                 assert!(got.is_finite() && got >= 0.0, "cell ({i},{j},{k}): {got}");
                 let bound = 1e-5 * (base + plain + (1.0 + a) * noisy) + noisy * a * dn + edge + shift + 1e-30;
                 let err = (got - want).abs();
-                assert!(err <= bound, "cell ({i},{j},{k}) at {x}: GPU {got}, reference {want}, error {err:e} > bound {bound:e}");
+                assert!(
+                    err <= bound,
+                    "cell ({i},{j},{k}) at {x}: GPU {got}, reference {want}, error {err:e} > bound {bound:e}"
+                );
                 worst_ratio = worst_ratio.max(err / bound);
                 if want > 1e-6 {
                     worst_rel = worst_rel.max(err / want);
@@ -124,7 +133,8 @@ fn ev_with_noise_matches_the_f64_reference_on_random_scenes() {
         let cell = grid.cell_size().min_element();
         let particles = (0..1 + (rng.f() * 6.0) as usize)
             .map(|n| {
-                let radius = if n % 2 == 0 { cell * rng.range(0.6, 2.0) } else { size.max_element() * rng.range(0.2, 0.8) };
+                let radius =
+                    if n % 2 == 0 { cell * rng.range(0.6, 2.0) } else { size.max_element() * rng.range(0.2, 0.8) };
                 let mut q = Particle::new(min + size * rng.v(0.0, 1.0), radius, rng.range(0.1, 30.0));
                 q.noise = rng.f() < 0.75;
                 q
@@ -176,7 +186,10 @@ fn gpu_hash_matches_the_cpu_at_lattice_points_and_noise_edits_reinject() {
                     assert_eq!(DVec3::new(li as f64, lj as f64, lk as f64), x, "cell centres are lattice points");
                     let ratio = noisy.get(i, j, k) as f64 / plain.get(i, j, k) as f64;
                     let want = 1.0 + lattice_value(li, lj, lk, seed);
-                    assert!((ratio - want).abs() <= 4.0 * 2f64.powi(-23), "seed {seed}, lattice ({li},{lj},{lk}): GPU {ratio}, CPU {want}");
+                    assert!(
+                        (ratio - want).abs() <= 4.0 * 2f64.powi(-23),
+                        "seed {seed}, lattice ({li},{lj},{lk}): GPU {ratio}, CPU {want}"
+                    );
                     if (ratio - 1.0 - lattice_value(li, lj, lk, seed.wrapping_add(1))).abs() <= 4.0 * 2f64.powi(-23) {
                         wrong_seed_agrees += 1;
                     }
@@ -203,11 +216,18 @@ fn octaves_and_thin_grids_match_the_reference() {
         (UVec3::new(2, 64, 3), Noise { amplitude: 0.5, frequency: 3.0, octaves: 4, seed: 1 << 31 }),
     ] {
         let grid = GridSpec { min: Vec3::splat(-8.5), max: Vec3::splat(7.5), resolution: res };
-        let particles = vec![Particle::new(Vec3::new(0.3, -0.2, 0.1), 6.0, 2.0), Particle::new(Vec3::new(-3.0, 2.0, 1.0), 1.5, 9.0)];
+        let particles = vec![
+            Particle::new(Vec3::new(0.3, -0.2, 0.1), 6.0, 2.0),
+            Particle::new(Vec3::new(-3.0, 2.0, 1.0), 1.5, 9.0),
+        ];
         let p = scene(grid, 0.02, particles, Some(noise));
         let (ev, _) = bake(&mut gpu, &p);
         let (ratio, rel) = compare(&p, &ev);
-        println!("res {:?}, {noise:?} ({} kept): error/bound {ratio:.3}, max relative error {rel:.2e}", res.to_array(), noise.effective_octaves(&grid));
+        println!(
+            "res {:?}, {noise:?} ({} kept): error/bound {ratio:.3}, max relative error {rel:.2e}",
+            res.to_array(),
+            noise.effective_octaves(&grid)
+        );
     }
 }
 
@@ -228,7 +248,10 @@ fn extreme_noise_stays_finite() {
             // The f32 cell centres of a grid 1e6 m out are off by up to a few 1/16 m ulps.
             let d = ((x - centre.as_dvec3()).length() - 0.2).max(0.0);
             let sigma = 5.0 * (-d * d / 0.49).exp();
-            assert!(v.is_finite() && v >= 0.0 && v as f64 <= 101.0 * sigma * (1.0 + 1e-5) + 1e-30, "{frequency}: cell {n}: {v}");
+            assert!(
+                v.is_finite() && v >= 0.0 && v as f64 <= 101.0 * sigma * (1.0 + 1e-5) + 1e-30,
+                "{frequency}: cell {n}: {v}"
+            );
         }
         let kept = noise.effective_octaves(&grid);
         let note = noise.nyquist_note(&grid);
@@ -278,7 +301,8 @@ fn opv_of_a_noisy_scene_matches_the_reference_with_noise() {
     use fogsmith::scene::{Light, Scheme};
     let mut gpu = pipeline();
     let grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::splat(32) };
-    let particles = vec![Particle::new(Vec3::new(0.1, 0.0, -0.1), 0.6, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.3), 0.35, 5.0)];
+    let particles =
+        vec![Particle::new(Vec3::new(0.1, 0.0, -0.1), 0.6, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.3), 0.35, 5.0)];
     let mut p = scene(grid, 0.05, particles, Some(Noise { amplitude: 1.5, frequency: 2.0, octaves: 5, seed: 21 }));
     p.lights = vec![Light::new(Vec3::new(0.8, 0.9, -0.7), 5.0, Vec3::ONE)];
     p.propagation.scheme = Scheme::Exact;
@@ -289,8 +313,11 @@ fn opv_of_a_noisy_scene_matches_the_reference_with_noise() {
     let mut smooth = p.clone();
     smooth.medium.noise = None;
     let without = opv_errors(&smooth, 0, &ev, &opv, &cells);
-    let (scheme, total, wrong) =
-        (with.scheme.transmittance_max_abs_error, with.total.transmittance_max_abs_error, without.total.transmittance_max_abs_error);
+    let (scheme, total, wrong) = (
+        with.scheme.transmittance_max_abs_error,
+        with.total.transmittance_max_abs_error,
+        without.total.transmittance_max_abs_error,
+    );
     println!("noisy OPV (exact scheme, 32³, {} octaves kept): scheme error {scheme:.2e}, total against the noisy reference {total:.2e}, against the noise-free one {wrong:.2e}", p.medium.noise.unwrap().effective_octaves(&grid));
     assert!(!with.scheme.nan_or_inf);
     assert!(scheme <= 1e-3, "scheme error {scheme:e}");

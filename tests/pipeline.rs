@@ -79,7 +79,11 @@ fn every_bin_edge_injects_the_exact_density() {
         gpu.set_inject_bin_edge(edge).unwrap();
         gpu.set_brute_force_injection(edge.is_none());
         let report = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
-        assert_eq!(report.counters.cells_injected, r.x as u64 * r.y as u64 * r.z as u64, "edge {edge:?}: every cell injected");
+        assert_eq!(
+            report.counters.cells_injected,
+            r.x as u64 * r.y as u64 * r.z as u64,
+            "edge {edge:?}: every cell injected"
+        );
         let (worst, checked) = ev_relative_error(&p, &gpu.read_ev().unwrap(), 0.0);
         assert_eq!(checked, r.x * r.y * r.z, "base fog makes every cell count");
         println!("bin edge {edge:?}: max relative error {worst:.3e}");
@@ -97,7 +101,8 @@ fn homogeneous_opv_is_beta_times_distance() {
     let beta = 0.7f32;
     // The light sits on a cell centre so that the axes through it are cell rows.
     let res = 24;
-    let light = Vec3::new(-1.0 + (7.5 / res as f32) * 2.0, -1.0 + (11.5 / res as f32) * 2.0, -1.0 + (5.5 / res as f32) * 2.0);
+    let light =
+        Vec3::new(-1.0 + (7.5 / res as f32) * 2.0, -1.0 + (11.5 / res as f32) * 2.0, -1.0 + (5.5 / res as f32) * 2.0);
     let p = homogeneous_scene(res, beta, light);
     for scheme in [Scheme::Giroud, Scheme::Sweep, Scheme::Exact] {
         gpu.update(&p, &request(&p, scheme)).unwrap();
@@ -129,7 +134,10 @@ fn homogeneous_opv_is_beta_times_distance() {
 #[test]
 fn camera_change_reruns_only_the_march() {
     let mut gpu = pipeline();
-    let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-0.8, 0.5, 0.2), Vec3::new(0.0, -0.9, 0.0), Vec3::new(0.5, 0.0, -0.9)]);
+    let mut p = small_scene(
+        24,
+        &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-0.8, 0.5, 0.2), Vec3::new(0.0, -0.9, 0.0), Vec3::new(0.5, 0.0, -0.9)],
+    );
     let first = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
     assert_eq!(first.counters.lights_propagated, 4);
     assert!(first.counters.cells_injected > 0);
@@ -162,7 +170,9 @@ fn camera_change_reruns_only_the_march() {
 #[test]
 fn schemes_are_finite_and_close_to_exact_march() {
     let mut gpu = pipeline();
-    for light in [Vec3::new(0.13, 0.07, -0.21), Vec3::new(1.0, 0.2, 0.3), Vec3::new(1.0, 1.0, -1.0), Vec3::new(3.0, 2.0, -4.0)] {
+    for light in
+        [Vec3::new(0.13, 0.07, -0.21), Vec3::new(1.0, 0.2, 0.3), Vec3::new(1.0, 1.0, -1.0), Vec3::new(3.0, 2.0, -4.0)]
+    {
         let p = small_scene(32, &[light]);
         gpu.update(&p, &request(&p, Scheme::Exact)).unwrap();
         let exact = gpu.read_opv(0).unwrap();
@@ -180,7 +190,11 @@ fn schemes_are_finite_and_close_to_exact_march() {
                 .fold(0.0f32, f32::max);
             let (worst, _) = opv.data.iter().zip(&exact.data).enumerate().fold((0, 0.0f32), |(wi, wv), (i, (a, b))| {
                 let d = ((-a).exp() - (-b).exp()).abs();
-                if d > wv { (i, d) } else { (wi, wv) }
+                if d > wv {
+                    (i, d)
+                } else {
+                    (wi, wv)
+                }
             });
             let n = p.grid.resolution.x as usize;
             println!(
@@ -227,7 +241,11 @@ fn moving_one_particle_reinjects_only_its_bricks() {
     let mut forced = request(&p, Scheme::Sweep);
     forced.force = true;
     gpu.update(&p, &forced).unwrap();
-    assert_eq!(max_difference(&gpu.read_ev().unwrap().data, &after_remove.data), 0.0, "partial injection equals a full one");
+    assert_eq!(
+        max_difference(&gpu.read_ev().unwrap().data, &after_remove.data),
+        0.0,
+        "partial injection equals a full one"
+    );
     assert!(max_difference(&incremental.data, &after_remove.data) > 0.0, "removing a particle changed the EV");
 
     let rename_only = {
@@ -329,7 +347,9 @@ fn chunked_injection_case(path: InjectPath) {
     single.set_inject_path(path);
     chunked.set_inject_path(path);
     chunked.set_inject_chunk_bytes(Some(16 << 10));
-    for (seed, res, count, r0, r1) in [(1u64, 40u32, 3000usize, 0.02f32, 0.1f32), (2, 37, 400, 0.05, 0.6), (3, 61, 20000, 0.01, 0.05)] {
+    for (seed, res, count, r0, r1) in
+        [(1u64, 40u32, 3000usize, 0.02f32, 0.1f32), (2, 37, 400, 0.05, 0.6), (3, 61, 20000, 0.01, 0.05)]
+    {
         let mut p = small_scene(res, &[Vec3::new(0.9, 0.9, 0.9)]);
         p.grid.resolution.y = res - 5;
         scatter(&mut p, seed, count, r0, r1);
@@ -350,7 +370,10 @@ fn chunked_injection_case(path: InjectPath) {
             );
             let (ea, eb) = (single.read_ev().unwrap(), chunked.read_ev().unwrap());
             let differ = ea.data.iter().zip(&eb.data).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
-            assert_eq!(differ, 0, "{path:?}, seed {seed}, edit {edit}: {differ} cells differ between chunked and single-pass injection");
+            assert_eq!(
+                differ, 0,
+                "{path:?}, seed {seed}, edit {edit}: {differ} cells differ between chunked and single-pass injection"
+            );
             assert!(ea.data.iter().all(|v| v.is_finite()));
         }
     }
@@ -398,8 +421,17 @@ fn sweep_refine_changes_only_interpolations_beyond_its_tolerance() {
             gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
             opvs.push((0..lights.len()).map(|l| gpu.read_opv(l).unwrap().data).collect::<Vec<_>>());
         }
-        let differ: usize = opvs[0].iter().zip(&opvs[1]).map(|(a, b)| a.iter().zip(b).filter(|(x, y)| x.to_bits() != y.to_bits()).count()).sum();
-        assert_eq!(differ == 0, same, "{differ} cells differ between plain and refined sweep (expected {})", if same { "none" } else { "some" });
+        let differ: usize = opvs[0]
+            .iter()
+            .zip(&opvs[1])
+            .map(|(a, b)| a.iter().zip(b).filter(|(x, y)| x.to_bits() != y.to_bits()).count())
+            .sum();
+        assert_eq!(
+            differ == 0,
+            same,
+            "{differ} cells differ between plain and refined sweep (expected {})",
+            if same { "none" } else { "some" }
+        );
     }
 }
 
@@ -423,10 +455,16 @@ fn sweep_is_the_same_for_any_cells_per_thread() {
             opvs.push((0..lights.len()).map(|l| gpu.read_opv(l).unwrap().data).collect::<Vec<_>>());
         }
         for (l, one) in opvs[0].iter().enumerate() {
-            assert!(one.iter().all(|v| v.is_finite() && *v > 0.0), "refine {refine}, light {l}: an optical depth is not positive");
+            assert!(
+                one.iter().all(|v| v.is_finite() && *v > 0.0),
+                "refine {refine}, light {l}: an optical depth is not positive"
+            );
             for (cells, other) in [3, 8].iter().zip(&opvs[1..]) {
                 let differ = one.iter().zip(&other[l]).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
-                assert_eq!(differ, 0, "refine {refine}, light {l}: {differ} cells differ between 1 and {cells} cells per thread");
+                assert_eq!(
+                    differ, 0,
+                    "refine {refine}, light {l}: {differ} cells differ between 1 and {cells} cells per thread"
+                );
             }
         }
     }
@@ -457,7 +495,9 @@ fn spread_equals_whole(layout: fogsmith::gpu::OpvLayout) {
     let mut p = small_scene(30, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-0.8, 0.3, 0.5), Vec3::new(0.1, -1.3, 0.2)]);
     p.grid.resolution.z = 28;
     scatter(&mut p, 11, 60, 0.1, 0.4);
-    for (step, scheme) in [Scheme::Sweep, Scheme::Giroud, Scheme::Exact, Scheme::Analytic, Scheme::Sweep].into_iter().enumerate() {
+    for (step, scheme) in
+        [Scheme::Sweep, Scheme::Giroud, Scheme::Exact, Scheme::Analytic, Scheme::Sweep].into_iter().enumerate()
+    {
         if step == 4 {
             p.lights.remove(1);
             p.lights.push(fogsmith::scene::Light::new(Vec3::new(0.5, 1.2, -0.9), 3.0, Vec3::ONE));
@@ -474,10 +514,16 @@ fn spread_equals_whole(layout: fogsmith::gpu::OpvLayout) {
                 whole.read_slice(SliceSource::OpticalDepth { light: l }, 2, 13).unwrap(),
                 segmented.read_slice(SliceSource::OpticalDepth { light: l }, 2, 13).unwrap(),
             );
-            assert!(sa.values.iter().zip(&sb.values).all(|(x, y)| x.to_bits() == y.to_bits()), "{scheme:?}: slice of light {l}");
+            assert!(
+                sa.values.iter().zip(&sb.values).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{scheme:?}: slice of light {l}"
+            );
         }
         let (ia, ib) = (whole.read_image().unwrap(), segmented.read_image().unwrap());
-        assert!(ia.rgba.iter().zip(&ib.rgba).all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits)), "{scheme:?}: image differs");
+        assert!(
+            ia.rgba.iter().zip(&ib.rgba).all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits)),
+            "{scheme:?}: image differs"
+        );
     }
 }
 
@@ -550,7 +596,8 @@ fn host_particle_sums_equal_the_adapter_gather() {
         host.update(&p, &request(&p, Scheme::Sweep)).unwrap();
         adapter.update(&p, &request(&p, Scheme::Sweep)).unwrap();
         let (h, a) = (host.read_ev().unwrap(), adapter.read_ev().unwrap());
-        let worst = h.data.iter().zip(&a.data).map(|(x, y)| ((x - y).abs() / y.abs().max(1e-3)) as f64).fold(0.0, f64::max);
+        let worst =
+            h.data.iter().zip(&a.data).map(|(x, y)| ((x - y).abs() / y.abs().max(1e-3)) as f64).fold(0.0, f64::max);
         println!("grid {res}: host against adapter, max relative difference {worst:.2e}");
         assert!(worst <= 2e-6, "grid {res}: host and adapter EVs differ by {worst:e} (relative)");
         if p.medium.noise.is_none() {
@@ -561,7 +608,8 @@ fn host_particle_sums_equal_the_adapter_gather() {
         // Budgeted calls small enough to take a few bricks each.
         let (mut calls, mut inject_calls) = (0, 0);
         loop {
-            let progress = sliced.advance(&p, &request(&p, Scheme::Sweep), Some(std::time::Duration::from_micros(1))).unwrap();
+            let progress =
+                sliced.advance(&p, &request(&p, Scheme::Sweep), Some(std::time::Duration::from_micros(1))).unwrap();
             calls += 1;
             inject_calls += (progress.report.counters.cells_injected > 0) as u32;
             if progress.converged() {

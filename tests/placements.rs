@@ -47,8 +47,16 @@ const PLAIN_SWEEP_SCHEME_BOUNDS: [f64; 8] = [1.5e-2, 1e-2, 2e-2, 6e-3, 4.5e-2, 3
 /// which is why `sweep_refine` is on by default.
 const PLAIN_SWEEP_SCHEME_BOUNDS_RESOLVED: [f64; 8] = [1.2e-3, 1e-3, 1e-3, 5e-4, 2e-3, 1.5e-3, 5e-4, 1.5e-3];
 
-const CLASSES: [&str; 8] =
-    ["inside", "on a face", "on an edge", "on a corner", "beyond a face", "beyond an edge", "beyond a corner", "far away"];
+const CLASSES: [&str; 8] = [
+    "inside",
+    "on a face",
+    "on an edge",
+    "on a corner",
+    "beyond a face",
+    "beyond an edge",
+    "beyond a corner",
+    "far away",
+];
 
 struct Rng(u64);
 
@@ -107,13 +115,18 @@ fn scene(rng: &mut Rng, resolution: UVec3, base: f32, min_radius: f32) -> (Proje
     let mut p = Project::default();
     let cell = 0.05;
     let size = resolution.as_vec3() * cell;
-    p.grid = GridSpec { min: -0.5 * size + Vec3::new(0.3, -0.1, 0.2), max: 0.5 * size + Vec3::new(0.3, -0.1, 0.2), resolution };
+    p.grid = GridSpec {
+        min: -0.5 * size + Vec3::new(0.3, -0.1, 0.2),
+        max: 0.5 * size + Vec3::new(0.3, -0.1, 0.2),
+        resolution,
+    };
     p.medium = Medium { base_extinction: base, albedo: 0.8, anisotropy: 0.0, ..Medium::default() };
     let n = 6 + rng.pick(10);
     for _ in 0..n {
         let r = cell * rng.range(min_radius, 10.0);
         // Centres anywhere in the box and up to a radius beyond it, so tails cross faces.
-        let centre = p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.next(), rng.next(), rng.next());
+        let centre =
+            p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.next(), rng.next(), rng.next());
         // Peak optical depth through the particle between 0.1 and 2.
         let density = rng.range(0.1, 2.0) / (r * 1.772_453_9);
         p.particles.push(Particle::new(centre, r, density));
@@ -190,7 +203,13 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     let s = p.lights[l].position.as_dvec3();
     let exact = grid_optical_depth_cells(&p.grid, &medium, s, cells);
     let err = |c: &[u32; 3], t: f64| ((-(opv.get(c[0], c[1], c[2]) as f64)).exp() - (-t).exp()).abs();
-    let (n, _) = cells.iter().zip(&exact).enumerate().map(|(n, (c, t))| (n, err(c, *t))).max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+    let (n, _) = cells
+        .iter()
+        .zip(&exact)
+        .enumerate()
+        .map(|(n, (c, t))| (n, err(c, *t)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
     let c = cells[n];
     let cell = p.grid.cell_size().as_dvec3();
     let x = p.grid.cell_center(c[0], c[1], c[2]).as_dvec3();
@@ -224,8 +243,10 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
 
 /// Asserts `bounds` on the scenes of each of `seeds` (or of PLACEMENT_SEED alone).
 fn check_sweep(min_radius: f32, refine: Option<f32>, bounds: [f64; 8], seeds: &[u64]) {
-    let strides: Vec<u32> = std::env::var("SWEEP_STRIDES").map_or(vec![8], |s| s.split(',').map(|v| v.parse().unwrap()).collect());
-    let seeds = std::env::var("PLACEMENT_SEED").map_or(seeds.to_vec(), |s| vec![s.parse().expect("PLACEMENT_SEED is a number")]);
+    let strides: Vec<u32> =
+        std::env::var("SWEEP_STRIDES").map_or(vec![8], |s| s.split(',').map(|v| v.parse().unwrap()).collect());
+    let seeds = std::env::var("PLACEMENT_SEED")
+        .map_or(seeds.to_vec(), |s| vec![s.parse().expect("PLACEMENT_SEED is a number")]);
     for &seed in &seeds {
         for &stride in &strides {
             let worst = worst_by_class(Scheme::Sweep, stride, refine, min_radius, seed);
@@ -297,12 +318,7 @@ fn analytic_worst_by_class(min_radius: f32, seed: u64) -> Vec<f64> {
                 assert!(!e.nan_or_inf, "analytic {res} light {l}: NaN or infinity");
                 println!(
                     "analytic {:>3}×{:>3}×{:>3} {particles:2} particles base {base:.3} falloff {:.2}  {:16}: {:.2e}",
-                    res.x,
-                    res.y,
-                    res.z,
-                    p.medium.height_falloff,
-                    CLASSES[l],
-                    e.transmittance_max_abs_error
+                    res.x, res.y, res.z, p.medium.height_falloff, CLASSES[l], e.transmittance_max_abs_error
                 );
                 worst[l] = worst[l].max(e.transmittance_max_abs_error);
             }
@@ -313,10 +329,13 @@ fn analytic_worst_by_class(min_radius: f32, seed: u64) -> Vec<f64> {
 
 #[test]
 fn analytic_scheme_is_exact_against_the_gaussians_for_every_light_placement() {
-    let seeds = std::env::var("PLACEMENT_SEED").map_or(vec![SEED, 7], |s| vec![s.parse().expect("PLACEMENT_SEED is a number")]);
+    let seeds =
+        std::env::var("PLACEMENT_SEED").map_or(vec![SEED, 7], |s| vec![s.parse().expect("PLACEMENT_SEED is a number")]);
     for seed in seeds {
         let worst = analytic_worst_by_class(1.0, seed);
-        println!("analytic, particle radii 1–10 cells, seed {seed}: worst transmittance error against the clipped gaussians");
+        println!(
+            "analytic, particle radii 1–10 cells, seed {seed}: worst transmittance error against the clipped gaussians"
+        );
         for (class, w) in CLASSES.iter().zip(&worst) {
             println!("  {class:16} {w:.2e}");
             assert!(*w <= ANALYTIC_BOUND, "seed {seed}, analytic, light {class}: error {w:.3e} > {ANALYTIC_BOUND:e}");

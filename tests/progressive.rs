@@ -31,7 +31,10 @@ fn assert_same_as_fresh(gpu: &FogPipeline, p: &Project, request: &FrameRequest) 
     assert_eq!(gpu.read_ev().unwrap().data, fresh.read_ev().unwrap().data, "EV differs from a fresh bake");
     for l in 0..p.lights.len() {
         let (a, b) = (gpu.read_opv(l).unwrap().data, fresh.read_opv(l).unwrap().data);
-        assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "OPV of light {l} differs from a fresh bake");
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "OPV of light {l} differs from a fresh bake"
+        );
     }
     let (a, b) = (gpu.read_image().unwrap(), fresh.read_image().unwrap());
     assert_eq!((a.width, a.height), (b.width, b.height), "the converged image is full size");
@@ -51,7 +54,10 @@ fn tiny_budgets_converge_to_the_fresh_bake_for_every_scheme() {
         let request = FrameRequest { scheme, ..FrameRequest::for_project(&p) };
         let calls = converge(&mut gpu, &p, &request, Duration::ZERO);
         assert!(calls.len() > 3, "{scheme:?}: a zero budget still spreads the bake over calls ({} calls)", calls.len());
-        assert!(calls.iter().all(|c| c.report.counters.dispatches > 0), "{scheme:?}: every call runs at least one item");
+        assert!(
+            calls.iter().all(|c| c.report.counters.dispatches > 0),
+            "{scheme:?}: every call runs at least one item"
+        );
         assert_same_as_fresh(&gpu, &p, &request);
     }
 }

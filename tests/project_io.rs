@@ -71,8 +71,18 @@ fn invalid_values_name_the_field_and_its_position() {
         ("max: (2.0, 4.0, 2.0)", "max: (2.0, -4.0, 2.0)", "grid.max.y", 3),
         ("albedo: 1.0", "albedo: 1.5", "medium.albedo", 4),
         ("fov_y_deg: 40.0", "fov_y_deg: 0.0", "camera.fov_y_deg", 11),
-        ("render: (width: 640, height: 360),", "render: (width: 640, height: 360),\n    propagation: (sweep_tolerance: 0.0),", "propagation.sweep_tolerance", 13),
-        ("render: (width: 640, height: 360),", "render: (width: 640, height: 360),\n    propagation: (sweep_stride: 2),", "propagation.sweep_stride", 13),
+        (
+            "render: (width: 640, height: 360),",
+            "render: (width: 640, height: 360),\n    propagation: (sweep_tolerance: 0.0),",
+            "propagation.sweep_tolerance",
+            13,
+        ),
+        (
+            "render: (width: 640, height: 360),",
+            "render: (width: 640, height: 360),\n    propagation: (sweep_stride: 2),",
+            "propagation.sweep_stride",
+            13,
+        ),
     ];
     for (from, to, field, want_line) in cases {
         let text = EXAMPLE.replace(from, to);
@@ -171,7 +181,8 @@ fn duplicate_ids_and_unknown_versions_are_clear_errors() {
 #[test]
 fn code_built_projects_save_with_distinct_ids() {
     let mut p = Project::default();
-    p.particles = (0..3).map(|i| fogsmith::scene::Particle::new(glam::Vec3::new(i as f32 * 0.3, 1.0, 0.0), 0.2, 1.0)).collect();
+    p.particles =
+        (0..3).map(|i| fogsmith::scene::Particle::new(glam::Vec3::new(i as f32 * 0.3, 1.0, 0.0), 0.2, 1.0)).collect();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("code.ron");
     save_project(&path, &p).unwrap();
@@ -193,7 +204,11 @@ fn demos_particles_crossing_the_grid() {
             let g = p.fit_grid_to_particles(keep).unwrap();
             println!("  fit {keep:?}: {:?} .. {:?} {:?}", g.min, g.max, g.resolution);
             let fitted = Project { grid: g, ..p.clone() };
-            assert!(fitted.particles_crossing_grid().is_empty(), "{}: after fitting ({keep:?}) no particle crosses", path.display());
+            assert!(
+                fitted.particles_crossing_grid().is_empty(),
+                "{}: after fitting ({keep:?}) no particle crosses",
+                path.display()
+            );
             if keep == fogsmith::scene::FitKeep::Resolution {
                 assert_eq!(g.resolution, p.grid.resolution);
             }

@@ -58,7 +58,12 @@ fn every_step_policy_is_accurate() {
 fn surfaces_match_reference() {
     let mut p = small_scene(48, &[Vec3::new(0.8, 0.9, 0.6)]);
     p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.6), ..Ground::default() });
-    p.surfaces.boxes.push(SurfaceBox { min: Vec3::new(-0.9, -1.0, -0.9), max: Vec3::new(-0.4, -0.3, -0.4), albedo: Vec3::new(0.7, 0.3, 0.2), ..SurfaceBox::default() });
+    p.surfaces.boxes.push(SurfaceBox {
+        min: Vec3::new(-0.9, -1.0, -0.9),
+        max: Vec3::new(-0.4, -0.3, -0.4),
+        albedo: Vec3::new(0.7, 0.3, 0.2),
+        ..SurfaceBox::default()
+    });
     p.camera.position = Vec3::new(0.5, 0.8, 3.0);
     let e = render_error(&p);
     println!("surfaces: relative RMSE {e:.4}");

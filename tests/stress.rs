@@ -24,12 +24,18 @@ fn reduced_stress_matrix_holds() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
     let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
-    let cases = reduced(matrix(true, limits.max_texture_dimension_3d, binding, opv_capacity(&limits)), limits.max_texture_dimension_3d);
+    let cases = reduced(
+        matrix(true, limits.max_texture_dimension_3d, binding, opv_capacity(&limits)),
+        limits.max_texture_dimension_3d,
+    );
     assert!(cases.len() >= 40, "{} cases", cases.len());
     let mut failures = Vec::new();
     for case in &cases {
         let r = run_case(&mut gpu, case);
-        println!("{:<44} {:<7} err {:?} bound {:?} nan {} {:.0} ms {}", r.case, r.scheme, r.max_error, r.bound, r.nan_or_inf, r.time_ms, r.detail);
+        println!(
+            "{:<44} {:<7} err {:?} bound {:?} nan {} {:.0} ms {}",
+            r.case, r.scheme, r.max_error, r.bound, r.nan_or_inf, r.time_ms, r.detail
+        );
         assert!(!r.nan_or_inf || !r.passed, "{}: a NaN must fail the case", r.case);
         if !r.passed {
             failures.push(format!("{} ({}): {}", r.case, r.scheme, r.detail));
@@ -57,20 +63,30 @@ fn limits_are_refused_before_allocation_with_the_limit_named() {
     let mut p = small_scene(8, &[Vec3::ONE]);
     p.grid.resolution = UVec3::new(limits.max_texture_dimension_3d + 1, 2, 2);
     let msg = limit_message(&p, 16, 16);
-    assert!(msg.contains(&limits.max_texture_dimension_3d.to_string()) && msg.contains("lower grid.resolution"), "{msg}");
+    assert!(
+        msg.contains(&limits.max_texture_dimension_3d.to_string()) && msg.contains("lower grid.resolution"),
+        "{msg}"
+    );
 
     // OPVs span several textures: refused only past all of them together, or past memory.
     let mut p = small_scene(64, &[]);
     let memory = gpu.context().memory_bytes().unwrap_or(u64::MAX);
-    let by_memory = (0..=opv_capacity(&limits)).rev().find(|&n| gpu.memory_needed(&p.grid, n as usize, p.particles.len(), 16, 16) <= memory).unwrap();
+    let by_memory = (0..=opv_capacity(&limits))
+        .rev()
+        .find(|&n| gpu.memory_needed(&p.grid, n as usize, p.particles.len(), 16, 16) <= memory)
+        .unwrap();
     let most = by_memory.min(opv_capacity(&limits));
-    p.lights = (0..=most).map(|i| fogsmith::scene::Light::new(Vec3::new(i as f32 * 1e-5, 0.0, 0.0), 1.0, Vec3::ONE)).collect();
+    p.lights =
+        (0..=most).map(|i| fogsmith::scene::Light::new(Vec3::new(i as f32 * 1e-5, 0.0, 0.0), 1.0, Vec3::ONE)).collect();
     let msg = limit_message(&p, 16, 16);
     if most == by_memory {
         assert!(msg.contains("GPU memory") && msg.contains("fewer lights"), "{msg}");
     } else {
         let capacity = opv_capacity(&limits) * 64 * 64 * 64 * 4;
-        assert!(msg.contains("optical-depth") && msg.contains(&capacity.to_string()) && msg.contains("at most"), "{msg}");
+        assert!(
+            msg.contains("optical-depth") && msg.contains(&capacity.to_string()) && msg.contains("at most"),
+            "{msg}"
+        );
     }
     p.lights.truncate(most as usize);
     assert!(gpu.check_limits(&p, 16, 16).is_ok(), "the most lights that fit are accepted");
@@ -94,7 +110,9 @@ fn giroud_dispatch_limit_is_refused_and_sweep_still_runs() {
     let max = gpu.context().limits.max_compute_workgroups_per_dimension;
     let mut p = small_scene(4, &[]);
     p.grid.resolution = UVec3::new(1, 1, 4);
-    p.lights = (0..=max).map(|i| fogsmith::scene::Light::new(Vec3::new(0.0, 0.0, -0.9 + 1e-5 * i as f32), 0.0, Vec3::ONE)).collect();
+    p.lights = (0..=max)
+        .map(|i| fogsmith::scene::Light::new(Vec3::new(0.0, 0.0, -0.9 + 1e-5 * i as f32), 0.0, Vec3::ONE))
+        .collect();
     p.lights[0].intensity = 1.0;
     p.render.width = 8;
     p.render.height = 8;
@@ -216,7 +234,13 @@ fn oversized_base_layer_and_empty_frames_are_errors() {
 fn stress_results_serialise_with_the_documented_keys() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
-    let case = matrix(true, limits.max_texture_dimension_3d, limits.max_storage_buffer_binding_size as u64, opv_capacity(&limits)).remove(0);
+    let case = matrix(
+        true,
+        limits.max_texture_dimension_3d,
+        limits.max_storage_buffer_binding_size as u64,
+        opv_capacity(&limits),
+    )
+    .remove(0);
     let v = serde_json::to_value(vec![run_case(&mut gpu, &case)]).unwrap();
     let row = &v[0];
     for key in ["case", "max_error", "nan_or_inf", "time_ms", "passed", "bound", "scheme"] {

@@ -12,7 +12,11 @@ use glam::{UVec3, Vec3};
 #[test]
 fn gpu_base_fog_matches_sun_closed_form() {
     let mut gpu = pipeline();
-    for (beta, light, fov) in [(0.1f32, Vec3::new(1.5, 0.4, -5.0), 60.0f32), (0.5, Vec3::new(-0.3, 0.2, -1.0), 90.0), (0.04, Vec3::new(0.0, 0.0, -3.0), 20.0)] {
+    for (beta, light, fov) in [
+        (0.1f32, Vec3::new(1.5, 0.4, -5.0), 60.0f32),
+        (0.5, Vec3::new(-0.3, 0.2, -1.0), 90.0),
+        (0.04, Vec3::new(0.0, 0.0, -3.0), 20.0),
+    ] {
         let mut p = Project::default();
         // A grid far behind the camera: every ray and every light path misses it.
         p.grid = GridSpec { min: Vec3::splat(100.0), max: Vec3::splat(101.0), resolution: UVec3::splat(4) };

@@ -33,7 +33,12 @@ fn shadow_scene(kind: LightKind, beta: f32, block: bool) -> Project {
     p.lights = vec![light];
     p.surfaces.ground = Some(Ground { height: 0.0, albedo: Vec3::splat(0.5), ..Ground::default() });
     if block {
-        p.surfaces.boxes.push(SurfaceBox { min: Vec3::new(-0.3, 2.0, -0.3), max: Vec3::new(0.3, 2.2, 0.3), albedo: Vec3::splat(0.5), ..SurfaceBox::default() });
+        p.surfaces.boxes.push(SurfaceBox {
+            min: Vec3::new(-0.3, 2.0, -0.3),
+            max: Vec3::new(0.3, 2.2, 0.3),
+            albedo: Vec3::splat(0.5),
+            ..SurfaceBox::default()
+        });
     }
     p.camera = Camera { position: Vec3::new(0.0, 1.2, 2.5), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 40.0 };
     p.render.width = 48;
@@ -134,7 +139,9 @@ fn block_shadows_ground_for_every_light_kind() {
 #[test]
 fn lights_on_and_inside_boxes_stay_finite() {
     for position in [Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 2.1, 0.0), Vec3::new(0.3, 2.1, 0.0)] {
-        for kind in [LightKind::Point, LightKind::Spot { direction: Vec3::new(0.0, -1.0, 0.0), angle_deg: 50.0, blend: 0.2 }] {
+        for kind in
+            [LightKind::Point, LightKind::Spot { direction: Vec3::new(0.0, -1.0, 0.0), angle_deg: 50.0, blend: 0.2 }]
+        {
             let mut p = shadow_scene(kind, 0.1, true);
             p.lights[0].position = position;
             let img = gpu_image(&p);
@@ -156,8 +163,14 @@ fn lights_on_and_inside_boxes_stay_finite() {
 fn fog_glow_on_surfaces_matches_reference() {
     let mut p = shadow_scene(LightKind::Point, 0.35, false);
     p.lights[0].position = Vec3::new(0.0, 0.6, 0.0);
-    p.surfaces.boxes.push(SurfaceBox { min: Vec3::new(0.4, 0.0, -0.6), max: Vec3::new(0.9, 0.7, 0.2), albedo: Vec3::splat(0.7), ..SurfaceBox::default() });
-    p.camera = Camera { position: Vec3::new(2.2, 1.0, 2.0), target: Vec3::new(0.3, 0.2, 0.0), up: Vec3::Y, fov_y_deg: 45.0 };
+    p.surfaces.boxes.push(SurfaceBox {
+        min: Vec3::new(0.4, 0.0, -0.6),
+        max: Vec3::new(0.9, 0.7, 0.2),
+        albedo: Vec3::splat(0.7),
+        ..SurfaceBox::default()
+    });
+    p.camera =
+        Camera { position: Vec3::new(2.2, 1.0, 2.0), target: Vec3::new(0.3, 0.2, 0.0), up: Vec3::Y, fov_y_deg: 45.0 };
     let (w, h) = (p.render.width, p.render.height);
     let img = gpu_image(&p);
     let reference = render_reference(&p, w, h, &RefRenderOptions::default());
@@ -223,7 +236,11 @@ fn specular_surfaces_match_reference_on_random_scenes() {
         let kind = if case % 2 == 0 {
             LightKind::Point
         } else {
-            LightKind::Spot { direction: Vec3::new(rng.range(-0.3, 0.3), -1.0, rng.range(-0.3, 0.3)), angle_deg: 60.0, blend: 0.4 }
+            LightKind::Spot {
+                direction: Vec3::new(rng.range(-0.3, 0.3), -1.0, rng.range(-0.3, 0.3)),
+                angle_deg: 60.0,
+                blend: 0.4,
+            }
         };
         let mut p = shadow_scene(kind, beta, false);
         p.lights[0].position = Vec3::new(rng.range(-1.0, 1.0), rng.range(0.2, 1.5), rng.range(-1.0, 1.0));
@@ -292,10 +309,17 @@ fn specular_surfaces_match_reference_on_random_scenes() {
                     continue;
                 }
                 let view = (-(beta as f64) * hit.t).exp();
-                let mirror_value = fogsmith::surface_table::spec_radiance(beta as f64, d, 0.0, hit.phong_exponent, fogsmith::surface_table::s_exact);
+                let mirror_value = fogsmith::surface_table::spec_radiance(
+                    beta as f64,
+                    d,
+                    0.0,
+                    hit.phong_exponent,
+                    fogsmith::surface_table::s_exact,
+                );
                 let i = (py * w + px) as usize;
                 for c in 0..3 {
-                    let scale = view * hit.specular * light.radiance_rgb().as_dvec3()[c] * light.cone_factor(x) * mirror_value;
+                    let scale =
+                        view * hit.specular * light.radiance_rgb().as_dvec3()[c] * light.cone_factor(x) * mirror_value;
                     let got = gpu_spec[i][c] as f64 - gpu_matte[i][c] as f64;
                     let want = ref_spec[i][c] - ref_matte[i][c];
                     let err = (got - want).abs();
@@ -396,8 +420,18 @@ fn rays_along_box_faces_give_no_nan() {
     let mut gpu = pipeline();
     for beta in [0.0f32, 0.4] {
         let mut p = shadow_scene(LightKind::Point, beta, false);
-        p.surfaces.boxes.push(SurfaceBox { min: Vec3::new(-1.0, 0.5, 0.0), max: Vec3::new(-0.5, 1.0, 0.5), albedo: Vec3::splat(0.5), ..SurfaceBox::default() });
-        p.camera = Camera { position: Vec3::new(-1.0, 0.5, -3.0), target: Vec3::new(-1.0, 0.5, 0.0), up: Vec3::Y, fov_y_deg: 40.0 };
+        p.surfaces.boxes.push(SurfaceBox {
+            min: Vec3::new(-1.0, 0.5, 0.0),
+            max: Vec3::new(-0.5, 1.0, 0.5),
+            albedo: Vec3::splat(0.5),
+            ..SurfaceBox::default()
+        });
+        p.camera = Camera {
+            position: Vec3::new(-1.0, 0.5, -3.0),
+            target: Vec3::new(-1.0, 0.5, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 40.0,
+        };
         p.render.width = 25;
         p.render.height = 19;
         gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();

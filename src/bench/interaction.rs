@@ -45,7 +45,11 @@ impl Driver {
         self.h.render().map_err(|message| BenchError::Editor(format!("painting a frame failed: {message}")))?;
         let end = Instant::now();
         self.frames.push((end - queued).as_secs_f64() * 1e3);
-        let status = self.h.state().preview_status().ok_or_else(|| BenchError::Editor("the editor has no GPU preview".into()))?;
+        let status = self
+            .h
+            .state()
+            .preview_status()
+            .ok_or_else(|| BenchError::Editor("the editor has no GPU preview".into()))?;
         let generation = self.h.state().session().generation();
         if is_input && self.inputs.last().is_none_or(|&(_, g)| g != generation) {
             self.inputs.push((queued, generation));
@@ -66,7 +70,10 @@ impl Driver {
         let start = Instant::now();
         while !self.converged() {
             if start.elapsed() > CONVERGE_LIMIT {
-                return Err(BenchError::Editor(format!("the preview did not converge within {} s", CONVERGE_LIMIT.as_secs())));
+                return Err(BenchError::Editor(format!(
+                    "the preview did not converge within {} s",
+                    CONVERGE_LIMIT.as_secs()
+                )));
             }
             self.frame(None)?;
         }
@@ -99,7 +106,12 @@ impl Driver {
     }
 
     fn press(&mut self, pos: Pos2, pressed: bool) -> Result<(), BenchError> {
-        self.frame(Some(Event::PointerButton { pos, button: PointerButton::Primary, pressed, modifiers: Modifiers::NONE }))
+        self.frame(Some(Event::PointerButton {
+            pos,
+            button: PointerButton::Primary,
+            pressed,
+            modifiers: Modifiers::NONE,
+        }))
     }
 
     /// The figures of the interaction just run, after waiting for convergence.
@@ -109,7 +121,9 @@ impl Driver {
         let mut latencies = Vec::new();
         for (i, &(t, _)) in self.inputs.iter().enumerate() {
             let later: Vec<u64> = self.inputs[i..].iter().map(|&(_, g)| g).collect();
-            if let Some(&(end, _)) = self.shown.iter().find(|&&(end, g)| end >= t && g.is_some_and(|g| later.contains(&g))) {
+            if let Some(&(end, _)) =
+                self.shown.iter().find(|&&(end, g)| end >= t && g.is_some_and(|g| later.contains(&g)))
+            {
                 latencies.push((end - t).as_secs_f64() * 1e3);
             }
         }

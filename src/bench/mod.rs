@@ -64,10 +64,8 @@ pub fn run(opts: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>,
     for suite in &opts.suites {
         let start = records.len();
         suites::run(*suite, &mut ctx, &mut records, log)?;
-        plot::plot_suite(*suite, &records[start..], &opts.out).map_err(|message| BenchError::Write {
-            path: opts.out.clone(),
-            message,
-        })?;
+        plot::plot_suite(*suite, &records[start..], &opts.out)
+            .map_err(|message| BenchError::Write { path: opts.out.clone(), message })?;
     }
     write_json(&opts.out.join("bench.json"), &records)?;
     write_csv(&opts.out.join("bench.csv"), &records)?;

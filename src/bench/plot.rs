@@ -107,12 +107,28 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
             // The grid's medium is not the scene's: against the gaussians themselves every
             // scheme but `analytic` also carries the grid's resolution error.
             let plots = [
-                ("opv_pareto.png", "max scheme error (transmittance, vs the grid medium)", "max |exp(-T) - exp(-T_exact)|", "error_max"),
-                ("opv_pareto_gaussians.png", "max error against the gaussians clipped to the box", "max |exp(-T) - exp(-T_analytic)|", "error_vs_analytic_max"),
+                (
+                    "opv_pareto.png",
+                    "max scheme error (transmittance, vs the grid medium)",
+                    "max |exp(-T) - exp(-T_exact)|",
+                    "error_max",
+                ),
+                (
+                    "opv_pareto_gaussians.png",
+                    "max error against the gaussians clipped to the box",
+                    "max |exp(-T) - exp(-T_analytic)|",
+                    "error_vs_analytic_max",
+                ),
             ];
             for (file, what, ylabel, key) in plots {
                 let series = group(records, by_scheme, |r| (num(r, "time_ms"), num(r, key)));
-                loglog(&dir.join(file), &format!("Opacity propagation: GPU time vs {what}"), "propagation time (ms, all lights)", ylabel, &series)?;
+                loglog(
+                    &dir.join(file),
+                    &format!("Opacity propagation: GPU time vs {what}"),
+                    "propagation time (ms, all lights)",
+                    ylabel,
+                    &series,
+                )?;
             }
             Ok(())
         }
@@ -130,7 +146,10 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
             "relative RMSE vs reference",
             &group(
                 records,
-                |r| (text(r, "suite") == "march").then(|| format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy"))),
+                |r| {
+                    (text(r, "suite") == "march")
+                        .then(|| format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy")))
+                },
                 |r| (num(r, "samples"), num(r, "error_mean")),
             ),
         ),
@@ -147,7 +166,11 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
                 "Sun's F table: F(u, v) relative error on u in [0, 10] (paper's Fig. 6)",
                 "table resolution (entries per axis)",
                 "max relative error of F",
-                &group(records, |r| Some(text(r, "scheme_or_policy")), |r| (num(r, "resolution"), num(r, "f_error_max"))),
+                &group(
+                    records,
+                    |r| Some(text(r, "scheme_or_policy")),
+                    |r| (num(r, "resolution"), num(r, "f_error_max")),
+                ),
             )
         }
         Suite::Scale => {
@@ -158,24 +181,44 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
                 "Injection time vs small particles (radius 0.02-0.06 m in a 4 m box)",
                 "particles",
                 "injection time (ms)",
-                &group(records, |r| is(r, "particles").then(|| format!("{}³", num(r, "resolution"))), |r| (num(r, "particles"), stage(r, "inject"))),
+                &group(
+                    records,
+                    |r| is(r, "particles").then(|| format!("{}³", num(r, "resolution"))),
+                    |r| (num(r, "particles"), stage(r, "inject")),
+                ),
             )?;
             loglog(
                 &dir.join("scale_grid.png"),
                 "Bake time (inject + propagate) vs grid cells, 2 lights",
                 "cells",
                 "bake time (ms)",
-                &group(records, |r| is(r, "grid").then(|| "bake".to_string()), |r| (num(r, "cells"), stage(r, "inject") + stage(r, "propagate"))),
+                &group(
+                    records,
+                    |r| is(r, "grid").then(|| "bake".to_string()),
+                    |r| (num(r, "cells"), stage(r, "inject") + stage(r, "propagate")),
+                ),
             )?;
             loglog(
                 &dir.join("scale_lights.png"),
                 "Propagation time vs lights",
                 "lights",
                 "propagation time (ms)",
-                &group(records, |r| is(r, "lights").then(|| format!("{}³", num(r, "resolution"))), |r| (num(r, "lights"), stage(r, "propagate"))),
+                &group(
+                    records,
+                    |r| is(r, "lights").then(|| format!("{}³", num(r, "resolution"))),
+                    |r| (num(r, "lights"), stage(r, "propagate")),
+                ),
             )?;
-            let mut mem = group(records, |r| is(r, "grid").then(|| "GPU resources, peak".to_string()), |r| (num(r, "cells"), num(r, "gpu_peak_bytes") / 1048576.0));
-            mem.extend(group(records, |r| is(r, "grid").then(|| "process RSS, peak".to_string()), |r| (num(r, "cells"), num(r, "rss_peak_bytes") / 1048576.0)));
+            let mut mem = group(
+                records,
+                |r| is(r, "grid").then(|| "GPU resources, peak".to_string()),
+                |r| (num(r, "cells"), num(r, "gpu_peak_bytes") / 1048576.0),
+            );
+            mem.extend(group(
+                records,
+                |r| is(r, "grid").then(|| "process RSS, peak".to_string()),
+                |r| (num(r, "cells"), num(r, "rss_peak_bytes") / 1048576.0),
+            ));
             loglog(&dir.join("scale_memory.png"), "Peak memory vs grid cells, 2 lights", "cells", "MiB", &mem)
         }
         Suite::Scaling => {
@@ -199,7 +242,8 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
             let mut part: Series = group(
                 records,
                 |r| {
-                    let sweep = text(r, "suite") == "scaling" && num(r, "lights") == 2.0 && num(r, "resolution") == sweep_res;
+                    let sweep =
+                        text(r, "suite") == "scaling" && num(r, "lights") == 2.0 && num(r, "resolution") == sweep_res;
                     sweep.then(|| text(r, "case"))
                 },
                 |r| (num(r, "particles"), num(r, "time_ms")),
@@ -246,7 +290,13 @@ fn frame_times(path: &Path, records: &[Value]) -> Result<(), String> {
         .y_label_area_size(80)
         .build_cartesian_2d(0.0..frames, (1.0..top * 1.5).log_scale())
         .map_err(e)?;
-    chart.configure_mesh().x_desc("frame of the interaction").y_desc("frame wall time (ms)").label_style(("sans-serif", 16)).draw().map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("frame of the interaction")
+        .y_desc("frame wall time (ms)")
+        .label_style(("sans-serif", 16))
+        .draw()
+        .map_err(e)?;
     chart.draw_series(LineSeries::new([(0.0, 100.0), (frames, 100.0)], BLACK.mix(0.5).stroke_width(1))).map_err(e)?;
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();

@@ -139,7 +139,13 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
             out.push(v);
         }
         fit(out, log, &format!("inject_vs_particles_{res}"), "injection time vs particles", &by_count);
-        fit(out, log, &format!("inject_vs_evaluations_{res}"), "injection time vs particle–cell evaluations", &by_evals);
+        fit(
+            out,
+            log,
+            &format!("inject_vs_evaluations_{res}"),
+            "injection time vs particle–cell evaluations",
+            &by_evals,
+        );
     }
 
     // Grids, 2 lights: the sweep is O(N³) per light, so time ∝ cells^1 is the ideal.
@@ -175,7 +181,9 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
         let (r, v) = case(ctx, "lights", &p, w, h)?;
         log(&format!(
             "scale {res}³ {l:>2} lights  propagate {:9.1} ms  march {:.1} ms  GPU peak {:.0} MiB",
-            r.timings_ms.propagate, r.timings_ms.march, mib(&v, "gpu_peak_bytes")
+            r.timings_ms.propagate,
+            r.timings_ms.march,
+            mib(&v, "gpu_peak_bytes")
         ));
         by_lights.push((l as f64, r.timings_ms.propagate));
         out.push(v);
@@ -189,7 +197,10 @@ pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
     for (name, per) in [("one_texture", None), ("one_light_per_texture", Some(1))] {
         let (r, mut v) = case_with(ctx, "opv_textures", &p, w, h, per, InjectPath::Auto)?;
         v["scheme_or_policy"] = json!(name);
-        log(&format!("scale {res}³ 4 lights, OPV {name:22} propagate {:9.1} ms  march {:.1} ms", r.timings_ms.propagate, r.timings_ms.march));
+        log(&format!(
+            "scale {res}³ 4 lights, OPV {name:22} propagate {:9.1} ms  march {:.1} ms",
+            r.timings_ms.propagate, r.timings_ms.march
+        ));
         out.push(v);
     }
 

@@ -43,11 +43,17 @@ impl Context {
     pub fn new(opts: &super::BenchOptions) -> Result<Self, BenchError> {
         if let Some(bad) = opts.scenes.iter().find(|s| !crate::demos::DEMOS.iter().any(|(name, _)| name == s)) {
             let known: Vec<&str> = crate::demos::DEMOS.iter().map(|(name, _)| *name).collect();
-            return Err(BenchError::Option(format!("--scene {bad}: not a bundled demo; use one of {}", known.join(", "))));
+            return Err(BenchError::Option(format!(
+                "--scene {bad}: not a bundled demo; use one of {}",
+                known.join(", ")
+            )));
         }
         if let Some(bad) = opts.schemes.iter().find(|s| !OPV_SCHEMES.iter().any(|&(_, label)| label == s.as_str())) {
             let known: Vec<&str> = OPV_SCHEMES.iter().map(|&(_, label)| label).collect();
-            return Err(BenchError::Option(format!("--scheme {bad}: not a scheme of the propagation suite; use one of {}", known.join(", "))));
+            return Err(BenchError::Option(format!(
+                "--scheme {bad}: not a scheme of the propagation suite; use one of {}",
+                known.join(", ")
+            )));
         }
         Ok(Self {
             gpu: FogPipeline::new(GpuContext::new_headless()?),
@@ -146,7 +152,13 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
     let quick_labels = ["giroud", "sweep8", "sweep8r", "exact"];
     let schemes: Vec<(Scheme, u32, bool)> = OPV_SCHEMES
         .iter()
-        .filter(|(_, label)| if ctx.schemes.is_empty() { !ctx.quick || quick_labels.contains(label) } else { ctx.schemes.iter().any(|s| s == label) })
+        .filter(|(_, label)| {
+            if ctx.schemes.is_empty() {
+                !ctx.quick || quick_labels.contains(label)
+            } else {
+                ctx.schemes.iter().any(|s| s == label)
+            }
+        })
         .map(|&(s, _)| s)
         .collect();
     let max_cells = if ctx.quick { 20_000 } else { 100_000 };
@@ -168,9 +180,14 @@ fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Re
             let medium = GridMedium64::for_project(&project, &ctx.gpu.read_ev()?);
             let exact: Vec<Vec<f64>> =
                 (0..project.lights.len()).map(|l| grid_light_depth_cells(&project, &medium, l, &cells)).collect();
-            let analytic: Vec<Vec<f64>> = (0..project.lights.len()).map(|l| clipped_optical_depth_cells(&project, l, &cells)).collect();
-            let resolution =
-                exact.iter().zip(&analytic).enumerate().map(|(l, (g, a))| depth_error(l, g, a).transmittance_max_abs_error).fold(0.0f64, f64::max);
+            let analytic: Vec<Vec<f64>> =
+                (0..project.lights.len()).map(|l| clipped_optical_depth_cells(&project, l, &cells)).collect();
+            let resolution = exact
+                .iter()
+                .zip(&analytic)
+                .enumerate()
+                .map(|(l, (g, a))| depth_error(l, g, a).transmittance_max_abs_error)
+                .fold(0.0f64, f64::max);
             for &(scheme, stride, refine) in &schemes {
                 if scheme == Scheme::Analytic {
                     if let Some(what) = crate::gpu::analytic_unsupported(&project) {
@@ -234,7 +251,13 @@ fn median_propagation(ctx: &mut Context, project: &Project) -> Result<(FrameRepo
 fn march(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let scenes: &[&str] = if ctx.quick { &["cornell"] } else { &["cornell", "cloud"] };
     let (res, width) = if ctx.quick { (32, 64) } else { (64, 128) };
-    let pick = |v: &[f32]| -> Vec<f32> { if ctx.quick { vec![v[0], v[2], v[4]] } else { v.to_vec() } };
+    let pick = |v: &[f32]| -> Vec<f32> {
+        if ctx.quick {
+            vec![v[0], v[2], v[4]]
+        } else {
+            v.to_vec()
+        }
+    };
     let fixed = pick(&[2.0, 1.0, 0.5, 0.25, 0.125]);
     let two_level = pick(&[6.0, 12.0, 24.0, 48.0, 96.0]);
     let adaptive = pick(&[0.4, 0.2, 0.1, 0.05, 0.025]);
@@ -352,7 +375,9 @@ fn particle_scene(count: usize, lights: usize, res: u32) -> Project {
     for n in 0..count {
         let (i, j, k) = (n % side, (n / side) % side, n / (side * side));
         let cell = 1.4 / side as f32;
-        let c = Vec3::new(i as f32, j as f32, k as f32) * cell - 0.7 + cell * 0.5 + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * cell * 0.5;
+        let c = Vec3::new(i as f32, j as f32, k as f32) * cell - 0.7
+            + cell * 0.5
+            + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * cell * 0.5;
         p.particles.push(Particle::new(c, radius, 3.0));
     }
     p.lights = (0..lights)
@@ -375,7 +400,12 @@ fn total_ms(r: &FrameReport) -> f64 {
 }
 
 /// One dynamic (everything) and one static (camera moved) update of `p`.
-fn dynamic_and_static(ctx: &mut Context, p: &Project, w: u32, h: u32) -> Result<(FrameReport, FrameReport), BenchError> {
+fn dynamic_and_static(
+    ctx: &mut Context,
+    p: &Project,
+    w: u32,
+    h: u32,
+) -> Result<(FrameReport, FrameReport), BenchError> {
     let dynamic = ctx.full(p, w, h)?;
     let mut moved = p.clone();
     moved.camera.position.x += 0.05;
@@ -385,7 +415,8 @@ fn dynamic_and_static(ctx: &mut Context, p: &Project, w: u32, h: u32) -> Result<
 
 /// Least-squares slope of log(y) against log(x).
 pub(super) fn loglog_slope(points: &[(f64, f64)]) -> f64 {
-    let pts: Vec<(f64, f64)> = points.iter().filter(|(x, y)| *x > 0.0 && *y > 0.0).map(|(x, y)| (x.ln(), y.ln())).collect();
+    let pts: Vec<(f64, f64)> =
+        points.iter().filter(|(x, y)| *x > 0.0 && *y > 0.0).map(|(x, y)| (x.ln(), y.ln())).collect();
     let n = pts.len() as f64;
     if n < 2.0 {
         return f64::NAN;
@@ -401,18 +432,19 @@ fn scaling(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
     let (w, h) = if ctx.quick { (64, 36) } else { (128, 72) };
     let resolutions: &[u32] = if ctx.quick { &[16, 32, 64] } else { &[16, 32, 64, 128] };
     let light_counts: &[usize] = if ctx.quick { &[1, 4] } else { &[1, 2, 4, 8, 16] };
-    let record = |out: &mut Vec<Value>, case: &str, res: u32, lights: usize, particles: usize, r: &FrameReport, extra: Value| {
-        let mut v = json!({
-            "suite": "scaling", "case": case, "resolution": res, "lights": lights, "particles": particles,
-            "time_ms": total_ms(r), "stage_ms": stage_json(r),
-            "samples": r.counters.samples_marched, "cells_injected": r.counters.cells_injected,
-            "lights_propagated": r.counters.lights_propagated,
-        });
-        if let (Some(o), Value::Object(e)) = (v.as_object_mut(), extra) {
-            o.extend(e);
-        }
-        out.push(v);
-    };
+    let record =
+        |out: &mut Vec<Value>, case: &str, res: u32, lights: usize, particles: usize, r: &FrameReport, extra: Value| {
+            let mut v = json!({
+                "suite": "scaling", "case": case, "resolution": res, "lights": lights, "particles": particles,
+                "time_ms": total_ms(r), "stage_ms": stage_json(r),
+                "samples": r.counters.samples_marched, "cells_injected": r.counters.cells_injected,
+                "lights_propagated": r.counters.lights_propagated,
+            });
+            if let (Some(o), Value::Object(e)) = (v.as_object_mut(), extra) {
+                o.extend(e);
+            }
+            out.push(v);
+        };
     let mut by_lights: Vec<(usize, Vec<(f64, f64)>)> = Vec::new();
     for &lights in light_counts {
         let mut points = Vec::new();
@@ -435,7 +467,9 @@ fn scaling(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
     }
     for (lights, points) in &by_lights {
         let slope = loglog_slope(points);
-        log(&format!("scaling fit: bake time ∝ cells^{slope:.2} with {lights} lights (O(N³) per light means exponent 1)"));
+        log(&format!(
+            "scaling fit: bake time ∝ cells^{slope:.2} with {lights} lights (O(N³) per light means exponent 1)"
+        ));
         out.push(json!({"suite": "scaling_fit", "case": "bake_vs_cells", "lights": lights, "exponent": slope}));
     }
 
@@ -447,7 +481,9 @@ fn scaling(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -
         let (d, s) = dynamic_and_static(ctx, &p, w, h)?;
         log(&format!(
             "scaling {res}³ {count:>6} particles  dynamic {:9.1} ms (inject {:.2})  static {:7.1} ms",
-            total_ms(&d), d.timings_ms.inject, total_ms(&s)
+            total_ms(&d),
+            d.timings_ms.inject,
+            total_ms(&s)
         ));
         record(out, "dynamic", res, 2, count, &d, json!({}));
         record(out, "static", res, 2, count, &s, json!({}));
@@ -539,7 +575,11 @@ fn kind_variants(res: u32) -> Vec<(&'static str, Project)> {
     out.push(("noise", p));
     let mut p = base;
     p.surfaces.ground = Some(Ground { height: -1.0, specular: 0.3, ..Default::default() });
-    p.surfaces.boxes.push(SurfaceBox { min: Vec3::new(-0.3, -1.0, -0.9), max: Vec3::new(0.3, -0.5, -0.4), ..Default::default() });
+    p.surfaces.boxes.push(SurfaceBox {
+        min: Vec3::new(-0.3, -1.0, -0.9),
+        max: Vec3::new(0.3, -0.5, -0.4),
+        ..Default::default()
+    });
     out.push(("surfaces", p));
     out
 }

@@ -1,13 +1,13 @@
 //! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files.
 
+use super::progress::{check, Bar, Staged};
 use super::{bake, BakeArgs};
 use crate::export::exr::{write_atlas_exr_in_frame, write_render_exr, write_slices_exr};
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use crate::export::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format};
-use crate::export::usd::{asset_path, write_usd, UsdField, UsdOptions};
-use super::progress::{check, Bar, Staged};
-use crate::export::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions};
 use crate::export::light_infos;
+use crate::export::usd::{asset_path, write_usd, UsdField, UsdOptions};
+use crate::export::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -103,14 +103,20 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         && args.usd.is_none()
         && args.ktx2.is_none()
     {
-        return Err("nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices and/or --exr-atlas".into());
+        return Err(
+            "nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices and/or --exr-atlas".into()
+        );
     }
     let frame = args.frame();
     // Refuse what cannot be written before the (long) bake.
     let vdb_path = args.vdb.clone().or_else(|| args.usd.as_ref().map(|u| u.with_extension("vdb")));
     if let Some(usd) = &args.usd {
         if usd.extension().and_then(|e| e.to_str()) != Some("usda") {
-            return Err(format!("--usd {}: Fogsmith writes text USD; name the file with the .usda extension", usd.display()).into());
+            return Err(format!(
+                "--usd {}: Fogsmith writes text USD; name the file with the .usda extension",
+                usd.display()
+            )
+            .into());
         }
         if frame.handedness == Handedness::Left {
             return Err(format!(
@@ -155,7 +161,8 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             ..VdbOptions::default()
         };
         check()?;
-        let stats = staged.write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| bar.stage("write VDB", f as f64)))?;
+        let stats = staged
+            .write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| bar.stage("write VDB", f as f64)))?;
         fields = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
         let grids_json: Vec<_> = stats
             .grids
@@ -167,7 +174,12 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             serde_json::json!({"path": path, "bytes": stats.bytes, "grids": grids_json, "ms": t.elapsed().as_secs_f64() * 1e3}),
         );
         if !args.json {
-            notes.push(format!("wrote {} ({} bytes, {} grids, {frame})", path.display(), stats.bytes, stats.grids.len()));
+            notes.push(format!(
+                "wrote {} ({} bytes, {} grids, {frame})",
+                path.display(),
+                stats.bytes,
+                stats.grids.len()
+            ));
         }
     }
     if let (Some(path), Some(vdb)) = (&args.usd, &vdb_path) {
@@ -182,7 +194,12 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         staged.write(path, |p| write_usd(p, project, &opts))?;
         summary.insert("usd".into(), serde_json::json!({"path": path, "vdb": opts.vdb_asset, "fields": fields.len(), "frame": frame.to_string()}));
         if !args.json {
-            notes.push(format!("wrote {} (volume from {}, {} lights, {frame})", path.display(), opts.vdb_asset, project.lights.iter().filter(|l| !l.hidden).count()));
+            notes.push(format!(
+                "wrote {} (volume from {}, {} lights, {frame})",
+                path.display(),
+                opts.vdb_asset,
+                project.lights.iter().filter(|l| !l.hidden).count()
+            ));
         }
     }
     if let Some(path) = &args.ktx2 {
@@ -190,20 +207,33 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         let info = staged.write(path, |p| write_ktx2(p, &ev, args.ktx2_format))?;
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let snippet_path = path.with_extension("fogvolume.ron");
-        staged.write(&snippet_path, |p| crate::export::write_text(p, &fog_volume_snippet(&ev, &project.medium, &info, &name)))?;
+        staged.write(&snippet_path, |p| {
+            crate::export::write_text(p, &fog_volume_snippet(&ev, &project.medium, &info, &name))
+        })?;
         summary.insert(
             "ktx2".into(),
             serde_json::json!({"path": path, "bytes": info.bytes, "scale": info.scale, "snippet": snippet_path}),
         );
         if !args.json {
-            notes.push(format!("wrote {} ({} bytes, texel × {} = extinction 1/m) and {}", path.display(), info.bytes, info.scale, snippet_path.display()));
+            notes.push(format!(
+                "wrote {} ({} bytes, texel × {} = extinction 1/m) and {}",
+                path.display(),
+                info.bytes,
+                info.scale,
+                snippet_path.display()
+            ));
         }
     }
     if let Some(path) = &args.exr_render {
         let image = baked.pipeline.read_image()?;
         check()?;
-        staged.write(path, |p| write_render_exr(p, image.width as usize, image.height as usize, &image.rgba, args.exr_half))?;
-        summary.insert("exr_render".into(), serde_json::json!({"path": path, "width": image.width, "height": image.height}));
+        staged.write(path, |p| {
+            write_render_exr(p, image.width as usize, image.height as usize, &image.rgba, args.exr_half)
+        })?;
+        summary.insert(
+            "exr_render".into(),
+            serde_json::json!({"path": path, "width": image.width, "height": image.height}),
+        );
         if !args.json {
             notes.push(format!("wrote {} ({}×{} linear RGBA)", path.display(), image.width, image.height));
         }
@@ -216,7 +246,12 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         staged.write(path, |p| write_slices_exr(p, &layers))?;
         summary.insert("exr_slices".into(), serde_json::json!({"path": path, "quantities": layers.len()}));
         if !args.json {
-            notes.push(format!("wrote {} ({} quantities × {} z-slices)", path.display(), layers.len(), project.grid.resolution.z));
+            notes.push(format!(
+                "wrote {} ({} quantities × {} z-slices)",
+                path.display(),
+                layers.len(),
+                project.grid.resolution.z
+            ));
         }
     }
     if let Some(path) = &args.exr_atlas {

@@ -172,7 +172,12 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     if let Some(tolerance) = args.sweep_tolerance {
         let (range, default) = (crate::scene::SWEEP_TOLERANCE_RANGE, crate::scene::DEFAULT_SWEEP_TOLERANCE);
         if !range.contains(&tolerance) {
-            return Err(format!("--sweep-tolerance must be within {:e}..={} (default {default:e}), got {tolerance}", range.start(), range.end()).into());
+            return Err(format!(
+                "--sweep-tolerance must be within {:e}..={} (default {default:e}), got {tolerance}",
+                range.start(),
+                range.end()
+            )
+            .into());
         }
         project.propagation.sweep_tolerance = tolerance;
     }
@@ -196,7 +201,9 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     let layer = project.load_base_volume(Some(&args.project))?;
     pipeline.set_base_layer(layer);
     let mut bar = progress::Bar::new(args.quiet);
-    let report = match pipeline.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
+    let report = match pipeline
+        .update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p))
+    {
         Err(crate::gpu::GpuError::Cancelled) => return Err(progress::Cancelled.into()),
         other => other?,
     };
@@ -247,7 +254,9 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
         Some(Command::Info { project, json }) => info(project.as_deref(), json),
-        Some(Command::Verify { project, scheme, width, cells, json, quiet }) => verify::run(&project, scheme, width, cells, json, quiet),
+        Some(Command::Verify { project, scheme, width, cells, json, quiet }) => {
+            verify::run(&project, scheme, width, cells, json, quiet)
+        }
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
         Some(Command::Stress { quick, json, quiet }) => stress::run(quick, json, quiet),
@@ -256,21 +265,28 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
                 return Err(format!("--resolution must be within 1..=1024, got {bad}").into());
             }
             use crate::bench::Suite;
-            let suites = if suite.is_empty() { vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling, Suite::Kinds] } else { suite };
+            let suites = if suite.is_empty() {
+                vec![Suite::Opv, Suite::March, Suite::Sun, Suite::Scaling, Suite::Kinds]
+            } else {
+                suite
+            };
             let started = std::time::Instant::now();
             let mut bar = progress::Bar::new(quiet);
             let mut lines = 0usize;
-            let options = crate::bench::BenchOptions { quick, out: out.clone(), suites, resolutions: resolution, scenes: scene, schemes: scheme };
+            let options = crate::bench::BenchOptions {
+                quick,
+                out: out.clone(),
+                suites,
+                resolutions: resolution,
+                scenes: scene,
+                schemes: scheme,
+            };
             let records = crate::bench::run(&options, &mut |line| {
                 // The suites do not know their length ahead: the bar counts measurements.
                 lines += 1;
                 let name = line.split_whitespace().next().unwrap_or("bench").to_string();
                 bar.stage(&format!("bench {name}"), 1.0 - 1.0 / (1.0 + lines as f64 / 20.0));
-                bar.suspend(|| if json {
-                    eprintln!("{line}")
-                } else {
-                    println!("{line}")
-                });
+                bar.suspend(|| if json { eprintln!("{line}") } else { println!("{line}") });
             })?;
             bar.finish();
             if json {
@@ -296,7 +312,15 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
     // The GPU memory of a freshly created pipeline, or of one that baked `project`.
     let baked = match project {
         Some(path) => {
-            let args = BakeArgs { project: path.to_path_buf(), width: None, height: None, scheme: None, sweep_refine: None, sweep_tolerance: None, quiet: true };
+            let args = BakeArgs {
+                project: path.to_path_buf(),
+                width: None,
+                height: None,
+                scheme: None,
+                sweep_refine: None,
+                sweep_tolerance: None,
+                quiet: true,
+            };
             let b = bake(&args)?;
             Some((b.pipeline.memory_bytes(), b.pipeline.peak_memory_bytes()))
         }
@@ -342,7 +366,10 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
         println!("max storage buffer binding: {} bytes", l.max_storage_buffer_binding_size);
         println!("max buffer: {} bytes", l.max_buffer_size);
         println!("max storage buffers per shader stage: {}", l.max_storage_buffers_per_shader_stage);
-        println!("max storage / sampled textures per shader stage: {} / {}", l.max_storage_textures_per_shader_stage, l.max_sampled_textures_per_shader_stage);
+        println!(
+            "max storage / sampled textures per shader stage: {} / {}",
+            l.max_storage_textures_per_shader_stage, l.max_sampled_textures_per_shader_stage
+        );
         match device_memory {
             Some(m) => println!("device memory: {} (host RAM of a CPU adapter)", human(m)),
             None => println!("device memory: not reported by the driver"),

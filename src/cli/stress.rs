@@ -14,7 +14,10 @@ pub fn run(quick: bool, json: bool, quiet: bool) -> Result<(), Box<dyn std::erro
     cases.extend((0..if quick { 40 } else { 400 }).map(random_case));
     if !json {
         println!("stress matrix ({} cases{}) on {adapter}", cases.len(), if quick { ", quick" } else { "" });
-        println!("{:<48} {:<7} {:>10} {:>8} {:>6} {:>10}  result", "case", "scheme", "max error", "bound", "NaN", "time ms");
+        println!(
+            "{:<48} {:<7} {:>10} {:>8} {:>6} {:>10}  result",
+            "case", "scheme", "max error", "bound", "NaN", "time ms"
+        );
     }
     let mut bar = super::progress::Bar::new(quiet);
     let mut done = 0;

@@ -7,7 +7,14 @@ use crate::scene::{load_project, Scheme};
 use std::path::Path;
 use std::time::Instant;
 
-pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, json: bool, quiet: bool) -> Result<(), Box<dyn std::error::Error>> {
+pub fn run(
+    path: &Path,
+    scheme: Option<Scheme>,
+    width: u32,
+    max_cells: usize,
+    json: bool,
+    quiet: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
     let project = load_project(path)?;
     if width == 0 || width > 4096 {
         return Err(format!("--width must be within 1..=4096, got {width}").into());
@@ -27,10 +34,11 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
     let exact = Medium64::for_project(&project, layer.as_ref());
     gpu.set_base_layer(layer);
     let mut bar = super::progress::Bar::new(quiet);
-    let report = match gpu.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
-        Err(crate::gpu::GpuError::Cancelled) => return Err(super::progress::Cancelled.into()),
-        other => other?,
-    };
+    let report =
+        match gpu.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
+            Err(crate::gpu::GpuError::Cancelled) => return Err(super::progress::Cancelled.into()),
+            other => other?,
+        };
     bar.stage("exact reference", 0.0);
 
     let started = Instant::now();
@@ -105,7 +113,10 @@ pub fn run(path: &Path, scheme: Option<Scheme>, width: u32, max_cells: usize, js
         }
         println!("  scheme: the OPV against the line integral through the grid's trilinear medium (base fog outside the box)");
         println!("  resolution: that grid medium against the analytic gaussians (and base volume) clipped to the box");
-        println!("image {width}×{height}: relative RMSE {:.3e}, max abs error {:.3e}", img_err.rel_rmse, img_err.max_abs_error);
+        println!(
+            "image {width}×{height}: relative RMSE {:.3e}, max abs error {:.3e}",
+            img_err.rel_rmse, img_err.max_abs_error
+        );
     }
     Ok(())
 }

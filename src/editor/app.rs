@@ -67,7 +67,9 @@ impl StartProject {
     /// the error is shown in the window.
     pub fn resolve(path: Option<PathBuf>) -> Result<Self, EditorError> {
         match path {
-            None => Ok(Self { project: super::demo_project()?, path: None, name: super::DEMO_NAME.into(), error: None }),
+            None => {
+                Ok(Self { project: super::demo_project()?, path: None, name: super::DEMO_NAME.into(), error: None })
+            }
             Some(path) => match load_project(&path) {
                 Ok(project) => Ok(Self { project, path: Some(path), name: String::new(), error: None }),
                 Err(e) => Ok(Self {
@@ -262,7 +264,8 @@ impl GpuView {
         }
         self.converged = None;
         let project = session.project();
-        let request = FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
+        let request =
+            FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
         let started = Instant::now();
         let result = self.pipeline.advance(project, &request, budget);
         self.update_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -357,18 +360,44 @@ impl FrameClock {
 pub(crate) enum Gesture {
     Orbit,
     Pan,
-    Box { start: egui::Pos2 },
+    Box {
+        start: egui::Pos2,
+    },
     /// `start`: where the drag began; `applied`: the displacement already applied.
-    Move { tag: u64, depth: f32, start: egui::Pos2, applied: glam::Vec3 },
-    MoveLight { tag: u64, light: usize, depth: f32, start: egui::Pos2, applied: glam::Vec3 },
+    Move {
+        tag: u64,
+        depth: f32,
+        start: egui::Pos2,
+        applied: glam::Vec3,
+    },
+    MoveLight {
+        tag: u64,
+        light: usize,
+        depth: f32,
+        start: egui::Pos2,
+        applied: glam::Vec3,
+    },
     Paint(Stroke),
     SlicePaint(Stroke),
-    Erase { tag: u64 },
-    ScaleDrag { tag: u64, targets: std::collections::BTreeSet<usize>, last_x: f32 },
+    Erase {
+        tag: u64,
+    },
+    ScaleDrag {
+        tag: u64,
+        targets: std::collections::BTreeSet<usize>,
+        last_x: f32,
+    },
     /// A drag on a move-gizmo handle: `center` where the gizmo stood and `grab` the point the
     /// handle was grabbed at, both when the drag began; `applied`: the displacement applied;
     /// `snap`: whether it was snapped to the grid cell (Ctrl held).
-    Gizmo { tag: u64, handle: super::gizmo::Handle, center: glam::Vec3, grab: glam::Vec3, applied: glam::Vec3, snap: bool },
+    Gizmo {
+        tag: u64,
+        handle: super::gizmo::Handle,
+        center: glam::Vec3,
+        grab: glam::Vec3,
+        applied: glam::Vec3,
+        snap: bool,
+    },
     /// A cancelled drag: the rest of it, until the buttons go up, does nothing (no orbit).
     Cancelled,
 }
@@ -506,10 +535,7 @@ impl EditorApp {
         };
         let (jobs_tx, jobs_rx) = mpsc::channel();
         let file_dialogs = options.file_dialogs.clone().unwrap_or_else(FileDialogs::detect);
-        let dock = persisted
-            .dock
-            .filter(|d| d.iter_all_tabs().next().is_some())
-            .unwrap_or_else(default_layout);
+        let dock = persisted.dock.filter(|d| d.iter_all_tabs().next().is_some()).unwrap_or_else(default_layout);
         let mut state = EditorState {
             session: Session::new(start.project, start.path, &start.name),
             epoch: 1,
@@ -1028,7 +1054,13 @@ impl EditorState {
 
     /// File → Import VDB…: asks for the file (as Open does), then shows the grid picker.
     pub(crate) fn import_vdb_dialog(&mut self) {
-        let spec = DialogSpec { title: "Import VDB", filter: "OpenVDB", extension: "vdb", file_name: None, directory: self.dialog_directory() };
+        let spec = DialogSpec {
+            title: "Import VDB",
+            filter: "OpenVDB",
+            extension: "vdb",
+            file_name: None,
+            directory: self.dialog_directory(),
+        };
         self.choose_file(Pick::ImportVdb, spec);
     }
 
@@ -1081,9 +1113,16 @@ impl EditorState {
             Export::Vdb => ("OpenVDB", "vdb"),
             Export::ExrSlices => ("OpenEXR", "exr"),
         };
-        let stem = Path::new(self.session.name()).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let stem =
+            Path::new(self.session.name()).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let name = format!("{}.{ext}", stem.split(' ').next().unwrap_or("fog"));
-        let spec = DialogSpec { title: "Export", filter, extension: ext, file_name: Some(name), directory: self.dialog_directory() };
+        let spec = DialogSpec {
+            title: "Export",
+            filter,
+            extension: ext,
+            file_name: Some(name),
+            directory: self.dialog_directory(),
+        };
         self.choose_file(Pick::Export(kind), spec);
     }
 
@@ -1133,7 +1172,9 @@ impl EditorState {
                     let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, *l)).collect();
                     let grids = grids_from_volumes(&ev, &lights, GridSelection::default());
                     staged
-                        .write(&p, |temp| write_vdb_with_progress(temp, &grids, &VdbOptions::default(), &mut |f| set(f)))
+                        .write(&p, |temp| {
+                            write_vdb_with_progress(temp, &grids, &VdbOptions::default(), &mut |f| set(f))
+                        })
                         .map(|stats| format!("{} grids, {} bytes", stats.grids.len(), stats.bytes))
                 }
                 Export::ExrSlices => {
@@ -1171,12 +1212,18 @@ impl EditorState {
                 self.jobs.export_job = None;
                 match result {
                     Ok(summary) => self.info(format!("Exported {}: {summary}", path.display())),
-                    Err(e) if e == EXPORT_CANCELLED => self.info(format!("Export cancelled; {} is unchanged", path.display())),
+                    Err(e) if e == EXPORT_CANCELLED => {
+                        self.info(format!("Export cancelled; {} is unchanged", path.display()))
+                    }
                     Err(e) => self.error(format!("Export to {} failed: {e}", path.display())),
                 }
             }
-            JobResult::Exported { path, result: Ok(summary) } => self.info(format!("Exported {}: {summary}", path.display())),
-            JobResult::Exported { path, result: Err(e) } => self.error(format!("Export to {} failed: {e}", path.display())),
+            JobResult::Exported { path, result: Ok(summary) } => {
+                self.info(format!("Exported {}: {summary}", path.display()))
+            }
+            JobResult::Exported { path, result: Err(e) } => {
+                self.error(format!("Export to {} failed: {e}", path.display()))
+            }
             JobResult::Loaded { path, result: Ok(project) } => {
                 self.replace_project(*project, Some(path.clone()), "");
                 self.info(format!("Opened {}", path.display()));
@@ -1255,7 +1302,10 @@ impl EditorState {
         let tx = self.jobs.tx.clone();
         std::thread::spawn(move || {
             if let Err(e) = crate::scene::recovery::write_recovery(&dir, original.as_deref(), &project) {
-                let _ = tx.send(JobResult::Exported { path: dir, result: Err(format!("could not write the recovery file: {e}")) });
+                let _ = tx.send(JobResult::Exported {
+                    path: dir,
+                    result: Err(format!("could not write the recovery file: {e}")),
+                });
             }
         });
     }
@@ -1269,9 +1319,18 @@ impl EditorState {
             ui.label("Fogsmith did not exit cleanly last time. This work was not saved:");
             for (i, (_, rec)) in self.recovery.found.iter().enumerate() {
                 ui.horizontal(|ui| {
-                    let name = rec.original.as_ref().map_or("untitled project".to_string(), |p| p.display().to_string());
-                    ui.label(format!("{name} ({} particles, {} lights)", rec.project.particles.len(), rec.project.lights.len()));
-                    if ui.button("Restore").on_hover_text("Open this work (unsaved) in place of the current project").clicked() {
+                    let name =
+                        rec.original.as_ref().map_or("untitled project".to_string(), |p| p.display().to_string());
+                    ui.label(format!(
+                        "{name} ({} particles, {} lights)",
+                        rec.project.particles.len(),
+                        rec.project.lights.len()
+                    ));
+                    if ui
+                        .button("Restore")
+                        .on_hover_text("Open this work (unsaved) in place of the current project")
+                        .clicked()
+                    {
                         action = Some((i, true));
                     }
                     if ui.button("Discard").on_hover_text("Delete the recovery file").clicked() {
@@ -1298,7 +1357,9 @@ impl EditorState {
         while let Ok(result) = self.jobs.rx.try_recv() {
             self.finish_job(result);
         }
-        let dropped: Vec<PathBuf> = ctx.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).filter(|p| !p.as_os_str().is_empty()).collect());
+        let dropped: Vec<PathBuf> = ctx.input(|i| {
+            i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).filter(|p| !p.as_os_str().is_empty()).collect()
+        });
         if let Some(path) = dropped.into_iter().next() {
             let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
             if ext == "ron" {
@@ -1517,7 +1578,11 @@ impl EditorState {
             Command::Grab | Command::ScaleSelection => {
                 let scale = command == Command::ScaleSelection;
                 let start = self.ctx.input(|i| i.pointer.hover_pos());
-                let applicable = if scale { !self.session.selection.particles.is_empty() } else { !self.session.selection.is_empty() };
+                let applicable = if scale {
+                    !self.session.selection.particles.is_empty()
+                } else {
+                    !self.session.selection.is_empty()
+                };
                 if let (Some(start), true, true) = (start, applicable, self.view.modal.is_none()) {
                     self.start_modal(scale, start);
                 }
@@ -1535,9 +1600,11 @@ impl EditorState {
             Command::ZoomIn => zoom(self, 0.85),
             Command::ZoomOut => zoom(self, 1.0 / 0.85),
             Command::SliceNext | Command::SlicePrevious => {
-                let max = self.session.project().grid.resolution.to_array()[self.view.slices.axis.index()].saturating_sub(1);
+                let max =
+                    self.session.project().grid.resolution.to_array()[self.view.slices.axis.index()].saturating_sub(1);
                 let i = self.view.slices.index.min(max);
-                self.view.slices.index = if command == Command::SliceNext { (i + 1).min(max) } else { i.saturating_sub(1) };
+                self.view.slices.index =
+                    if command == Command::SliceNext { (i + 1).min(max) } else { i.saturating_sub(1) };
             }
             Command::Shortcuts => self.view.show_shortcuts = !self.view.show_shortcuts,
         }
@@ -1598,7 +1665,14 @@ impl EditorState {
                     .iter()
                     .filter_map(|&i| p.particles.get(i))
                     .map(|q| (q.center - c).length() + q.radius * 2.0)
-                    .chain(self.session.selection.lights.iter().filter_map(|&i| p.lights.get(i)).map(|l| (l.position - c).length() + 0.1))
+                    .chain(
+                        self.session
+                            .selection
+                            .lights
+                            .iter()
+                            .filter_map(|&i| p.lights.get(i))
+                            .map(|l| (l.position - c).length() + 0.1),
+                    )
                     .fold(0.1f32, f32::max);
                 (c, r)
             }
@@ -1703,7 +1777,9 @@ impl EditorState {
         }
         ui.separator();
         let has_selection = !self.session.selection.is_empty();
-        for (c, enabled) in [(Command::SelectAll, true), (Command::Duplicate, has_selection), (Command::Delete, has_selection)] {
+        for (c, enabled) in
+            [(Command::SelectAll, true), (Command::Duplicate, has_selection), (Command::Delete, has_selection)]
+        {
             if c.menu_button(ui, enabled) {
                 self.run(c);
             }
@@ -1725,10 +1801,16 @@ impl EditorState {
             if let Some(job) = &self.jobs.export_job {
                 let f = f32::from_bits(job.fraction.load(Ordering::Relaxed));
                 let name = job.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-                ui.add(egui::ProgressBar::new(f).desired_width(160.0).show_percentage().text(format!("exporting {name}")));
+                ui.add(
+                    egui::ProgressBar::new(f).desired_width(160.0).show_percentage().text(format!("exporting {name}")),
+                );
                 if job.cancel.load(Ordering::Relaxed) {
                     ui.label("cancelling…");
-                } else if ui.button("Cancel").on_hover_text(format!("Stop the export; {} stays as it was", job.path.display())).clicked() {
+                } else if ui
+                    .button("Cancel")
+                    .on_hover_text(format!("Stop the export; {} stays as it was", job.path.display()))
+                    .clicked()
+                {
                     job.cancel.store(true, Ordering::Relaxed);
                 }
                 ui.separator();
@@ -1736,7 +1818,10 @@ impl EditorState {
             }
             if let Some((_, path)) = &self.jobs.pending_export {
                 let path = path.clone();
-                ui.label(format!("{} waits for the bake", path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()));
+                ui.label(format!(
+                    "{} waits for the bake",
+                    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+                ));
                 if ui.button("Cancel").on_hover_text("Do not export").clicked() {
                     self.jobs.pending_export = None;
                     self.info(format!("Export cancelled; {} is unchanged", path.display()));
@@ -1746,8 +1831,12 @@ impl EditorState {
             if let Some(gpu) = self.gpu.as_ref().filter(|g| g.refining()) {
                 let p = gpu.progress;
                 let stage = crate::cli::progress::stage_name(p.stage);
-                ui.add(egui::ProgressBar::new(p.stage_fraction as f32).desired_width(120.0).text(format!("preview: {stage}")))
-                    .on_hover_text("The preview refines over the next frames: optical depths, then full resolution");
+                ui.add(
+                    egui::ProgressBar::new(p.stage_fraction as f32)
+                        .desired_width(120.0)
+                        .text(format!("preview: {stage}")),
+                )
+                .on_hover_text("The preview refines over the next frames: optical depths, then full resolution");
                 ui.separator();
             }
             let p = self.session.project();
@@ -1828,20 +1917,23 @@ impl EditorState {
             ctx.request_repaint_after(std::time::Duration::from_millis(250));
         }
         let mut dismiss = None;
-        egui::Area::new(Id::new("toasts")).order(egui::Order::Foreground).anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0]).show(ctx, |ui| {
-            for (i, t) in self.toasts.iter().enumerate() {
-                egui::Frame::popup(ui.style()).show(ui, |ui| {
-                    ui.set_max_width(420.0);
-                    ui.horizontal(|ui| {
-                        let text = egui::RichText::new(&t.text);
-                        ui.label(if t.error { text.color(ui.visuals().error_fg_color) } else { text });
-                        if ui.small_button("✕").on_hover_text("Dismiss").clicked() {
-                            dismiss = Some(i);
-                        }
+        egui::Area::new(Id::new("toasts"))
+            .order(egui::Order::Foreground)
+            .anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0])
+            .show(ctx, |ui| {
+                for (i, t) in self.toasts.iter().enumerate() {
+                    egui::Frame::popup(ui.style()).show(ui, |ui| {
+                        ui.set_max_width(420.0);
+                        ui.horizontal(|ui| {
+                            let text = egui::RichText::new(&t.text);
+                            ui.label(if t.error { text.color(ui.visuals().error_fg_color) } else { text });
+                            if ui.small_button("✕").on_hover_text("Dismiss").clicked() {
+                                dismiss = Some(i);
+                            }
+                        });
                     });
-                });
-            }
-        });
+                }
+            });
         if let Some(i) = dismiss {
             self.toasts.remove(i);
         }

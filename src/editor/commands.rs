@@ -162,7 +162,12 @@ impl Command {
             Command::SliceNext => vec![key(Key::CloseBracket), key(Key::PageUp)],
             Command::SlicePrevious => vec![key(Key::OpenBracket), key(Key::PageDown)],
             Command::Shortcuts => vec![key(Key::F1)],
-            Command::ImportVdb | Command::ExportVdb | Command::ExportExr | Command::Revert | Command::Quit | Command::FitGrid => vec![],
+            Command::ImportVdb
+            | Command::ExportVdb
+            | Command::ExportExr
+            | Command::Revert
+            | Command::Quit
+            | Command::FitGrid => vec![],
         }
     }
 
@@ -203,7 +208,10 @@ impl Command {
         let command_held = ctx.input(|i| i.modifiers.command);
         let mut out = Vec::new();
         for (shortcut, c) in table {
-            if out.contains(&c) || (typing && !c.works_while_typing()) || (c.needs_pointer_in_viewport() && !pointer_in_viewport) {
+            if out.contains(&c)
+                || (typing && !c.works_while_typing())
+                || (c.needs_pointer_in_viewport() && !pointer_in_viewport)
+            {
                 continue;
             }
             if shortcut.modifiers.is_none() && command_held {

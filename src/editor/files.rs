@@ -108,7 +108,8 @@ mod tests {
     fn the_built_in_dialog_is_chosen_without_a_portal_or_zenity() {
         let none = FileDialogs::detect_with(|_| None);
         assert!(matches!(none, FileDialogs::BuiltIn { .. }), "{none:?}");
-        let bus = FileDialogs::detect_with(|k| (k == "DBUS_SESSION_BUS_ADDRESS").then(|| "unix:path=/run/user/1/bus".into()));
+        let bus =
+            FileDialogs::detect_with(|k| (k == "DBUS_SESSION_BUS_ADDRESS").then(|| "unix:path=/run/user/1/bus".into()));
         if cfg!(all(unix, not(target_os = "macos"))) {
             assert_eq!(bus, FileDialogs::System);
         }

@@ -55,7 +55,9 @@ impl ImportVdb {
                         let text = format!("{} ({})", g.name, g.tree_type);
                         ui.add_enabled_ui(g.importable, |ui| ui.selectable_value(&mut self.choice, i, text))
                             .response
-                            .on_disabled_hover_text("Not a float grid: only float and half-float grids import as density");
+                            .on_disabled_hover_text(
+                                "Not a float grid: only float and half-float grids import as density",
+                            );
                     }
                 });
                 ui.end_row();
@@ -64,7 +66,9 @@ impl ImportVdb {
                     .on_hover_text("Extinction σt per unit of the grid's values");
                 ui.end_row();
             });
-            ui.label("The grid is resampled into the project's grid under the particles; see it in the Slices panel (EV).");
+            ui.label(
+                "The grid is resampled into the project's grid under the particles; see it in the Slices panel (EV).",
+            );
             ui.horizontal(|ui| {
                 if ui.button("Import").clicked() {
                     answer = Some(true);

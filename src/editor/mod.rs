@@ -25,8 +25,8 @@ mod viewport;
 pub use app::{EditorApp, Tab};
 
 use crate::scene::Project;
-use std::path::PathBuf;
 use eframe::egui_wgpu;
+use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The demo project opened by a bare `fogsmith`.
@@ -67,7 +67,8 @@ pub struct EditorOptions {
 
 /// The project a bare `fogsmith` opens.
 pub fn demo_project() -> Result<Project, EditorError> {
-    crate::scene::parse_project(DEMO_PROJECT, std::path::Path::new(DEMO_NAME)).map_err(|e| EditorError::Demo(e.to_string()))
+    crate::scene::parse_project(DEMO_PROJECT, std::path::Path::new(DEMO_NAME))
+        .map_err(|e| EditorError::Demo(e.to_string()))
 }
 
 /// How the editor asks egui-wgpu for its device: the adapter the pipeline would pick
@@ -84,15 +85,16 @@ pub fn wgpu_setup() -> egui_wgpu::WgpuSetup {
         Some("dx12") => wgpu::Backends::DX12,
         _ => wgpu::Backends::PRIMARY | wgpu::Backends::GL,
     };
-    setup.native_adapter_selector = Some(Arc::new(|adapters: &[wgpu::Adapter], surface: Option<&wgpu::Surface<'_>>| {
-        adapters
-            .iter()
-            .filter(|a| a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS))
-            .filter(|a| surface.is_none_or(|s| !s.get_capabilities(a).formats.is_empty()))
-            .max_by_key(|a| crate::gpu::adapter_rank(&a.get_info()))
-            .cloned()
-            .ok_or_else(|| crate::gpu::GpuError::NoAdapter.to_string())
-    }));
+    setup.native_adapter_selector =
+        Some(Arc::new(|adapters: &[wgpu::Adapter], surface: Option<&wgpu::Surface<'_>>| {
+            adapters
+                .iter()
+                .filter(|a| a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS))
+                .filter(|a| surface.is_none_or(|s| !s.get_capabilities(a).formats.is_empty()))
+                .max_by_key(|a| crate::gpu::adapter_rank(&a.get_info()))
+                .cloned()
+                .ok_or_else(|| crate::gpu::GpuError::NoAdapter.to_string())
+        }));
     setup.device_descriptor = Arc::new(|adapter: &wgpu::Adapter| wgpu::DeviceDescriptor {
         label: Some("fogsmith editor"),
         required_features: adapter.features() & crate::gpu::OPTIONAL_FEATURES,

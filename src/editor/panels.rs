@@ -86,7 +86,16 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
     let response = ui.allocate_rect(Rect::from_min_max(avail.min, avail.max), Sense::click_and_drag());
     let painter = ui.painter_at(avail);
     painter.image(tex.id(), img_rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
-    colour_bar(&painter, Rect::from_min_size(Pos2::new(img_rect.max.x + 8.0, img_rect.min.y + 7.0), egui::vec2(14.0, (h - 14.0).max(4.0))), state.view.slices.colormap, &scale, ui);
+    colour_bar(
+        &painter,
+        Rect::from_min_size(
+            Pos2::new(img_rect.max.x + 8.0, img_rect.min.y + 7.0),
+            egui::vec2(14.0, (h - 14.0).max(4.0)),
+        ),
+        state.view.slices.colormap,
+        &scale,
+        ui,
+    );
 
     let hover = response.hover_pos().filter(|p| img_rect.contains(*p));
     let unit = state.view.slices.field.unit();
@@ -95,22 +104,39 @@ pub(crate) fn slices(state: &mut EditorState, ui: &mut Ui) {
         let y = (((p.y - img_rect.min.y) / h * slice.height as f32) as usize).min(slice.height - 1);
         let [i, j, k] = slice.cell(x, y);
         let c = grid.cell_center(i, j, k);
-        format!("cell ({i}, {j}, {k}) · world ({:.3}, {:.3}, {:.3}) m · value {:.5} {unit}", c.x, c.y, c.z, slice.get(x, y))
+        format!(
+            "cell ({i}, {j}, {k}) · world ({:.3}, {:.3}, {:.3}) m · value {:.5} {unit}",
+            c.x,
+            c.y,
+            c.z,
+            slice.get(x, y)
+        )
     });
     // World axes and units on the image, in the plane's axis colour.
     let [across, up, plane] = super::slices::slice_axis_labels(&grid, slice.axis, slice.index);
-    let small = |t: String, c: Color32| egui::Label::new(egui::RichText::new(t).small().color(c).background_color(Color32::from_black_alpha(170)));
+    let small = |t: String, c: Color32| {
+        egui::Label::new(egui::RichText::new(t).small().color(c).background_color(Color32::from_black_alpha(170)))
+    };
     let (ua, va) = slice.axis.image_axes();
     let colour = |a: usize| [Axis::X, Axis::Y, Axis::Z][a].colour();
     let mut corner_label = |at: Pos2, label: egui::Label| {
         let r = Rect::from_min_size(at, egui::vec2(w, 16.0));
-        ui.scope_builder(egui::UiBuilder::new().max_rect(r).layout(egui::Layout::left_to_right(egui::Align::Min)), |ui| ui.add(label));
+        ui.scope_builder(
+            egui::UiBuilder::new().max_rect(r).layout(egui::Layout::left_to_right(egui::Align::Min)),
+            |ui| ui.add(label),
+        );
     };
     corner_label(img_rect.left_bottom() - egui::vec2(-2.0, 16.0), small(across, colour(ua)));
     corner_label(img_rect.left_top() + egui::vec2(2.0, 2.0), small(up, colour(va)));
     corner_label(img_rect.left_top() + egui::vec2(2.0, 18.0), small(plane, slice.axis.colour()));
     let probe = state.view.slice.hover.clone().unwrap_or_else(|| format!("range {lo:.4} … {hi:.4} {unit}"));
-    painter.text(Pos2::new(avail.min.x, img_rect.max.y + 4.0), egui::Align2::LEFT_TOP, probe, egui::FontId::monospace(12.0), ui.visuals().text_color());
+    painter.text(
+        Pos2::new(avail.min.x, img_rect.max.y + 4.0),
+        egui::Align2::LEFT_TOP,
+        probe,
+        egui::FontId::monospace(12.0),
+        ui.visuals().text_color(),
+    );
 
     if state.view.tool == Tool::Paint {
         slice_paint(state, &response, img_rect, slice.axis, slice.index);
@@ -123,7 +149,13 @@ fn slice_paint(state: &mut EditorState, response: &egui::Response, img_rect: Rec
     let to_world = |p: Pos2| {
         let u = ((p.x - img_rect.min.x) / img_rect.width()).clamp(0.0, 1.0);
         let v = 1.0 - ((p.y - img_rect.min.y) / img_rect.height()).clamp(0.0, 1.0);
-        let mut w = grid.cell_center(index.min(grid.resolution.x - 1), index.min(grid.resolution.y - 1), index.min(grid.resolution.z - 1)).to_array();
+        let mut w = grid
+            .cell_center(
+                index.min(grid.resolution.x - 1),
+                index.min(grid.resolution.y - 1),
+                index.min(grid.resolution.z - 1),
+            )
+            .to_array();
         let (min, size) = (grid.min.to_array(), grid.size().to_array());
         w[ua] = min[ua] + u * size[ua];
         w[va] = min[va] + v * size[va];
@@ -165,8 +197,17 @@ fn colour_bar(painter: &egui::Painter, rect: Rect, cmap: Colormap, scale: &Scale
         let y = rect.max.y - t * rect.height();
         let v = scale.value_at(t);
         let text = if v != 0.0 && (v.abs() < 1e-2 || v.abs() >= 1e4) { format!("{v:.1e}") } else { format!("{v:.3}") };
-        painter.line_segment([Pos2::new(rect.max.x, y), Pos2::new(rect.max.x + 4.0, y)], egui::Stroke::new(1.0, ui.visuals().text_color()));
-        painter.text(Pos2::new(rect.max.x + 6.0, y), egui::Align2::LEFT_CENTER, text, egui::FontId::monospace(10.0), ui.visuals().text_color());
+        painter.line_segment(
+            [Pos2::new(rect.max.x, y), Pos2::new(rect.max.x + 4.0, y)],
+            egui::Stroke::new(1.0, ui.visuals().text_color()),
+        );
+        painter.text(
+            Pos2::new(rect.max.x + 6.0, y),
+            egui::Align2::LEFT_CENTER,
+            text,
+            egui::FontId::monospace(10.0),
+            ui.visuals().text_color(),
+        );
     }
 }
 
@@ -290,7 +331,11 @@ fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
     let (name, hidden) = item_name(state.session.project(), hit);
     ui.horizontal(|ui| {
         let mut visible = !hidden;
-        if ui.checkbox(&mut visible, "").on_hover_text("Visible: untick to hide (kept in the file, contributes nothing)").changed() {
+        if ui
+            .checkbox(&mut visible, "")
+            .on_hover_text("Visible: untick to hide (kept in the file, contributes nothing)")
+            .changed()
+        {
             let p = state.session.edit(NEW_STEP);
             match hit {
                 Hit::Particle(i) => {
@@ -333,7 +378,9 @@ fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
                 return;
             }
         }
-        let r = ui.selectable_label(is_selected(state, hit), &name).on_hover_text("Click: select · Ctrl-click: toggle · Shift-click: range · double-click: rename");
+        let r = ui
+            .selectable_label(is_selected(state, hit), &name)
+            .on_hover_text("Click: select · Ctrl-click: toggle · Shift-click: range · double-click: rename");
         if r.double_clicked() {
             state.view.rename = Some((hit, name.clone()));
         } else if r.clicked() {
@@ -371,7 +418,14 @@ fn outliner_click(state: &mut EditorState, hit: Hit, m: egui::Modifiers) {
 // ---------------------------------------------------------------- Inspector
 
 /// A DragValue bound to a project field: one undo step per drag or typed edit.
-fn drag(ui: &mut Ui, value: f32, speed: f64, range: std::ops::RangeInclusive<f32>, unit: &str, tip: &str) -> Option<(f32, u64)> {
+fn drag(
+    ui: &mut Ui,
+    value: f32,
+    speed: f64,
+    range: std::ops::RangeInclusive<f32>,
+    unit: &str,
+    tip: &str,
+) -> Option<(f32, u64)> {
     let mut v = value;
     let r = ui.add(DragValue::new(&mut v).speed(speed).range(range).suffix(unit).max_decimals(4)).on_hover_text(tip);
     (r.changed() && v != value).then(|| (v, r.id.value()))
@@ -398,7 +452,9 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
         let m = state.session.project().medium;
         egui::Grid::new("medium").num_columns(2).show(ui, |ui| {
             ui.label("base extinction");
-            if let Some((v, t)) = drag(ui, m.base_extinction, 0.002, 0.0..=100.0, " 1/m", "Homogeneous fog σt filling all space") {
+            if let Some((v, t)) =
+                drag(ui, m.base_extinction, 0.002, 0.0..=100.0, " 1/m", "Homogeneous fog σt filling all space")
+            {
                 state.session.edit(t).medium.base_extinction = v;
             }
             ui.end_row();
@@ -408,7 +464,14 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             }
             ui.end_row();
             ui.label("anisotropy g");
-            if let Some((v, t)) = drag(ui, m.anisotropy, 0.01, -0.99..=0.99, "", "Henyey–Greenstein asymmetry: 0 isotropic, > 0 forward scattering") {
+            if let Some((v, t)) = drag(
+                ui,
+                m.anisotropy,
+                0.01,
+                -0.99..=0.99,
+                "",
+                "Henyey–Greenstein asymmetry: 0 isotropic, > 0 forward scattering",
+            ) {
                 state.session.edit(t).medium.anisotropy = v;
             }
             ui.end_row();
@@ -431,7 +494,8 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             let mut r = g.resolution.to_array();
             let mut changed = None;
             for v in &mut r {
-                let resp = ui.add(DragValue::new(v).range(1..=max_edge).speed(0.5)).on_hover_text("Cells along this axis");
+                let resp =
+                    ui.add(DragValue::new(v).range(1..=max_edge).speed(0.5)).on_hover_text("Cells along this axis");
                 if resp.changed() {
                     changed = Some(resp.id.value());
                 }
@@ -451,10 +515,18 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             let req = crate::gpu::FrameRequest::for_project(state.session.project());
             gpu.pipeline.memory_needed(&g, lights, state.session.project().particles.len(), req.width, req.height)
         });
-        ui.label(format!("≈ {} on the GPU ({} cells, {lights} lights)", crate::gpu::human_bytes(bytes), g.cell_count()))
-            .on_hover_text("Extinction volume, optical-depth volumes and their scratch twins, injection lists and image targets");
+        ui.label(format!(
+            "≈ {} on the GPU ({} cells, {lights} lights)",
+            crate::gpu::human_bytes(bytes),
+            g.cell_count()
+        ))
+        .on_hover_text(
+            "Extinction volume, optical-depth volumes and their scratch twins, injection lists and image targets",
+        );
         let refused: Option<String> = ui.data(|d| d.get_temp(egui::Id::new("grid-refused"))).flatten();
-        if let Some(w) = refused.or_else(|| grid_fit_warning(state, &g, lights + 1).map(|w| format!("Adding a light: {w}"))) {
+        if let Some(w) =
+            refused.or_else(|| grid_fit_warning(state, &g, lights + 1).map(|w| format!("Adding a light: {w}")))
+        {
             ui.colored_label(Color32::from_rgb(230, 160, 60), w);
         }
     });
@@ -463,25 +535,39 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
         let cam = state.session.project().camera;
         egui::Grid::new("render").num_columns(2).show(ui, |ui| {
             ui.label("exposure");
-            if let Some((v, t)) = drag(ui, r.exposure, 0.02, 0.0..=100.0, "", "Tone mapping: 1 − exp(−exposure · radiance)") {
+            if let Some((v, t)) =
+                drag(ui, r.exposure, 0.02, 0.0..=100.0, "", "Tone mapping: 1 − exp(−exposure · radiance)")
+            {
                 state.session.edit(t).render.exposure = v;
             }
             ui.end_row();
             ui.label("step factor");
-            if let Some((v, t)) = drag(ui, r.step_factor, 0.01, 0.01..=8.0, "× cell", "Ray-march step as a fraction of the smallest cell edge") {
+            if let Some((v, t)) = drag(
+                ui,
+                r.step_factor,
+                0.01,
+                0.01..=8.0,
+                "× cell",
+                "Ray-march step as a fraction of the smallest cell edge",
+            ) {
                 state.session.edit(t).render.step_factor = v;
             }
             ui.end_row();
             ui.label("field of view");
-            if let Some((v, t)) = drag(ui, cam.fov_y_deg, 0.2, 1.0..=170.0, "°", "Vertical field of view of the camera") {
+            if let Some((v, t)) = drag(ui, cam.fov_y_deg, 0.2, 1.0..=170.0, "°", "Vertical field of view of the camera")
+            {
                 state.session.edit(t).camera.fov_y_deg = v;
             }
             ui.end_row();
             ui.label("output size");
             ui.horizontal(|ui| {
                 let (mut w, mut h) = (r.width, r.height);
-                let a = ui.add(DragValue::new(&mut w).range(1..=16384).suffix(" px")).on_hover_text("Width of `fogsmith render` images");
-                let b = ui.add(DragValue::new(&mut h).range(1..=16384).suffix(" px")).on_hover_text("Height of `fogsmith render` images");
+                let a = ui
+                    .add(DragValue::new(&mut w).range(1..=16384).suffix(" px"))
+                    .on_hover_text("Width of `fogsmith render` images");
+                let b = ui
+                    .add(DragValue::new(&mut h).range(1..=16384).suffix(" px"))
+                    .on_hover_text("Height of `fogsmith render` images");
                 if a.changed() || b.changed() {
                     let t = if a.changed() { a.id.value() } else { b.id.value() };
                     let p = state.session.edit(t);
@@ -571,25 +657,43 @@ fn noise_inspector(state: &mut EditorState, ui: &mut Ui) {
                 }
             };
             ui.label("amplitude");
-            if let Some((v, t)) = drag(ui, n.amplitude, 0.01, 0.0..=MAX_NOISE_AMPLITUDE, "", "a in max(0, 1 + a·n(x)): 0 leaves the particles smooth, above 1 carves holes") {
+            if let Some((v, t)) = drag(
+                ui,
+                n.amplitude,
+                0.01,
+                0.0..=MAX_NOISE_AMPLITUDE,
+                "",
+                "a in max(0, 1 + a·n(x)): 0 leaves the particles smooth, above 1 carves holes",
+            ) {
                 set(state, t, &|m| m.amplitude = v);
             }
             ui.end_row();
             ui.label("frequency");
-            if let Some((v, t)) = drag(ui, n.frequency, 0.01, 1e-3..=1e6, " 1/m", "Lattice frequency of the first octave: its features are 1/frequency metres") {
+            if let Some((v, t)) = drag(
+                ui,
+                n.frequency,
+                0.01,
+                1e-3..=1e6,
+                " 1/m",
+                "Lattice frequency of the first octave: its features are 1/frequency metres",
+            ) {
                 set(state, t, &|m| m.frequency = v);
             }
             ui.end_row();
             ui.label("octaves");
             let mut o = n.octaves;
-            let r = ui.add(DragValue::new(&mut o).range(1..=MAX_NOISE_OCTAVES).speed(0.05)).on_hover_text("Octaves, each at twice the frequency and half the weight of the one before");
+            let r = ui
+                .add(DragValue::new(&mut o).range(1..=MAX_NOISE_OCTAVES).speed(0.05))
+                .on_hover_text("Octaves, each at twice the frequency and half the weight of the one before");
             if r.changed() && o != n.octaves {
                 set(state, r.id.value(), &|m| m.octaves = o);
             }
             ui.end_row();
             ui.label("seed");
             let mut s = n.seed;
-            let r = ui.add(DragValue::new(&mut s).range(0..=u32::MAX).speed(1.0)).on_hover_text("Picks another noise pattern");
+            let r = ui
+                .add(DragValue::new(&mut s).range(0..=u32::MAX).speed(1.0))
+                .on_hover_text("Picks another noise pattern");
             if r.changed() && s != n.seed {
                 set(state, r.id.value(), &|m| m.seed = s);
             }
@@ -676,12 +780,26 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
         let mean_c = sel.particles.iter().filter_map(|&i| p.particles.get(i)).map(|q| q.density).sum::<f32>() / n;
         egui::Grid::new("multi").num_columns(2).show(ui, |ui| {
             ui.label("mean radius");
-            if let Some((v, t)) = drag(ui, mean_r, 0.002, 1e-3..=100.0, " m", "Scales every selected radius so that their mean becomes this value") {
+            if let Some((v, t)) = drag(
+                ui,
+                mean_r,
+                0.002,
+                1e-3..=100.0,
+                " m",
+                "Scales every selected radius so that their mean becomes this value",
+            ) {
                 state.session.scale_particles(t, &sel.particles, v / mean_r.max(1e-6), false);
             }
             ui.end_row();
             ui.label("mean density");
-            if let Some((v, t)) = drag(ui, mean_c, 0.02, 0.0..=1e4, " 1/m", "Scales every selected density so that their mean becomes this value") {
+            if let Some((v, t)) = drag(
+                ui,
+                mean_c,
+                0.02,
+                0.0..=1e4,
+                " 1/m",
+                "Scales every selected density so that their mean becomes this value",
+            ) {
                 if mean_c > 0.0 {
                     state.session.scale_particles(t, &sel.particles, (v / mean_c).max(1e-6), true);
                 }
@@ -724,7 +842,10 @@ fn grid_fit_warning(state: &EditorState, grid: &crate::scene::GridSpec, lights: 
     let r = grid.resolution;
     let largest = gpu.pipeline.largest_fitting_grid(grid, lights, particles, req.width, req.height);
     Some(match largest {
-        Some(m) => format!("{}×{}×{} with {lights} lights would not fit ({err}); the largest that fits is {}×{}×{}", r.x, r.y, r.z, m.x, m.y, m.z),
+        Some(m) => format!(
+            "{}×{}×{} with {lights} lights would not fit ({err}); the largest that fits is {}×{}×{}",
+            r.x, r.y, r.z, m.x, m.y, m.z
+        ),
         None => format!("{}×{}×{} with {lights} lights would not fit: {err}", r.x, r.y, r.z),
     })
 }
@@ -736,7 +857,8 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
         Some(fps) => ui.label(format!("{fps:.1} frames/s (while redrawing)")),
         None => ui.label("– frames/s (idle)"),
     };
-    ui.checkbox(&mut state.view.continuous, "Redraw continuously").on_hover_text("Redraw every frame, to measure the frame rate");
+    ui.checkbox(&mut state.view.continuous, "Redraw continuously")
+        .on_hover_text("Redraw every frame, to measure the frame rate");
     let Some(gpu) = &state.gpu else {
         ui.label(state.gpu_missing.clone().unwrap_or_default());
         return;
@@ -757,25 +879,35 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
     ui.label("Last update that ran a stage");
     let r = gpu.report;
     egui::Grid::new("stats-times").striped(true).num_columns(2).show(ui, |ui| {
-        for (name, v) in [("inject", r.timings_ms.inject), ("propagate", r.timings_ms.propagate), ("march", r.timings_ms.march)] {
+        for (name, v) in
+            [("inject", r.timings_ms.inject), ("propagate", r.timings_ms.propagate), ("march", r.timings_ms.march)]
+        {
             ui.label(name);
             ui.label(if v > 0.0 { format!("{v:.2} ms") } else { "skipped".into() });
             ui.end_row();
         }
     });
-    ui.label(format!("Last update: {:.1} ms wall", gpu.update_ms)).on_hover_text("All work items and waits of the last frame's pipeline call");
+    ui.label(format!("Last update: {:.1} ms wall", gpu.update_ms))
+        .on_hover_text("All work items and waits of the last frame's pipeline call");
     let p = gpu.progress;
     let stage = match p.stage {
         crate::gpu::Stage::Inject => "injecting".to_string(),
-        crate::gpu::Stage::Propagate { lights } => format!("propagating {lights} light{}", if lights == 1 { "" } else { "s" }),
+        crate::gpu::Stage::Propagate { lights } => {
+            format!("propagating {lights} light{}", if lights == 1 { "" } else { "s" })
+        }
         crate::gpu::Stage::March => "marching at full resolution".to_string(),
         crate::gpu::Stage::Done => "converged".to_string(),
     };
     if p.stage == crate::gpu::Stage::Done {
         ui.label(format!("Preview: {stage}, {}×{} px", p.shown_size[0], p.shown_size[1]));
     } else {
-        ui.label(format!("Preview: {stage} ({:.0} %), showing {}×{} px", p.stage_fraction * 100.0, p.shown_size[0], p.shown_size[1]))
-            .on_hover_text("Each frame runs pipeline work within a frame budget; the preview refines over the next frames");
+        ui.label(format!(
+            "Preview: {stage} ({:.0} %), showing {}×{} px",
+            p.stage_fraction * 100.0,
+            p.shown_size[0],
+            p.shown_size[1]
+        ))
+        .on_hover_text("Each frame runs pipeline work within a frame budget; the preview refines over the next frames");
     }
     if p.shadows_stale {
         ui.colored_label(ui.visuals().warn_fg_color, "Shadows are stale while propagation catches up")
@@ -794,7 +926,15 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
     });
     ui.separator();
     let p = state.session.project();
-    ui.label(format!("{} particles, {} lights, grid {:?}", p.particles.len(), p.lights.len(), p.grid.resolution.to_array()));
-    ui.label(format!("Preview {}×{} px, {} frames rendered", state.view.preview_size[0], state.view.preview_size[1], gpu.renders));
+    ui.label(format!(
+        "{} particles, {} lights, grid {:?}",
+        p.particles.len(),
+        p.lights.len(),
+        p.grid.resolution.to_array()
+    ));
+    ui.label(format!(
+        "Preview {}×{} px, {} frames rendered",
+        state.view.preview_size[0], state.view.preview_size[1], gpu.renders
+    ));
     ui.label(format!("Undo steps: {}", state.session.undo_len()));
 }

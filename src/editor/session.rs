@@ -461,10 +461,7 @@ pub fn describe_change(before: &Project, after: &Project) -> String {
 
 /// Indices of `kept` after the items in `removed` were deleted from the list.
 fn remap_after_removal(kept: &BTreeSet<usize>, removed: &BTreeSet<usize>) -> BTreeSet<usize> {
-    kept.iter()
-        .filter(|i| !removed.contains(i))
-        .map(|&i| i - removed.range(..i).count())
-        .collect()
+    kept.iter().filter(|i| !removed.contains(i)).map(|&i| i - removed.range(..i).count()).collect()
 }
 
 #[cfg(test)]

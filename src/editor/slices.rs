@@ -23,7 +23,8 @@ pub enum Field {
 }
 
 impl Field {
-    pub const ALL: [Field; 5] = [Field::Extinction, Field::OpticalDepth, Field::Transmittance, Field::Error, Field::ResolutionError];
+    pub const ALL: [Field; 5] =
+        [Field::Extinction, Field::OpticalDepth, Field::Transmittance, Field::Error, Field::ResolutionError];
     pub fn label(self) -> &'static str {
         match self {
             Field::Extinction => "EV σt",

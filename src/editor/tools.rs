@@ -224,13 +224,8 @@ pub fn pick(project: &Project, view: &ViewProjection, pos: Pos2) -> Option<Hit> 
 /// Items whose centres project inside `rect`.
 pub fn box_select(project: &Project, view: &ViewProjection, rect: Rect) -> (BTreeSet<usize>, BTreeSet<usize>) {
     let inside = |c: Vec3| view.project(c).is_some_and(|(s, _)| rect.contains(s));
-    let particles = project
-        .particles
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| !p.hidden && inside(p.center))
-        .map(|(i, _)| i)
-        .collect();
+    let particles =
+        project.particles.iter().enumerate().filter(|(_, p)| !p.hidden && inside(p.center)).map(|(i, _)| i).collect();
     let lights = project.lights.iter().enumerate().filter(|(_, l)| inside(l.position)).map(|(i, _)| i).collect();
     (particles, lights)
 }
@@ -276,7 +271,8 @@ mod tests {
 
     #[test]
     fn a_stroke_follows_the_spacing() {
-        let brush = Brush { radius: 0.1, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Plane, noise: true };
+        let brush =
+            Brush { radius: 0.1, density: 1.0, spacing: 0.5, jitter: 0.0, depth: PaintDepth::Plane, noise: true };
         let mut s = Stroke::new(3);
         assert_eq!(s.dabs_to(Vec3::ZERO, Vec3::X, Vec3::Y, &brush).len(), 1);
         let dabs = s.dabs_to(Vec3::new(0.52, 0.0, 0.0), Vec3::X, Vec3::Y, &brush);
@@ -287,7 +283,8 @@ mod tests {
 
     #[test]
     fn jitter_stays_within_the_brush() {
-        let brush = Brush { radius: 0.2, density: 1.0, spacing: 0.1, jitter: 0.5, depth: PaintDepth::Plane, noise: false };
+        let brush =
+            Brush { radius: 0.2, density: 1.0, spacing: 0.1, jitter: 0.5, depth: PaintDepth::Plane, noise: false };
         let mut s = Stroke::new(9);
         s.dabs_to(Vec3::ZERO, Vec3::X, Vec3::Y, &brush);
         for d in s.dabs_to(Vec3::new(1.0, 0.0, 0.0), Vec3::X, Vec3::Y, &brush) {

@@ -2,11 +2,11 @@
 //! pointer handling and the overlays (grid box, particle outlines, light gizmos, selection,
 //! the move gizmo).
 
-use crate::scene::FitKeep;
 use super::app::{EditorState, Gesture};
 use super::gizmo::{self, Gizmo, Handle};
 use super::tools::{self, Hit, Stroke, Tool};
 use super::view::{self, ViewProjection};
+use crate::scene::FitKeep;
 use egui::{Color32, Pos2, Rect, Sense, Stroke as Line, Ui};
 use glam::Vec3;
 
@@ -24,7 +24,8 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     let response = ui.allocate_rect(rect, Sense::click_and_drag());
     state.view.viewport_rect = Some(rect);
     let px = ui.ctx().pixels_per_point() * state.view.preview_scale.factor();
-    let size = [((rect.width() * px).round() as u32).clamp(16, 4096), ((rect.height() * px).round() as u32).clamp(16, 4096)];
+    let size =
+        [((rect.width() * px).round() as u32).clamp(16, 4096), ((rect.height() * px).round() as u32).clamp(16, 4096)];
     state.view.preview_size = size;
     handle_input(state, ui, &response, rect);
     // Where a Paint stroke would start under the pointer, for the brush preview.
@@ -44,12 +45,24 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
                 painter.image(id, rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
             }
             if let Some(e) = &gpu.error {
-                painter.text(rect.center(), egui::Align2::CENTER_CENTER, e, egui::FontId::proportional(14.0), ui.visuals().error_fg_color);
+                painter.text(
+                    rect.center(),
+                    egui::Align2::CENTER_CENTER,
+                    e,
+                    egui::FontId::proportional(14.0),
+                    ui.visuals().error_fg_color,
+                );
             }
         }
         None => {
             let msg = state.gpu_missing.clone().unwrap_or_default();
-            painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, egui::FontId::proportional(14.0), ui.visuals().error_fg_color);
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                msg,
+                egui::FontId::proportional(14.0),
+                ui.visuals().error_fg_color,
+            );
         }
     }
     overlays(state, &painter, rect, response.hover_pos());
@@ -207,7 +220,9 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
     // A right click during a gizmo drag cancels it, as Escape does.
     let mut cancelled = false;
     if matches!(state.view.gesture, Some(Gesture::Gizmo { .. }))
-        && events.iter().any(|e| matches!(e, egui::Event::PointerButton { button: egui::PointerButton::Secondary, pressed: true, .. }))
+        && events.iter().any(|e| {
+            matches!(e, egui::Event::PointerButton { button: egui::PointerButton::Secondary, pressed: true, .. })
+        })
     {
         state.cancel_gizmo();
         cancelled = true;
@@ -241,16 +256,30 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
     }
     let track = PrimaryTrack::from_events(&events, down_at_start);
     if pointer.primary_down() || track.released.is_some() {
-        let points = if track.points.is_empty() { pos.filter(|_| primary_pressed).into_iter().collect() } else { track.points.clone() };
+        let points = if track.points.is_empty() {
+            pos.filter(|_| primary_pressed).into_iter().collect()
+        } else {
+            track.points.clone()
+        };
         continue_gesture(state, &vp, &points, modifiers);
     }
-    if track.released.is_some() || response.drag_stopped() || response.clicked() || (!pointer.any_down() && state.view.gesture.is_some()) {
+    if track.released.is_some()
+        || response.drag_stopped()
+        || response.clicked()
+        || (!pointer.any_down() && state.view.gesture.is_some())
+    {
         finish_gesture(state, &vp, track.released.or(pos), modifiers);
     }
     state.view.interacting = state.view.force_interacting
         || matches!(
             state.view.gesture,
-            Some(Gesture::Orbit | Gesture::Pan | Gesture::Move { .. } | Gesture::MoveLight { .. } | Gesture::Gizmo { .. })
+            Some(
+                Gesture::Orbit
+                    | Gesture::Pan
+                    | Gesture::Move { .. }
+                    | Gesture::MoveLight { .. }
+                    | Gesture::Gizmo { .. }
+            )
         );
 }
 
@@ -359,9 +388,11 @@ fn shown_gizmo(state: &EditorState, vp: &ViewProjection) -> Option<Gizmo> {
 fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifiers: egui::Modifiers) {
     // A press on a handle of the move gizmo drags the selection along its axis or plane.
     if let Some(g) = shown_gizmo(state, vp) {
-        if let Some((handle, grab)) = g.pick(vp, pos).and_then(|h| Some((h, gizmo::drag_point(h, g.center, vp, pos)?))) {
+        if let Some((handle, grab)) = g.pick(vp, pos).and_then(|h| Some((h, gizmo::drag_point(h, g.center, vp, pos)?)))
+        {
             let tag = state.session.new_tag();
-            state.view.gesture = Some(Gesture::Gizmo { tag, handle, center: g.center, grab, applied: Vec3::ZERO, snap: false });
+            state.view.gesture =
+                Some(Gesture::Gizmo { tag, handle, center: g.center, grab, applied: Vec3::ZERO, snap: false });
             return;
         }
     }
@@ -417,12 +448,12 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
             let tag = state.session.new_tag();
             let light = match hit {
                 Some(Hit::Light(i)) => Some(i),
-                _ => point.map(|point| {
-                    state.session.add_light_tagged(tag, crate::scene::Light::new(point, 2.0, Vec3::ONE))
-                }),
+                _ => point
+                    .map(|point| state.session.add_light_tagged(tag, crate::scene::Light::new(point, 2.0, Vec3::ONE))),
             };
             light.map(|i| {
-                let depth = state.session.project().lights.get(i).and_then(|l| vp.project(l.position)).map_or(1.0, |(_, z)| z);
+                let depth =
+                    state.session.project().lights.get(i).and_then(|l| vp.project(l.position)).map_or(1.0, |(_, z)| z);
                 state.session.selection.clear();
                 state.session.selection.lights.insert(i);
                 Gesture::MoveLight { tag, light: i, depth, start: pos, applied: Vec3::ZERO }
@@ -449,7 +480,9 @@ fn toggle(state: &mut EditorState, hit: Hit, toggle: bool) {
 /// the pipeline's EV as it stands), else on the working plane.
 fn paint_point(state: &mut EditorState, vp: &ViewProjection, pos: Pos2) -> Option<Vec3> {
     if state.view.brush.depth == tools::PaintDepth::Fog {
-        if let Some(p) = state.fog_ev().and_then(|ev| tools::fog_depth_point(ev, vp.position, vp.ray(pos), tools::FOG_DEPTH_TAU)) {
+        if let Some(p) =
+            state.fog_ev().and_then(|ev| tools::fog_depth_point(ev, vp.position, vp.ray(pos), tools::FOG_DEPTH_TAU))
+        {
             return Some(p);
         }
     }
@@ -590,8 +623,15 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
         }
     }
     let g = &project.grid;
-    let corners: Vec<Vec3> =
-        (0..8).map(|i| Vec3::new(if i & 1 == 0 { g.min.x } else { g.max.x }, if i & 2 == 0 { g.min.y } else { g.max.y }, if i & 4 == 0 { g.min.z } else { g.max.z })).collect();
+    let corners: Vec<Vec3> = (0..8)
+        .map(|i| {
+            Vec3::new(
+                if i & 1 == 0 { g.min.x } else { g.max.x },
+                if i & 2 == 0 { g.min.y } else { g.max.y },
+                if i & 4 == 0 { g.min.z } else { g.max.z },
+            )
+        })
+        .collect();
     let grid_line = Line::new(1.0, Color32::from_rgba_unmultiplied(160, 170, 190, 110));
     for (a, b) in [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)] {
         if let (Some((pa, _)), Some((pb, _))) = (vp.project(corners[a]), vp.project(corners[b])) {
@@ -623,13 +663,24 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
         for k in 0..8 {
             let a = k as f32 * std::f32::consts::TAU / 8.0;
             let d = egui::vec2(a.cos(), a.sin());
-            painter.line_segment([s + d * 8.0, s + d * 13.0], Line::new(1.5, if l.hidden { Color32::GRAY } else { fill }));
+            painter
+                .line_segment([s + d * 8.0, s + d * 13.0], Line::new(1.5, if l.hidden { Color32::GRAY } else { fill }));
         }
-        painter.circle(s, 6.0, if l.hidden { Color32::GRAY } else { fill }, Line::new(if selected { 2.0 } else { 1.0 }, edge));
+        painter.circle(
+            s,
+            6.0,
+            if l.hidden { Color32::GRAY } else { fill },
+            Line::new(if selected { 2.0 } else { 1.0 }, edge),
+        );
     }
     if let Some(Gesture::Box { start }) = &state.view.gesture {
         if let Some(end) = hover {
-            painter.rect_stroke(Rect::from_two_pos(*start, end), 0.0, Line::new(1.0, SELECTED), egui::StrokeKind::Inside);
+            painter.rect_stroke(
+                Rect::from_two_pos(*start, end),
+                0.0,
+                Line::new(1.0, SELECTED),
+                egui::StrokeKind::Inside,
+            );
         }
     }
     if let Some(pos) = hover {
@@ -686,7 +737,8 @@ fn gizmo_overlay(state: &EditorState, painter: &egui::Painter, rect: Rect, point
                 painter.line_segment([p, q], Line::new(1.0, colour(a, false).gamma_multiply(0.6)));
             } else if let Some((tip, _)) = vp.project(g.center + Vec3::AXES[a] * g.length) {
                 let d = (tip - g.screen).normalized() * 4000.0;
-                painter.line_segment([g.screen - d, g.screen + d], Line::new(1.0, colour(a, false).gamma_multiply(0.6)));
+                painter
+                    .line_segment([g.screen - d, g.screen + d], Line::new(1.0, colour(a, false).gamma_multiply(0.6)));
             }
         }
     }
@@ -705,7 +757,11 @@ fn gizmo_overlay(state: &EditorState, painter: &egui::Painter, rect: Rect, point
         let side = egui::vec2(-dir.y, dir.x);
         painter.line_segment([from + dir * 12.0, tip], Line::new(if lit { 4.0 } else { 2.5 }, c));
         let head = if lit { 7.0 } else { 5.5 };
-        painter.add(egui::Shape::convex_polygon(vec![tip + dir * head * 2.2, tip + side * head, tip - side * head], c, Line::NONE));
+        painter.add(egui::Shape::convex_polygon(
+            vec![tip + dir * head * 2.2, tip + side * head, tip - side * head],
+            c,
+            Line::NONE,
+        ));
     }
     painter.circle_stroke(g.screen, 5.0, Line::new(1.5, Color32::WHITE));
     if let (Some((d, snap)), Some(p)) = (drag, pointer) {
@@ -715,7 +771,8 @@ fn gizmo_overlay(state: &EditorState, painter: &egui::Painter, rect: Rect, point
         }
         let galley = painter.layout_no_wrap(text, egui::FontId::proportional(13.0), Color32::WHITE);
         let at = p + egui::vec2(18.0, 18.0);
-        let at = Pos2::new(at.x.min(rect.right() - galley.size().x - 8.0).max(rect.left()), at.y.min(rect.bottom() - 24.0));
+        let at =
+            Pos2::new(at.x.min(rect.right() - galley.size().x - 8.0).max(rect.left()), at.y.min(rect.bottom() - 24.0));
         let bg = Rect::from_min_size(at, galley.size()).expand(4.0);
         painter.rect_filled(bg, 3.0, Color32::from_black_alpha(190));
         painter.galley(at, galley, Color32::WHITE);

@@ -40,7 +40,13 @@ use exr::prelude::*;
 use std::path::Path;
 
 /// Writes a linear RGBA image (row 0 at the top) as f32, or f16 when `half`.
-pub fn write_render_exr(path: &Path, width: usize, height: usize, rgba: &[[f32; 4]], half: bool) -> std::result::Result<(), ExportError> {
+pub fn write_render_exr(
+    path: &Path,
+    width: usize,
+    height: usize,
+    rgba: &[[f32; 4]],
+    half: bool,
+) -> std::result::Result<(), ExportError> {
     if width == 0 || height == 0 || rgba.len() != width.saturating_mul(height) {
         return Err(ExportError::invalid(
             path,
@@ -59,17 +65,27 @@ pub fn write_render_exr(path: &Path, width: usize, height: usize, rgba: &[[f32; 
                 let p = px(x, y);
                 (f16::from_f32(p[0]), f16::from_f32(p[1]), f16::from_f32(p[2]), f16::from_f32(p[3]))
             });
-            Image::from_layer(Layer::new((width, height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels))
-                .write()
-                .to_file(tmp)
+            Image::from_layer(Layer::new(
+                (width, height),
+                LayerAttributes::default(),
+                Encoding::SMALL_LOSSLESS,
+                channels,
+            ))
+            .write()
+            .to_file(tmp)
         } else {
             let channels = SpecificChannels::rgba(|Vec2(x, y)| {
                 let p = px(x, y);
                 (p[0], p[1], p[2], p[3])
             });
-            Image::from_layer(Layer::new((width, height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels))
-                .write()
-                .to_file(tmp)
+            Image::from_layer(Layer::new(
+                (width, height),
+                LayerAttributes::default(),
+                Encoding::SMALL_LOSSLESS,
+                channels,
+            ))
+            .write()
+            .to_file(tmp)
         };
         result.map_err(|e| exr_error(path, e))
     })
@@ -95,10 +111,18 @@ pub fn write_slices_exr(path: &Path, volumes: &[(&str, &Volume)]) -> std::result
     for (n, (name, v)) in volumes.iter().enumerate() {
         check_name(path, name)?;
         if v.grid != grid || v.data.len() as u64 != grid.cell_count() {
-            return Err(ExportError::invalid(path, format!("volume {name:?} is not on the same grid as {:?}", volumes[0].0), "export volumes baked on one grid"));
+            return Err(ExportError::invalid(
+                path,
+                format!("volume {name:?} is not on the same grid as {:?}", volumes[0].0),
+                "export volumes baked on one grid",
+            ));
         }
         if volumes[..n].iter().any(|(o, _)| o == name) {
-            return Err(ExportError::invalid(path, format!("two volumes are named {name:?}"), "give each quantity a unique name"));
+            return Err(ExportError::invalid(
+                path,
+                format!("two volumes are named {name:?}"),
+                "give each quantity a unique name",
+            ));
         }
     }
     let [nx, ny, nz] = grid.resolution.to_array().map(|c| c as usize);
@@ -113,14 +137,22 @@ pub fn write_slices_exr(path: &Path, volumes: &[(&str, &Volume)]) -> std::result
                 samples.extend_from_slice(&v.data[row..row + nx]);
             }
             let channel = slice_channel_name(name, k as u32, nz as u32);
-            let text = Text::new_or_none(&channel).ok_or_else(|| ExportError::invalid(path, format!("channel name {channel:?} is not valid in EXR"), "use short ASCII names"))?;
+            let text = Text::new_or_none(&channel).ok_or_else(|| {
+                ExportError::invalid(
+                    path,
+                    format!("channel name {channel:?} is not valid in EXR"),
+                    "use short ASCII names",
+                )
+            })?;
             list.push(AnyChannel::new(text, FlatSamples::F32(samples)));
         }
     }
     let mut attributes = LayerAttributes::default();
     grid_attributes(&mut attributes, &grid);
     let names: Vec<&str> = volumes.iter().map(|(n, _)| *n).collect();
-    attributes.other.insert(Text::new_or_panic("fogsmith/quantities"), AttributeValue::Text(text_or_empty(&names.join(","))));
+    attributes
+        .other
+        .insert(Text::new_or_panic("fogsmith/quantities"), AttributeValue::Text(text_or_empty(&names.join(","))));
     let layer = Layer::new((nx, ny), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
     write_atomic(path, |tmp| Image::from_layer(layer).write().to_file(tmp).map_err(|e| exr_error(path, e)))
 }
@@ -152,7 +184,15 @@ impl AtlasLayout {
             tiles_x -= 1;
         }
         let tiles_y = slices.div_ceil(tiles_x);
-        Self { tiles_x, tiles_y, tile_width: res[0], tile_height: res[1], slices, width: tiles_x * res[0], height: tiles_y * res[1] }
+        Self {
+            tiles_x,
+            tiles_y,
+            tile_width: res[0],
+            tile_height: res[1],
+            slices,
+            width: tiles_x * res[0],
+            height: tiles_y * res[1],
+        }
     }
     /// Top-left pixel of slice k's tile.
     pub fn tile_origin(&self, k: u32) -> (u32, u32) {
@@ -165,7 +205,15 @@ impl std::fmt::Display for AtlasLayout {
         write!(
             f,
             "{} slices of {}×{} in {}×{} tiles ({}×{} pixels), slice k at tile (k % {}, k / {}) from the top left",
-            self.slices, self.tile_width, self.tile_height, self.tiles_x, self.tiles_y, self.width, self.height, self.tiles_x, self.tiles_x
+            self.slices,
+            self.tile_width,
+            self.tile_height,
+            self.tiles_x,
+            self.tiles_y,
+            self.width,
+            self.height,
+            self.tiles_x,
+            self.tiles_x
         )
     }
 }
@@ -177,7 +225,11 @@ pub fn write_atlas_exr(path: &Path, volume: &Volume) -> std::result::Result<Atla
 }
 
 /// [`write_atlas_exr`] with the frame attributes of `frame`.
-pub fn write_atlas_exr_in_frame(path: &Path, volume: &Volume, frame: &Frame) -> std::result::Result<AtlasLayout, ExportError> {
+pub fn write_atlas_exr_in_frame(
+    path: &Path,
+    volume: &Volume,
+    frame: &Frame,
+) -> std::result::Result<AtlasLayout, ExportError> {
     let grid = volume.grid;
     if volume.data.len() as u64 != grid.cell_count() {
         return Err(ExportError::invalid(path, "the volume's data does not match its grid", "pass a complete volume"));
@@ -199,12 +251,21 @@ pub fn write_atlas_exr_in_frame(path: &Path, volume: &Volume, frame: &Frame) -> 
     let mut attributes = LayerAttributes::default();
     grid_attributes(&mut attributes, &grid);
     let o = &mut attributes.other;
-    o.insert(Text::new_or_panic("fogsmith/atlas_tiles"), AttributeValue::IntVec2(Vec2(layout.tiles_x as i32, layout.tiles_y as i32)));
-    o.insert(Text::new_or_panic("fogsmith/atlas_tile_size"), AttributeValue::IntVec2(Vec2(layout.tile_width as i32, layout.tile_height as i32)));
+    o.insert(
+        Text::new_or_panic("fogsmith/atlas_tiles"),
+        AttributeValue::IntVec2(Vec2(layout.tiles_x as i32, layout.tiles_y as i32)),
+    );
+    o.insert(
+        Text::new_or_panic("fogsmith/atlas_tile_size"),
+        AttributeValue::IntVec2(Vec2(layout.tile_width as i32, layout.tile_height as i32)),
+    );
     o.insert(Text::new_or_panic("fogsmith/atlas_slices"), AttributeValue::I32(layout.slices as i32));
     o.insert(Text::new_or_panic("fogsmith/up_axis"), AttributeValue::Text(Text::new_or_panic(frame.up_name())));
     o.insert(Text::new_or_panic("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()));
-    o.insert(Text::new_or_panic("fogsmith/handedness"), AttributeValue::Text(Text::new_or_panic(frame.handedness_name())));
+    o.insert(
+        Text::new_or_panic("fogsmith/handedness"),
+        AttributeValue::Text(Text::new_or_panic(frame.handedness_name())),
+    );
     let a = super::vdb::index_to_world_matrix(&grid, frame);
     let m: [f32; 16] = std::array::from_fn(|n| a[n / 4][n % 4] as f32);
     o.insert(Text::new_or_panic("fogsmith/index_to_world"), AttributeValue::Matrix4x4(m));
@@ -228,17 +289,27 @@ fn text_or_empty(s: &str) -> Text {
 }
 
 fn check_name(path: &Path, name: &str) -> std::result::Result<(), ExportError> {
-    let ok = !name.is_empty() && name.len() <= 200 && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    let ok = !name.is_empty()
+        && name.len() <= 200
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
     if ok {
         Ok(())
     } else {
-        Err(ExportError::invalid(path, format!("quantity name {name:?} cannot name an EXR layer"), "use letters, digits, '_' or '-'"))
+        Err(ExportError::invalid(
+            path,
+            format!("quantity name {name:?} cannot name an EXR layer"),
+            "use letters, digits, '_' or '-'",
+        ))
     }
 }
 
 fn check_size(path: &Path, w: usize, h: usize) -> std::result::Result<(), ExportError> {
     if w == 0 || h == 0 || w > i32::MAX as usize / 2 || h > i32::MAX as usize / 2 {
-        return Err(ExportError::invalid(path, format!("an image of {w}×{h} pixels cannot be written"), "use a grid with a positive, smaller resolution"));
+        return Err(ExportError::invalid(
+            path,
+            format!("an image of {w}×{h} pixels cannot be written"),
+            "use a grid with a positive, smaller resolution",
+        ));
     }
     Ok(())
 }

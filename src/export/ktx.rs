@@ -72,13 +72,22 @@ pub fn encode_ktx2(path: &Path, volume: &Volume, format: Ktx2Format) -> Result<(
     if let Some(n) = volume.data.iter().position(|v| !v.is_finite() || *v < 0.0) {
         return Err(ExportError::invalid(
             path,
-            format!("cell {:?} has extinction {}, which a density texture cannot hold", grid.cell_of(n), volume.data[n]),
+            format!(
+                "cell {:?} has extinction {}, which a density texture cannot hold",
+                grid.cell_of(n),
+                volume.data[n]
+            ),
             "export a volume whose extinction is finite and >= 0",
         ));
     }
     let (vk_format, type_size, scale, texels): (u32, u32, f32, Vec<u8>) = match format {
         Ktx2Format::R16f => {
-            super::vdb::check_half_range(path, "the extinction", &volume.data, "use --ktx2-format r8, which stores a scale")?;
+            super::vdb::check_half_range(
+                path,
+                "the extinction",
+                &volume.data,
+                "use --ktx2-format r8, which stores a scale",
+            )?;
             let t = volume.data.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()).collect();
             (VK_FORMAT_R16_SFLOAT, 2, 1.0, t)
         }
@@ -155,15 +164,15 @@ fn basic_dfd(format: Ktx2Format) -> Vec<u8> {
         Ktx2Format::R8 => (1, 8, 0, 0, 255),
     };
     let words: [u32; 11] = [
-        44,                     // dfdTotalSize
-        0,                      // vendor 0 (Khronos), descriptor type 0 (basic)
-        2 | (40 << 16),         // version 2, block size 24 + 16 · 1 sample
-        1 | (1 << 8) | (1 << 16), // model RGBSDA, primaries BT.709, transfer linear, flags 0
-        0,                      // texel block 1×1×1×1
-        bytes,                  // bytesPlane0
-        0,                      // bytesPlane4..7
+        44,                                  // dfdTotalSize
+        0,                                   // vendor 0 (Khronos), descriptor type 0 (basic)
+        2 | (40 << 16),                      // version 2, block size 24 + 16 · 1 sample
+        1 | (1 << 8) | (1 << 16),            // model RGBSDA, primaries BT.709, transfer linear, flags 0
+        0,                                   // texel block 1×1×1×1
+        bytes,                               // bytesPlane0
+        0,                                   // bytesPlane4..7
         (bits - 1) << 16 | qualifiers << 24, // bit offset 0, length, channel R + qualifiers
-        0,                      // sample position
+        0,                                   // sample position
         lower,
         upper,
     ];

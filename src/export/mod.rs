@@ -78,7 +78,10 @@ impl ExportError {
 /// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed and
 /// synced, then renamed over the destination. On failure the temporary file is removed and
 /// the destination is untouched.
-pub(crate) fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<(), ExportError>) -> Result<(), ExportError> {
+pub(crate) fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), ExportError>,
+) -> Result<(), ExportError> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -127,6 +130,11 @@ pub fn light_infos(project: &crate::scene::Project) -> Vec<LightInfo> {
     project
         .lights
         .iter()
-        .map(|l| LightInfo { id: l.id, position: l.position.to_array(), intensity: l.intensity, color: l.color.to_array() })
+        .map(|l| LightInfo {
+            id: l.id,
+            position: l.position.to_array(),
+            intensity: l.intensity,
+            color: l.color.to_array(),
+        })
         .collect()
 }

@@ -119,7 +119,11 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
         ));
     }
     if opts.vdb_asset.is_empty() || opts.vdb_asset.contains('@') {
-        return Err(ExportError::invalid(path, format!("the VDB path {:?} cannot be a USD asset path", opts.vdb_asset), "write the VDB to a path without '@'"));
+        return Err(ExportError::invalid(
+            path,
+            format!("the VDB path {:?} cannot be a USD asset path", opts.vdb_asset),
+            "write the VDB to a path without '@'",
+        ));
     }
     if opts.fields.is_empty() {
         return Err(ExportError::invalid(path, "the volume has no fields", "export at least the density grid"));
@@ -128,11 +132,19 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
         let ok = f.name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
             && f.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
         if !ok {
-            return Err(ExportError::invalid(path, format!("grid name {:?} cannot name a USD prim", f.name), "use letters, digits and '_'"));
+            return Err(ExportError::invalid(
+                path,
+                format!("grid name {:?} cannot name a USD prim", f.name),
+                "use letters, digits and '_'",
+            ));
         }
     }
     if opts.width == 0 || opts.height == 0 {
-        return Err(ExportError::invalid(path, format!("render size {}×{}", opts.width, opts.height), "use a positive width and height"));
+        return Err(ExportError::invalid(
+            path,
+            format!("render size {}×{}", opts.width, opts.height),
+            "use a positive width and height",
+        ));
     }
     let p = |v: glam::Vec3| tuple(frame.point(v.to_array().map(f64::from)));
     let s = frame.scale();
@@ -149,7 +161,11 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
     out!("        string creator = \"fogsmith\"");
     out!("    }}");
     out!("    defaultPrim = \"World\"");
-    out!("    doc = \"Exported by Fogsmith. Lengths: {} m per unit, {}-up.\"", num(frame.meters_per_unit()), frame.up_name());
+    out!(
+        "    doc = \"Exported by Fogsmith. Lengths: {} m per unit, {}-up.\"",
+        num(frame.meters_per_unit()),
+        frame.up_name()
+    );
     out!("    metersPerUnit = {}", num(frame.meters_per_unit()));
     out!("    upAxis = \"{}\"", frame.up_name());
     out!(")");
@@ -229,7 +245,13 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
     out!("        token projection = \"perspective\"");
     out!("        float verticalAperture = {}", num(vap));
     out!("        custom float fogsmith:fovYDeg = {}", num32(cam.fov_y_deg));
-    out!("        matrix4d xformOp:transform = ( {}, {}, {}, {} )", row(r, 0.0), row(u_, 0.0), row(b, 0.0), row(pos, 1.0));
+    out!(
+        "        matrix4d xformOp:transform = ( {}, {}, {}, {} )",
+        row(r, 0.0),
+        row(u_, 0.0),
+        row(b, 0.0),
+        row(pos, 1.0)
+    );
     out!("        uniform token[] xformOpOrder = [\"xformOp:transform\"]");
     out!("    }}");
 
@@ -263,7 +285,13 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
     for (n, bx) in project.surfaces.boxes.iter().enumerate() {
         let (a, b) = (bx.min.as_dvec3(), bx.max.as_dvec3());
         let pts: Vec<[f64; 3]> = (0..8)
-            .map(|c| [if c & 1 == 0 { a.x } else { b.x }, if c & 2 == 0 { a.y } else { b.y }, if c & 4 == 0 { a.z } else { b.z }])
+            .map(|c| {
+                [
+                    if c & 1 == 0 { a.x } else { b.x },
+                    if c & 2 == 0 { a.y } else { b.y },
+                    if c & 4 == 0 { a.z } else { b.z },
+                ]
+            })
             .collect();
         let faces = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
         mesh(w, &format!("Box_{n}"), &pts, &faces, bx.albedo);

@@ -234,7 +234,11 @@ impl std::str::FromStr for GridSelection {
                 "density" => sel.density = true,
                 "optical_depth" => sel.optical_depth = true,
                 "transmittance" => sel.transmittance = true,
-                other => return Err(format!("unknown grid {other:?}: use density, optical_depth and/or transmittance, comma-separated")),
+                other => {
+                    return Err(format!(
+                        "unknown grid {other:?}: use density, optical_depth and/or transmittance, comma-separated"
+                    ))
+                }
             }
         }
         if sel == (GridSelection { density: false, optical_depth: false, transmittance: false }) {
@@ -338,17 +342,29 @@ fn encode_vdb_with_progress(
     progress: &mut dyn FnMut(f32),
 ) -> Result<(Vec<u8>, VdbStats), ExportError> {
     if opts.threshold.is_nan() || opts.threshold < 0.0 {
-        return Err(ExportError::invalid(path, format!("threshold {} is negative or NaN", opts.threshold), "use a threshold >= 0"));
+        return Err(ExportError::invalid(
+            path,
+            format!("threshold {} is negative or NaN", opts.threshold),
+            "use a threshold >= 0",
+        ));
     }
     for (n, g) in grids.iter().enumerate() {
         if opts.half {
             check_half_range(path, &format!("grid {:?}", g.name), &g.values, "write full floats (no half option)")?;
         }
         if g.name.is_empty() || g.name.contains('\u{1e}') {
-            return Err(ExportError::invalid(path, format!("grid {n} has an empty or invalid name"), "name every grid"));
+            return Err(ExportError::invalid(
+                path,
+                format!("grid {n} has an empty or invalid name"),
+                "name every grid",
+            ));
         }
         if grids[..n].iter().any(|o| o.name == g.name) {
-            return Err(ExportError::invalid(path, format!("two grids are named {:?}", g.name), "give each grid a unique name"));
+            return Err(ExportError::invalid(
+                path,
+                format!("two grids are named {:?}", g.name),
+                "give each grid a unique name",
+            ));
         }
         if g.values.len() as u64 != g.spec.cell_count() {
             return Err(ExportError::invalid(
@@ -359,11 +375,19 @@ fn encode_vdb_with_progress(
         }
         let r = g.spec.resolution;
         if r.x > 1 << 30 || r.y > 1 << 30 || r.z > 1 << 30 {
-            return Err(ExportError::invalid(path, format!("grid {:?} resolution {r} is too large for a VDB index", g.name), "use a smaller grid"));
+            return Err(ExportError::invalid(
+                path,
+                format!("grid {:?} resolution {r} is too large for a VDB index", g.name),
+                "use a smaller grid",
+            ));
         }
         let h = g.spec.cell_size();
         if !(h.x > 0.0 && h.y > 0.0 && h.z > 0.0 && h.is_finite() && g.spec.min.is_finite()) {
-            return Err(ExportError::invalid(path, format!("grid {:?} has a degenerate box (cell size {h})", g.name), "give the grid a box with max > min"));
+            return Err(ExportError::invalid(
+                path,
+                format!("grid {:?} has a degenerate box (cell size {h})", g.name),
+                "give the grid a box with max > min",
+            ));
         }
     }
 
@@ -496,7 +520,8 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
                     let i4 = (((ox & 127) >> 3) << 8 | ((oy & 127) >> 3) << 4 | ((oz & 127) >> 3)) as u32;
                     let node4 = tree.roots.entry(origin5).or_default().children.entry(i5).or_default();
                     let first = values[0];
-                    let constant = count as usize == LEAF_VOXELS && values.iter().all(|v| v.to_bits() == first.to_bits());
+                    let constant =
+                        count as usize == LEAF_VOXELS && values.iter().all(|v| v.to_bits() == first.to_bits());
                     if opts.tiles && constant {
                         node4.tiles.insert(i4, first);
                         tree.tiles += 1;
@@ -776,8 +801,11 @@ fn put_meta(out: &mut Vec<u8>, name: &str, v: &MetaValue) {
 fn make_uuid() -> String {
     use std::sync::atomic::{AtomicU64, Ordering};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
-    let mut x = nanos ^ (std::process::id() as u64).rotate_left(32) ^ COUNTER.fetch_add(1, Ordering::Relaxed).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    let nanos =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
+    let mut x = nanos
+        ^ (std::process::id() as u64).rotate_left(32)
+        ^ COUNTER.fetch_add(1, Ordering::Relaxed).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     let mut next = || {
         // splitmix64
         x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -826,7 +854,8 @@ mod tests {
 
     #[test]
     fn transform_maps_index_to_cell_centres() {
-        let spec = GridSpec { min: Vec3::new(-1.0, 0.0, 2.0), max: Vec3::new(1.0, 1.0, 2.5), resolution: UVec3::new(8, 4, 2) };
+        let spec =
+            GridSpec { min: Vec3::new(-1.0, 0.0, 2.0), max: Vec3::new(1.0, 1.0, 2.5), resolution: UVec3::new(8, 4, 2) };
         let (s, t) = transform_of(&spec);
         assert_eq!(s, [0.25; 3]);
         assert_eq!(t, [-0.875, 0.125, 2.125]);
@@ -842,7 +871,10 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("p.vdb");
         let mut seen = Vec::new();
-        write_vdb_with_progress(&path, &[VdbGrid::from_volume("density", &v)], &VdbOptions::default(), &mut |p| seen.push(p)).unwrap();
+        write_vdb_with_progress(&path, &[VdbGrid::from_volume("density", &v)], &VdbOptions::default(), &mut |p| {
+            seen.push(p)
+        })
+        .unwrap();
         assert_eq!(seen.last(), Some(&1.0));
         assert!(seen.windows(2).all(|w| w[0] <= w[1]));
         let twice = [VdbGrid::from_volume("density", &v), VdbGrid::from_volume("density", &v)];

@@ -162,7 +162,12 @@ impl VdbFloatGrid {
     /// Active voxels, tiles included (OpenVDB's `activeVoxelCount`).
     pub fn active_voxel_count(&self) -> u64 {
         let leaves: u64 = self.leaves.values().map(|l| l.mask.iter().map(|w| w.count_ones() as u64).sum::<u64>()).sum();
-        let tiles: u64 = self.tiles.iter().filter(|(_, (_, on))| *on).map(|((level, _), _)| 1u64 << (3 * TILE_SHIFT[*level as usize])).sum();
+        let tiles: u64 = self
+            .tiles
+            .iter()
+            .filter(|(_, (_, on))| *on)
+            .map(|((level, _), _)| 1u64 << (3 * TILE_SHIFT[*level as usize]))
+            .sum();
         leaves + tiles
     }
 
@@ -184,7 +189,8 @@ impl VdbFloatGrid {
         for (origin, leaf) in &self.leaves {
             for n in 0..512usize {
                 if leaf.mask[n >> 6] >> (n & 63) & 1 == 1 {
-                    let p = [origin[0] + (n >> 6) as i32, origin[1] + ((n >> 3) & 7) as i32, origin[2] + (n & 7) as i32];
+                    let p =
+                        [origin[0] + (n >> 6) as i32, origin[1] + ((n >> 3) & 7) as i32, origin[2] + (n & 7) as i32];
                     grow(p, p);
                 }
             }
@@ -260,13 +266,20 @@ fn sample(vdb: &VdbFloatGrid, p: [f64; 3]) -> f32 {
 /// resamples it into `target`'s cells, times `scale` (what a project's `base_volume` does).
 pub fn import_density(path: &Path, name: Option<&str>, target: &GridSpec, scale: f32) -> Result<Volume, ExportError> {
     if !scale.is_finite() || scale < 0.0 {
-        return Err(ExportError::invalid(path, format!("import scale {scale} is negative or not finite"), "use a scale >= 0"));
+        return Err(ExportError::invalid(
+            path,
+            format!("import scale {scale} is negative or not finite"),
+            "use a scale >= 0",
+        ));
     }
     if target.cell_count() > MAX_IMPORT_CELLS {
         let r = target.resolution;
         return Err(ExportError::invalid(
             path,
-            format!("the project grid {}×{}×{} has more cells than a base volume may fill ({MAX_IMPORT_CELLS})", r.x, r.y, r.z),
+            format!(
+                "the project grid {}×{}×{} has more cells than a base volume may fill ({MAX_IMPORT_CELLS})",
+                r.x, r.y, r.z
+            ),
             "lower grid.resolution",
         ));
     }
@@ -312,10 +325,15 @@ pub fn read_vdb_grid(path: &Path, name: Option<&str>) -> Result<VdbFloatGrid, Ex
 /// [`read_vdb_grid`] on a file already in memory; `path` names errors.
 pub fn read_vdb_grid_from_bytes(path: &Path, bytes: &[u8], name: Option<&str>) -> Result<VdbFloatGrid, ExportError> {
     let file = parse_header(path, bytes)?;
-    let names = || file.descriptors.iter().map(|d| format!("{:?} ({})", d.name, d.tree_type)).collect::<Vec<_>>().join(", ");
+    let names =
+        || file.descriptors.iter().map(|d| format!("{:?} ({})", d.name, d.tree_type)).collect::<Vec<_>>().join(", ");
     let desc = match name {
         Some(n) => file.descriptors.iter().find(|d| d.name == n).ok_or_else(|| {
-            ExportError::invalid(path, format!("no grid named {n:?}; the file has {}", names()), "pick one of the grids listed")
+            ExportError::invalid(
+                path,
+                format!("no grid named {n:?}; the file has {}", names()),
+                "pick one of the grids listed",
+            )
         })?,
         None => file
             .descriptors
@@ -323,7 +341,11 @@ pub fn read_vdb_grid_from_bytes(path: &Path, bytes: &[u8], name: Option<&str>) -
             .find(|d| d.name == "density" && float_type(&d.tree_type).is_some())
             .or_else(|| file.descriptors.iter().find(|d| float_type(&d.tree_type).is_some()))
             .ok_or_else(|| {
-                ExportError::unsupported(path, format!("no float grid to import; the file has {}", names()), "export a float density grid (FloatGrid)")
+                ExportError::unsupported(
+                    path,
+                    format!("no float grid to import; the file has {}", names()),
+                    "export a float density grid (FloatGrid)",
+                )
             })?,
     };
     if !desc.instance_parent.is_empty() {
@@ -336,7 +358,10 @@ pub fn read_vdb_grid_from_bytes(path: &Path, bytes: &[u8], name: Option<&str>) -
     let half = float_type(&desc.tree_type).ok_or_else(|| {
         ExportError::unsupported(
             path,
-            format!("grid {:?} has type {}; only float grids (FloatGrid, float or half) can be imported as density", desc.name, desc.tree_type),
+            format!(
+                "grid {:?} has type {}; only float grids (FloatGrid, float or half) can be imported as density",
+                desc.name, desc.tree_type
+            ),
             "export the density as a float grid",
         )
     })?;
@@ -385,7 +410,8 @@ impl<'a> Cursor<'a> {
     }
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], ExportError> {
         if n > self.remaining() {
-            return Err(self.corrupt(format!("{what} needs {n} bytes but only {} are left (truncated file?)", self.remaining())));
+            return Err(self
+                .corrupt(format!("{what} needs {n} bytes but only {} are left (truncated file?)", self.remaining())));
         }
         let s = &self.bytes[self.pos..self.pos + n];
         self.pos += n;
@@ -439,7 +465,9 @@ impl<'a> Cursor<'a> {
 
 fn checked_pos(cur: &Cursor, pos: usize) -> Result<usize, ExportError> {
     if pos > cur.bytes.len() {
-        return Err(cur.corrupt(format!("an offset ({pos}) points past the end of the file ({} bytes)", cur.bytes.len())));
+        return Err(
+            cur.corrupt(format!("an offset ({pos}) points past the end of the file ({} bytes)", cur.bytes.len()))
+        );
     }
     Ok(pos)
 }
@@ -463,7 +491,11 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<FileHeader, ExportError> {
     let _lib_minor = cur.u32("the library version")?;
     let has_offsets = cur.u8("the grid-offsets flag")?;
     if has_offsets == 0 {
-        return Err(ExportError::unsupported(path, "the file has no grid offsets (an old streaming layout)", "re-save the file with a current OpenVDB, Houdini or Blender"));
+        return Err(ExportError::unsupported(
+            path,
+            "the file has no grid offsets (an old streaming layout)",
+            "re-save the file with a current OpenVDB, Houdini or Blender",
+        ));
     }
     cur.take(36, "the file UUID")?;
     skip_metadata(&mut cur)?;
@@ -481,20 +513,36 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<FileHeader, ExportError> {
         let block_pos = cur.i64("a grid's block position")?;
         let end_pos = cur.i64("a grid's end position")?;
         let ok = |p: i64| p >= 0 && (p as u64) <= bytes.len() as u64;
-        if !(ok(grid_pos) && ok(block_pos) && ok(end_pos) && grid_pos as usize >= cur.pos && grid_pos <= block_pos && block_pos <= end_pos) {
+        if !(ok(grid_pos)
+            && ok(block_pos)
+            && ok(end_pos)
+            && grid_pos as usize >= cur.pos
+            && grid_pos <= block_pos
+            && block_pos <= end_pos)
+        {
             return Err(cur.corrupt(format!(
                 "grid {name:?}: offsets {grid_pos}, {block_pos}, {end_pos} do not fit a {}-byte file",
                 bytes.len()
             )));
         }
-        descriptors.push(Descriptor { name, tree_type, instance_parent, grid_pos: grid_pos as usize, block_pos: block_pos as usize });
+        descriptors.push(Descriptor {
+            name,
+            tree_type,
+            instance_parent,
+            grid_pos: grid_pos as usize,
+            block_pos: block_pos as usize,
+        });
         cur.pos = end_pos as usize;
     }
     Ok(FileHeader { version, descriptors })
 }
 
 fn not_vdb(path: &Path) -> ExportError {
-    ExportError::Invalid { path: path.to_path_buf(), problem: "not an OpenVDB file (no \" BDV\" magic at its start)".into(), fix: "pick a .vdb file".into() }
+    ExportError::Invalid {
+        path: path.to_path_buf(),
+        problem: "not an OpenVDB file (no \" BDV\" magic at its start)".into(),
+        fix: "pick a .vdb file".into(),
+    }
 }
 
 fn skip_metadata(cur: &mut Cursor) -> Result<Vec<(String, String, Vec<u8>)>, ExportError> {
@@ -514,7 +562,11 @@ fn read_transform(cur: &mut Cursor) -> Result<VdbTransform, ExportError> {
     let map = cur.string("the transform's map type")?;
     let (path, grid) = (cur.path, cur.grid.clone());
     let unsupported = |problem: String| {
-        ExportError::unsupported(path, format!("grid {grid:?}: {problem}"), "resample the grid to an axis-aligned (scale and translate) transform before exporting it")
+        ExportError::unsupported(
+            path,
+            format!("grid {grid:?}: {problem}"),
+            "resample the grid to an axis-aligned (scale and translate) transform before exporting it",
+        )
     };
     let t = match map.as_str() {
         "UniformScaleMap" | "ScaleMap" => {
@@ -608,7 +660,8 @@ fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Result<VdbFloat
     // Leaf origins in file order, with their topology masks.
     let mut leaf_order: Vec<[i32; 3]> = Vec::new();
     for _ in 0..num_children {
-        let origin = [cur.i32("a root child origin")?, cur.i32("a root child origin")?, cur.i32("a root child origin")?];
+        let origin =
+            [cur.i32("a root child origin")?, cur.i32("a root child origin")?, cur.i32("a root child origin")?];
         if origin.iter().any(|c| c & 4095 != 0) {
             return Err(cur.corrupt(format!("root child origin {origin:?} is not a multiple of 4096")));
         }
@@ -634,7 +687,8 @@ fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Result<VdbFloat
 
 /// The export frame named by `up_axis`, `meters_per_unit` and `handedness`, or Fogsmith's own.
 fn frame_of(metadata: &[(String, String, Vec<u8>)]) -> Frame {
-    let get = |name: &str, ty: &str| metadata.iter().find(|(n, t, _)| n == name && t == ty).map(|(_, _, v)| v.as_slice());
+    let get =
+        |name: &str, ty: &str| metadata.iter().find(|(n, t, _)| n == name && t == ty).map(|(_, _, v)| v.as_slice());
     let text = |name| get(name, "string").map(|v| String::from_utf8_lossy(v).into_owned());
     let mpu = get("meters_per_unit", "double").and_then(|v| <[u8; 8]>::try_from(v).ok()).map(f64::from_le_bytes);
     match (text("up_axis"), mpu, text("handedness")) {
@@ -707,7 +761,11 @@ fn read_internal(
                 if leaf_order.len() >= MAX_LEAVES {
                     return Err(ExportError::unsupported(
                         cur.path,
-                        format!("grid {:?} has more than {MAX_LEAVES} leaves ({} M voxels), too many to import", cur.grid, MAX_LEAVES * 512 / 1_000_000),
+                        format!(
+                            "grid {:?} has more than {MAX_LEAVES} leaves ({} M voxels), too many to import",
+                            cur.grid,
+                            MAX_LEAVES * 512 / 1_000_000
+                        ),
                         "resample the grid to a coarser voxel size before importing it",
                     ));
                 }
@@ -734,7 +792,8 @@ fn read_values(cur: &mut Cursor, ctx: &Ctx, dest: &mut [f32], value_mask: &[u64]
             inactive1 = cur.f32("an inactive value")?;
         }
     }
-    let selection = if meta == 3 || meta == 4 || meta == 5 { Some(cur.mask(dest.len() / 64, "a selection mask")?) } else { None };
+    let selection =
+        if meta == 3 || meta == 4 || meta == 5 { Some(cur.mask(dest.len() / 64, "a selection mask")?) } else { None };
     let mask_compressed = ctx.compression & COMPRESS_ACTIVE_MASK != 0 && meta != 6;
     let count = if mask_compressed { value_mask.iter().map(|w| w.count_ones() as usize).sum() } else { dest.len() };
     let mut temp = vec![0.0f32; count];
@@ -793,7 +852,11 @@ fn read_data(cur: &mut Cursor, compression: u32, expected: usize) -> Result<Vec<
     }
     let start = cur.pos;
     let src = cur.take(n as usize, "a compressed block")?;
-    let result = if compression & COMPRESS_BLOSC != 0 { blosc_decompress(src, expected) } else { zlib_decompress(src, expected) };
+    let result = if compression & COMPRESS_BLOSC != 0 {
+        blosc_decompress(src, expected)
+    } else {
+        zlib_decompress(src, expected)
+    };
     result.map_err(|problem| {
         cur.pos = start;
         cur.corrupt(problem)
@@ -869,7 +932,8 @@ fn blosc_decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         let is_leftover = b == nblocks - 1 && leftover > 0;
         let bsize = if is_leftover { leftover } else { blocksize };
         let mut at = rd(16 + 4 * b);
-        let nsplits = if !dont_split && typesize <= 16 && blocksize / typesize >= 128 && !is_leftover { typesize } else { 1 };
+        let nsplits =
+            if !dont_split && typesize <= 16 && blocksize / typesize >= 128 && !is_leftover { typesize } else { 1 };
         let neblock = bsize / nsplits;
         let block = &mut tmp[..bsize];
         for s in 0..nsplits {
@@ -887,7 +951,8 @@ fn blosc_decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
             if csize as usize == neblock {
                 dst.copy_from_slice(stream);
             } else if codec == 1 {
-                let got = lz4_flex::block::decompress_into(stream, dst).map_err(|e| format!("blosc lz4 stream: {e}"))?;
+                let got =
+                    lz4_flex::block::decompress_into(stream, dst).map_err(|e| format!("blosc lz4 stream: {e}"))?;
                 if got != neblock {
                     return Err(format!("blosc lz4 stream gave {got} bytes, expected {neblock}"));
                 }

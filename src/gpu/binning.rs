@@ -215,7 +215,13 @@ impl BinCounts {
 /// fewer times, so memory pushes the choice up and evaluations push it down.
 ///
 /// `only` restricts the choice to one edge (tests and benchmarks measure each edge).
-pub fn choose_bins(grid: &GridSpec, particles: &[Particle], max_brick_items: u64, brute_force: bool, only: Option<u32>) -> BinCounts {
+pub fn choose_bins(
+    grid: &GridSpec,
+    particles: &[Particle],
+    max_brick_items: u64,
+    brute_force: bool,
+    only: Option<u32>,
+) -> BinCounts {
     if brute_force {
         return BinCounts::new(grid, particles, BRICK, true);
     }

@@ -193,10 +193,26 @@ mod tests {
         let opv = OpvLayout { textures: 2, max_depth: 2048, lights_per_texture: u32::MAX, rows: true };
         let (opv_read, opv_rw) = (opv.wgsl("opv", 4, EXTRA_BINDING, false), opv.wgsl("opv", 4, EXTRA_BINDING, true));
         let opv_mean = opv_rw.clone() + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
-        let inject = [include_str!("../../shaders/noise.wgsl"), include_str!("../../shaders/inject_finish.wgsl"), include_str!("../../shaders/inject.wgsl")];
-        let march = [&opv_read, include_str!("../../shaders/sun.wgsl"), include_str!("../../shaders/surface_glow.wgsl"), include_str!("../../shaders/march.wgsl")];
+        let inject = [
+            include_str!("../../shaders/noise.wgsl"),
+            include_str!("../../shaders/inject_finish.wgsl"),
+            include_str!("../../shaders/inject.wgsl"),
+        ];
+        let march = [
+            &opv_read,
+            include_str!("../../shaders/sun.wgsl"),
+            include_str!("../../shaders/surface_glow.wgsl"),
+            include_str!("../../shaders/march.wgsl"),
+        ];
         let cells = crate::gpu::propagate::sweep_cells_wgsl(8);
-        let sweep = [&cells, &opv_mean, VOLUME_LOOKUP, include_str!("../../shaders/sweep_sigma_filtered.wgsl"), INTEGRATE, include_str!("../../shaders/propagate_sweep.wgsl")];
+        let sweep = [
+            &cells,
+            &opv_mean,
+            VOLUME_LOOKUP,
+            include_str!("../../shaders/sweep_sigma_filtered.wgsl"),
+            INTEGRATE,
+            include_str!("../../shaders/propagate_sweep.wgsl"),
+        ];
         let exact = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
         let slice = [&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")];
         let directional = [

@@ -133,7 +133,16 @@ impl Setup<'_> {
     /// Adds particle `p` to the cells within [lo, hi] of the bricks with slots in
     /// [first, first + count); returns the cells evaluated.
     #[allow(clippy::too_many_arguments)]
-    fn add(&self, p: &ParticleGpu, lo: UVec3, hi: UVec3, first: u32, count: u32, t: &mut Tables, out: &mut [f32]) -> u64 {
+    fn add(
+        &self,
+        p: &ParticleGpu,
+        lo: UVec3,
+        hi: UVec3,
+        first: u32,
+        count: u32,
+        t: &mut Tables,
+        out: &mut [f32],
+    ) -> u64 {
         if p.density == [0.0, 0.0] || p.cutoff2 <= 0.0 {
             return 0;
         }
@@ -156,7 +165,8 @@ impl Setup<'_> {
         // Along x the tables start at the first cell's brick row.
         let x_base = range[0].0 / BRICK * BRICK;
         for a in 0..3 {
-            let (start, end) = if a == 0 { (x_base, (range[0].1 / BRICK + 1) * BRICK) } else { (range[a].0, range[a].1 + 1) };
+            let (start, end) =
+                if a == 0 { (x_base, (range[0].1 / BRICK + 1) * BRICK) } else { (range[a].0, range[a].1 + 1) };
             t.d2[a].clear();
             t.g[a].clear();
             for i in start..end {
@@ -204,7 +214,8 @@ impl Setup<'_> {
                             let inside = d2x[i] + dy2 + dz2 < p.cutoff2;
                             add[i] = if inside { w * gx[i] } else { 0.0 };
                         }
-                        let row: &mut [f32; B] = (&mut out[(s - first) as usize * WORDS + within..][..B]).try_into().expect("a brick row");
+                        let row: &mut [f32; B] =
+                            (&mut out[(s - first) as usize * WORDS + within..][..B]).try_into().expect("a brick row");
                         for i in 0..B {
                             row[i] += add[i];
                         }
@@ -226,7 +237,10 @@ pub fn order(grid: &GridSpec, particles: Vec<ParticleGpu>, reach: impl Fn(&Parti
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let c = ((Vec3::from_array(p.center) - grid.min) / brick_size).floor().clamp(Vec3::ZERO, (dims - 1).as_vec3()).as_uvec3();
+            let c = ((Vec3::from_array(p.center) - grid.min) / brick_size)
+                .floor()
+                .clamp(Vec3::ZERO, (dims - 1).as_vec3())
+                .as_uvec3();
             ((c.x + dims.x * (c.y + dims.y * c.z)) as u64) << 32 | i as u64
         })
         .collect();

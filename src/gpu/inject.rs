@@ -13,12 +13,12 @@
 //! bin buffers, which it reuses across updates and grows only when a chunk outgrows them.
 
 use super::binning::{self, BinCounts};
-use super::host_sums;
-use crate::scene::Particle;
 use super::gpu_types::ParticleGpu;
+use super::host_sums;
 use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
 use super::{Counters, GpuContext};
 use crate::scene::GridSpec;
+use crate::scene::Particle;
 
 /// What one injection reads besides the particles.
 pub struct InjectInputs<'a> {
@@ -122,9 +122,16 @@ impl Injector {
         );
         let finish = include_str!("../../shaders/inject_finish.wgsl");
         let noise = include_str!("../../shaders/noise.wgsl");
-        let pipeline = compute_pipeline(device, "inject", &[noise, finish, include_str!("../../shaders/inject.wgsl")], &layout);
-        let sums_pipeline = compute_pipeline(device, "inject sums", &[noise, finish, include_str!("../../shaders/inject_sums.wgsl")], &layout);
-        let occupancy_layout = bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
+        let pipeline =
+            compute_pipeline(device, "inject", &[noise, finish, include_str!("../../shaders/inject.wgsl")], &layout);
+        let sums_pipeline = compute_pipeline(
+            device,
+            "inject sums",
+            &[noise, finish, include_str!("../../shaders/inject_sums.wgsl")],
+            &layout,
+        );
+        let occupancy_layout =
+            bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
         let occupancy =
             compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
         let empty = |label| super::pipeline::storage_buffer(device, label, &[]);
@@ -242,7 +249,8 @@ impl Injector {
             job.uploaded = Some(chunk);
             counters.inject_chunks += 1;
         }
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: timestamps });
+        let mut pass = encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("inject"), timestamp_writes: timestamps });
         if job.next < job.bricks.len() {
             let start = if chunk == 0 { 0 } else { job.chunk_ends[chunk - 1] };
             let align = Self::chunk_align(ctx, job);
@@ -296,7 +304,8 @@ impl Injector {
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups((end - job.next) as u32, 1, 1);
             counters.dispatches += 1;
-            counters.cells_injected += job.bricks[job.next..end].iter().map(|&b| brick_cells(inputs.grid, b)).sum::<u64>();
+            counters.cells_injected +=
+                job.bricks[job.next..end].iter().map(|&b| brick_cells(inputs.grid, b)).sum::<u64>();
             job.next = end;
         }
         if job.next >= job.bricks.len() {
@@ -320,6 +329,9 @@ impl Injector {
     }
 
     pub fn bytes(&self) -> u64 {
-        [&self.particles, &self.offsets, &self.items, &self.bricks, &self.sums, &self.no_layer].iter().map(|b| b.size()).sum()
+        [&self.particles, &self.offsets, &self.items, &self.bricks, &self.sums, &self.no_layer]
+            .iter()
+            .map(|b| b.size())
+            .sum()
     }
 }

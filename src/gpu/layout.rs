@@ -16,11 +16,15 @@ pub enum Slot {
     /// A 3D f32 texture read through a filtering sampler (r32float needs FLOAT32_FILTERABLE).
     Texture3dFiltered,
     /// A sampler, filtering or not.
-    Sampler { filtering: bool },
+    Sampler {
+        filtering: bool,
+    },
     StorageTexture3d(wgpu::TextureFormat),
     StorageTexture2d(wgpu::TextureFormat),
     /// Texture 0 of an array of optical-depth volumes (see `opv_store`).
-    Opv { read_only: bool },
+    Opv {
+        read_only: bool,
+    },
 }
 
 pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> wgpu::BindGroupLayout {

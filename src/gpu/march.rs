@@ -6,7 +6,7 @@
 
 use super::gpu_types::{MarchParams, SurfaceGpu};
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
-use super::opv_store::{OpvVolumes, OpvLayout, EXTRA_BINDING};
+use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
 use crate::sun_table::{FTable, GPU_TABLE_SIZE};
@@ -46,7 +46,14 @@ impl ImageTarget {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        Self { width, height, hdr_view: hdr.create_view(&Default::default()), ldr_view: ldr.create_view(&Default::default()), hdr, params_buf }
+        Self {
+            width,
+            height,
+            hdr_view: hdr.create_view(&Default::default()),
+            ldr_view: ldr.create_view(&Default::default()),
+            hdr,
+            params_buf,
+        }
     }
 
     /// Bytes of GPU memory the target holds.
@@ -182,7 +189,10 @@ impl Marcher {
         let params = MarchParams { row_offset: job.next_row, ..job.params };
         ctx.queue.write_buffer(&target.params_buf, 0, bytemuck::bytes_of(&params));
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: timestamps });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("march"),
+                timestamp_writes: timestamps,
+            });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &job.bind_group, &[]);
             pass.dispatch_workgroups(job.params.size[0].div_ceil(8), band.div_ceil(8), 1);

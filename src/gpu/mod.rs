@@ -18,9 +18,9 @@ mod binning;
 mod context;
 mod error;
 mod gpu_types;
-mod layout;
 mod host_sums;
 mod inject;
+mod layout;
 mod march;
 mod opv_store;
 mod pipeline;
@@ -32,9 +32,12 @@ mod timer;
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};
 pub use error::GpuError;
+pub use gpu_types::{SweepBox, SweepStep};
 pub use layout::shared_constants;
 pub use opv_store::OpvLayout;
-pub use slice::{Plane, SliceSource};
-pub use gpu_types::{SweepBox, SweepStep};
+pub use pipeline::{
+    analytic_unsupported, human_bytes, light_has_opv, light_is_negligible, Counters, FogPipeline, FrameReport,
+    FrameRequest, Image, InjectPath, Progress, Stage, StageTimings, CULL_RADIANCE, HOST_MIN_ENTRIES_PER_BRICK,
+};
 pub use propagate::{giroud_iterations, sweep_steps, ShellFrame, SweepPlan, EXACT_STEPS_PER_CELL};
-pub use pipeline::{analytic_unsupported, human_bytes, light_has_opv, light_is_negligible, Counters, CULL_RADIANCE, FogPipeline, FrameReport, FrameRequest, Image, InjectPath, Progress, HOST_MIN_ENTRIES_PER_BRICK, Stage, StageTimings};
+pub use slice::{Plane, SliceSource};

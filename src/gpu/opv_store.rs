@@ -97,8 +97,12 @@ impl OpvLayout {
     /// where not written (on llvmpipe a sampled texture's `textureLoad` is slower). The
     /// including shader declares `grid: GridParams`.
     pub fn wgsl(&self, name: &str, binding: u32, extra_base: u32, read_write: bool) -> String {
-        let ty = if read_write { "texture_storage_3d<r32float, read_write>" } else { "texture_storage_3d<r32float, read>" };
-        let mut s = format!("// `{name}`: light-major optical-depth volumes in {} textures (src/gpu/opv_store.rs).\n", self.textures);
+        let ty =
+            if read_write { "texture_storage_3d<r32float, read_write>" } else { "texture_storage_3d<r32float, read>" };
+        let mut s = format!(
+            "// `{name}`: light-major optical-depth volumes in {} textures (src/gpu/opv_store.rs).\n",
+            self.textures
+        );
         for k in 0..self.textures {
             let b = if k == 0 { binding } else { extra_base + k - 1 };
             s += &format!("@group(0) @binding({b}) var {name}_{k}: {ty};\n");
@@ -145,7 +149,11 @@ impl OpvLayout {
     /// The binding type of each texture of an array.
     pub fn binding_type(read_only: bool) -> BindingType {
         BindingType::StorageTexture {
-            access: if read_only { wgpu::StorageTextureAccess::ReadOnly } else { wgpu::StorageTextureAccess::ReadWrite },
+            access: if read_only {
+                wgpu::StorageTextureAccess::ReadOnly
+            } else {
+                wgpu::StorageTextureAccess::ReadWrite
+            },
             format: wgpu::TextureFormat::R32Float,
             view_dimension: wgpu::TextureViewDimension::D3,
         }
@@ -208,7 +216,11 @@ impl OpvVolumes {
                     wgpu::Extent3d { width: 1, height: 1, depth_or_array_layers: 1 }
                 } else {
                     let rows = held.div_ceil(along_z);
-                    wgpu::Extent3d { width: res.x, height: res.y * rows, depth_or_array_layers: res.z * held.min(along_z) }
+                    wgpu::Extent3d {
+                        width: res.x,
+                        height: res.y * rows,
+                        depth_or_array_layers: res.z * held.min(along_z),
+                    }
                 };
                 volume_texture(device, label, size)
             })
@@ -226,7 +238,10 @@ impl OpvVolumes {
         self.textures[1..]
             .iter()
             .enumerate()
-            .map(|(k, (_, view))| BindGroupEntry { binding: extra_base + k as u32, resource: wgpu::BindingResource::TextureView(view) })
+            .map(|(k, (_, view))| BindGroupEntry {
+                binding: extra_base + k as u32,
+                resource: wgpu::BindingResource::TextureView(view),
+            })
             .collect()
     }
 
@@ -236,7 +251,10 @@ impl OpvVolumes {
     }
 
     pub fn bytes(&self) -> u64 {
-        self.textures.iter().map(|(t, _)| t.width() as u64 * t.height() as u64 * t.depth_or_array_layers() as u64 * 4).sum()
+        self.textures
+            .iter()
+            .map(|(t, _)| t.width() as u64 * t.height() as u64 * t.depth_or_array_layers() as u64 * 4)
+            .sum()
     }
 
     /// The texture holding `light` and the copy origin of its volume there.
@@ -252,13 +270,30 @@ impl OpvVolumes {
 
     /// Copies the volumes of lights `start..start + count` of `self` to `dst` (same grid) from
     /// light `dst_start` on.
-    pub fn copy_to(&self, encoder: &mut wgpu::CommandEncoder, start: u64, dst: &OpvVolumes, dst_start: u64, count: u64) {
+    pub fn copy_to(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        start: u64,
+        dst: &OpvVolumes,
+        dst_start: u64,
+        count: u64,
+    ) {
         for l in 0..count.min(self.lights.saturating_sub(start)).min(dst.lights.saturating_sub(dst_start)) {
             let (src, from) = self.place(start + l);
             let (to_tex, to) = dst.place(dst_start + l);
             encoder.copy_texture_to_texture(
-                wgpu::TexelCopyTextureInfo { texture: src, mip_level: 0, origin: from, aspect: wgpu::TextureAspect::All },
-                wgpu::TexelCopyTextureInfo { texture: to_tex, mip_level: 0, origin: to, aspect: wgpu::TextureAspect::All },
+                wgpu::TexelCopyTextureInfo {
+                    texture: src,
+                    mip_level: 0,
+                    origin: from,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyTextureInfo {
+                    texture: to_tex,
+                    mip_level: 0,
+                    origin: to,
+                    aspect: wgpu::TextureAspect::All,
+                },
                 self.extent(),
             );
         }

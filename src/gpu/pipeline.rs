@@ -11,9 +11,9 @@
 
 use super::binning;
 use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
-use super::opv_store::{OpvLayout, OpvVolumes, MAX_TEXTURE_BYTES};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
+use super::opv_store::{OpvLayout, OpvVolumes, MAX_TEXTURE_BYTES};
 use super::propagate::{sweep_cells_per_thread, PropagationInputs, PropagationJob, Propagator};
 use super::readback::read_texture;
 use super::slice::{Plane, SliceInputs, SliceParams, SliceSource, Slicer};
@@ -114,7 +114,9 @@ pub struct FrameReport {
 pub enum Stage {
     Inject,
     /// Propagating `lights` lights' optical depths.
-    Propagate { lights: u32 },
+    Propagate {
+        lights: u32,
+    },
     /// The full-resolution march.
     March,
     /// Nothing left: the shown image is full resolution with fresh optical depths.
@@ -169,7 +171,11 @@ struct GridResources {
 
 impl GridResources {
     fn bytes(&self) -> u64 {
-        self.spec.cell_count() * 4 + self.grid_buf.size() + self.lights_buf.size() + self.opv.iter().map(OpvVolumes::bytes).sum::<u64>() + self.brick_max.size()
+        self.spec.cell_count() * 4
+            + self.grid_buf.size()
+            + self.lights_buf.size()
+            + self.opv.iter().map(OpvVolumes::bytes).sum::<u64>()
+            + self.brick_max.size()
     }
 }
 
@@ -455,14 +461,25 @@ impl FogPipeline {
         let bins = (grid.resolution / 2 + 1).as_u64vec3().element_product();
         let particle_bytes = particles as u64 * std::mem::size_of::<ParticleGpu>() as u64;
         // A chunk's lists: at most the chunk limit, and at most every particle in every bin.
-        let lists = if particles == 0 { 0 } else { self.inject_chunk_bytes().min(particles as u64 * bins * 4) + bins * 4 + particle_bytes };
+        let lists = if particles == 0 {
+            0
+        } else {
+            self.inject_chunk_bytes().min(particles as u64 * bins * 4) + bins * 4 + particle_bytes
+        };
         let pixels = width as u64 * height as u64;
         cells * 4 + bricks * 8 + 2 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
     }
 
     /// The largest grid, of the same proportions as `grid`, whose scene passes
     /// [`check_limits`](Self::check_limits); None when even a 1-cell edge does not.
-    pub fn largest_fitting_grid(&self, grid: &GridSpec, lights: usize, particles: usize, width: u32, height: u32) -> Option<glam::UVec3> {
+    pub fn largest_fitting_grid(
+        &self,
+        grid: &GridSpec,
+        lights: usize,
+        particles: usize,
+        width: u32,
+        height: u32,
+    ) -> Option<glam::UVec3> {
         let edge = grid.resolution.max_element().max(1);
         let scaled = |k: u32| {
             let r = (grid.resolution.as_dvec3() * k as f64 / edge as f64).round().as_uvec3().max(glam::UVec3::ONE);
@@ -489,7 +506,14 @@ impl FogPipeline {
     }
 
     /// [`check_limits`](Self::check_limits) for a scene described by its sizes alone.
-    pub fn check_sizes(&self, grid: &GridSpec, light_count: usize, particle_count: usize, width: u32, height: u32) -> Result<(), GpuError> {
+    pub fn check_sizes(
+        &self,
+        grid: &GridSpec,
+        light_count: usize,
+        particle_count: usize,
+        width: u32,
+        height: u32,
+    ) -> Result<(), GpuError> {
         let limits = &self.ctx.limits;
         let adapter = self.ctx.adapter_info.name.clone();
         let edge = grid.resolution.max_element();
@@ -656,12 +680,23 @@ impl FogPipeline {
     /// project, to continue: work whose inputs changed is dropped and replanned. At least
     /// one item runs per call, and one item is never planned larger than the budget left
     /// (down to a single brick chunk, dispatch or band of rows).
-    pub fn advance(&mut self, project: &Project, request: &FrameRequest, budget: Option<Duration>) -> Result<Progress, GpuError> {
+    pub fn advance(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        budget: Option<Duration>,
+    ) -> Result<Progress, GpuError> {
         self.run(project, request, budget, true)
     }
 
     /// [`advance`](Self::advance), with or without quick previews.
-    fn run(&mut self, project: &Project, request: &FrameRequest, budget: Option<Duration>, previews: bool) -> Result<Progress, GpuError> {
+    fn run(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        budget: Option<Duration>,
+        previews: bool,
+    ) -> Result<Progress, GpuError> {
         let started = Instant::now();
         self.check_request(project, request)?;
         let scope = ErrorScope::push(&self.ctx.device);
@@ -675,9 +710,7 @@ impl FogPipeline {
 
     /// Refuses an invalid project or request, or one the adapter cannot hold.
     fn check_request(&self, project: &Project, request: &FrameRequest) -> Result<(), GpuError> {
-        project
-            .validate(self.ctx.max_grid_edge())
-            .map_err(|e| GpuError::Invalid(e.to_string()))?;
+        project.validate(self.ctx.max_grid_edge()).map_err(|e| GpuError::Invalid(e.to_string()))?;
         for (name, v) in [("width", request.width), ("height", request.height)] {
             if v == 0 || v > 16384 {
                 return Err(GpuError::Invalid(format!("the frame {name} must be within 1..=16384 pixels, got {v}")));
@@ -690,7 +723,11 @@ impl FogPipeline {
             let limit = self.ctx.limits.max_compute_workgroups_per_dimension as u64;
             if z > limit {
                 return Err(GpuError::Limit {
-                    what: format!("the giroud scheme with {} lights on a grid {} cells deep", project.lights.len(), project.grid.resolution.z),
+                    what: format!(
+                        "the giroud scheme with {} lights on a grid {} cells deep",
+                        project.lights.len(),
+                        project.grid.resolution.z
+                    ),
                     needed: z,
                     limit,
                     adapter: self.ctx.adapter_info.name.clone(),
@@ -708,7 +745,9 @@ impl FogPipeline {
         // The analytic scheme integrates particles and fog in closed form: it refuses what
         // only the grid holds.
         if request.scheme == Scheme::Analytic {
-            if let Some(what) = analytic_unsupported(project).or(self.base_layer.as_ref().map(|_| "an imported base volume")) {
+            if let Some(what) =
+                analytic_unsupported(project).or(self.base_layer.as_ref().map(|_| "an imported base volume"))
+            {
                 return Err(GpuError::Invalid(format!(
                     "the analytic scheme integrates particles and fog in closed form and cannot represent {what}, which only the \
                      grid holds; choose the sweep or exact scheme (propagation.scheme), or remove {what}"
@@ -738,7 +777,13 @@ impl FogPipeline {
         Ok(counts.fill(&project.grid, &project.particles, &bricks))
     }
 
-    fn run_items(&mut self, project: &Project, request: &FrameRequest, deadline: Option<Instant>, previews: bool) -> Result<Progress, GpuError> {
+    fn run_items(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        deadline: Option<Instant>,
+        previews: bool,
+    ) -> Result<Progress, GpuError> {
         let left = |now: Instant| deadline.map(|d| d.saturating_duration_since(now).as_secs_f64() * 1e3);
         let mut progress = Progress::default();
         if request.force {
@@ -844,7 +889,8 @@ impl FogPipeline {
             let rows = {
                 let (job, _) = self.jobs.march.as_mut().expect("a started march");
                 let per_row = request.width as u64;
-                let rows = (self.rates[timer::MARCH as usize].units_in(left(t)) / per_row.max(1)).clamp(BAND_ROWS as u64, u32::MAX as u64) as u32;
+                let rows = (self.rates[timer::MARCH as usize].units_in(left(t)) / per_row.max(1))
+                    .clamp(BAND_ROWS as u64, u32::MAX as u64) as u32;
                 let target = self.full.as_ref().expect("the full target");
                 let before = job.next_row;
                 let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
@@ -935,7 +981,8 @@ impl FogPipeline {
             bricks.dedup();
         }
         let max_items = self.inject_chunk_bytes() / 4;
-        let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
+        let particles: Vec<ParticleGpu> =
+            project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
         // The host path's per-brick counts are also what decides it, and its cost estimate.
         let brick_counts = self
             .host_possible()
@@ -946,7 +993,13 @@ impl FogPipeline {
             let ordered = super::host_sums::order(&project.grid, particles, |p| p.cutoff2.sqrt());
             Injector::begin(&project.grid, Vec::new(), Vec::new(), counts, bricks, max_items, Some(ordered))
         } else {
-            let counts = binning::choose_bins(&project.grid, &project.particles, max_items, self.brute_force_injection, self.inject_bin_edge);
+            let counts = binning::choose_bins(
+                &project.grid,
+                &project.particles,
+                max_items,
+                self.brute_force_injection,
+                self.inject_bin_edge,
+            );
             if counts.bin_size != self.bin_size {
                 self.bin_size = counts.bin_size;
                 self.write_scene_uniforms(project);
@@ -958,7 +1011,12 @@ impl FogPipeline {
     }
 
     /// Runs one chunk of the injection sized to `left_ms`; returns its cost units.
-    fn inject_item(&mut self, project: &Project, left_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> Result<u64, GpuError> {
+    fn inject_item(
+        &mut self,
+        project: &Project,
+        left_ms: Option<f64>,
+        counters: &mut crate::gpu::Counters,
+    ) -> Result<u64, GpuError> {
         let (Some(g), Some((job, _))) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
         let rate = self.rates[timer::INJECT as usize];
         let budget_units = rate.units_in(left_ms);
@@ -974,7 +1032,8 @@ impl FogPipeline {
             Some((v, buf)) if v.grid == project.grid => Some(buf),
             _ => None,
         };
-        let inputs = InjectInputs { grid: &g.spec, grid_buf: &g.grid_buf, ev_view: &g.ev_view, brick_max: &g.brick_max, layer };
+        let inputs =
+            InjectInputs { grid: &g.spec, grid_buf: &g.grid_buf, ev_view: &g.ev_view, brick_max: &g.brick_max, layer };
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         let stamps = self.timer.as_ref().map(|t| t.writes(timer::INJECT));
         self.injector.encode_next(&self.ctx, &mut encoder, job, &inputs, count, stamps, counters);
@@ -995,25 +1054,45 @@ impl FogPipeline {
         }
         // A sun's volume depends on its direction only, whatever the scheme.
         if let Some(direction) = sun_direction(l) {
-            return Some(OpvKey { position: direction, ev_generation: self.baked.ev_generation, scheme: Scheme::Sweep, stride: 0, refine: None, sun: true });
+            return Some(OpvKey {
+                position: direction,
+                ev_generation: self.baked.ev_generation,
+                scheme: Scheme::Sweep,
+                stride: 0,
+                refine: None,
+                sun: true,
+            });
         }
         let (stride, refine) = match scheme {
             Scheme::Sweep => (project.propagation.sweep_stride, project.propagation.refine_tolerance()),
             _ => (0, None),
         };
-        Some(OpvKey { position: l.position, ev_generation: self.baked.ev_generation, scheme, stride, refine, sun: false })
+        Some(OpvKey {
+            position: l.position,
+            ev_generation: self.baked.ev_generation,
+            scheme,
+            stride,
+            refine,
+            sun: false,
+        })
     }
 
     /// Lights whose OPV must be (re)propagated, with the inputs it will have; counts the rest.
-    fn opv_targets(&mut self, project: &Project, scheme: Scheme, counters: &mut crate::gpu::Counters) -> Vec<(usize, OpvKey)> {
+    fn opv_targets(
+        &mut self,
+        project: &Project,
+        scheme: Scheme,
+        counters: &mut crate::gpu::Counters,
+    ) -> Vec<(usize, OpvKey)> {
         self.baked.opvs.resize(project.lights.len(), None);
         let mut targets = Vec::new();
         for (i, light) in project.lights.iter().enumerate() {
             match self.opv_key(project, light, scheme) {
                 None => {
                     counters.lights_skipped += 1;
-                    counters.lights_culled +=
-                        (light_is_negligible(project, light) || !light.reaches_box(project.grid.min, project.grid.max)) as u32;
+                    counters.lights_culled += (light_is_negligible(project, light)
+                        || !light.reaches_box(project.grid.min, project.grid.max))
+                        as u32;
                 }
                 Some(k) if self.baked.opvs[i] == Some(k) => counters.lights_skipped += 1,
                 Some(k) => targets.push((i, k)),
@@ -1022,7 +1101,13 @@ impl FogPipeline {
         targets
     }
 
-    fn plan_propagation(&mut self, project: &Project, scheme: Scheme, targets: Vec<(usize, OpvKey)>, analytic_lists: Option<&binning::ChunkBins>) {
+    fn plan_propagation(
+        &mut self,
+        project: &Project,
+        scheme: Scheme,
+        targets: Vec<(usize, OpvKey)>,
+        analytic_lists: Option<&binning::ChunkBins>,
+    ) {
         let Some(g) = &self.grid else { return };
         let positions: Vec<glam::Vec3> = project.lights.iter().map(|l| l.position).collect();
         let directions: Vec<Option<glam::Vec3>> = project.lights.iter().map(sun_direction).collect();
@@ -1041,7 +1126,8 @@ impl FogPipeline {
             analytic_lists,
         };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
-        let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> = targets.iter().map(|&(i, k)| self.changed_since(i, k)).collect();
+        let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> =
+            targets.iter().map(|&(i, k)| self.changed_since(i, k)).collect();
         let job = self.propagator.plan(&self.ctx.device, &inputs, scheme, &active, &changed);
         self.jobs.propagate = Some((job, targets));
     }
@@ -1115,7 +1201,13 @@ impl FogPipeline {
 
     /// Marches the whole image at the largest size whose cost fits `budget_ms` (at most
     /// half the requested size per axis) and shows it.
-    fn quick_march(&mut self, request: &FrameRequest, key: ImageKey, budget_ms: Option<f64>, counters: &mut crate::gpu::Counters) -> Result<(), GpuError> {
+    fn quick_march(
+        &mut self,
+        request: &FrameRequest,
+        key: ImageKey,
+        budget_ms: Option<f64>,
+        counters: &mut crate::gpu::Counters,
+    ) -> Result<(), GpuError> {
         let rate = self.rates[timer::MARCH as usize];
         let pixels = (request.width as f64 * request.height as f64).max(1.0);
         let affordable = rate.units_in(budget_ms) as f64;
@@ -1155,7 +1247,11 @@ impl FogPipeline {
         }
         let device = &self.ctx.device;
         let r = spec.resolution;
-        let (ev, ev_view) = super::opv_store::volume_texture(device, "extinction volume", wgpu::Extent3d { width: r.x, height: r.y, depth_or_array_layers: r.z });
+        let (ev, ev_view) = super::opv_store::volume_texture(
+            device,
+            "extinction volume",
+            wgpu::Extent3d { width: r.x, height: r.y, depth_or_array_layers: r.z },
+        );
         let grid_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("grid params"),
             size: std::mem::size_of::<GridParams>() as u64,
@@ -1180,7 +1276,9 @@ impl FogPipeline {
     /// The OPV storage for `light_count` lights on `spec`: the fewest textures that hold them
     /// (at most the device's). Rebuilds the stages that read OPVs when that number changes.
     fn stages_for(&mut self, spec: &GridSpec, light_count: usize) -> OpvLayout {
-        let needed = self.opv_layout.textures_for(spec.resolution, light_count as u64).clamp(1, self.opv_layout.textures as u64) as u32;
+        let needed =
+            self.opv_layout.textures_for(spec.resolution, light_count as u64).clamp(1, self.opv_layout.textures as u64)
+                as u32;
         let rows = self.opv_layout.needs_rows(spec.resolution, light_count as u64);
         if needed != self.stage_layout.textures || rows != self.stage_layout.rows {
             self.stage_layout = OpvLayout { textures: needed, rows, ..self.opv_layout };
@@ -1296,7 +1394,11 @@ impl FogPipeline {
     /// adapter (unless brute force or a fixed bin edge asks for the gather) when the
     /// particles reach at least [`HOST_MIN_ENTRIES_PER_BRICK`] bricks per brick of the grid.
     pub fn inject_on_host(&self, project: &Project) -> bool {
-        self.host_possible() && self.host_pays(&project.grid, &binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false))
+        self.host_possible()
+            && self.host_pays(
+                &project.grid,
+                &binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false),
+            )
     }
 
     /// Whether the injection may take the host path, for scenes dense enough under `Auto`.
@@ -1305,7 +1407,9 @@ impl FogPipeline {
             InjectPath::Host => true,
             InjectPath::Adapter => false,
             InjectPath::Auto => {
-                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu && !self.brute_force_injection && self.inject_bin_edge.is_none()
+                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu
+                    && !self.brute_force_injection
+                    && self.inject_bin_edge.is_none()
             }
         }
     }
@@ -1314,14 +1418,18 @@ impl FogPipeline {
     /// whether it takes the host path.
     fn host_pays(&self, grid: &GridSpec, brick_counts: &binning::BinCounts) -> bool {
         self.inject_path == InjectPath::Host
-            || brick_counts.entries() >= HOST_MIN_ENTRIES_PER_BRICK * binning::brick_dims(grid).as_u64vec3().element_product()
+            || brick_counts.entries()
+                >= HOST_MIN_ENTRIES_PER_BRICK * binning::brick_dims(grid).as_u64vec3().element_product()
     }
 
     /// Bins the injection by this edge across (1, 2, 4 or 8 cells) instead of the one with
     /// the fewest evaluations: tests and benchmarks compare the edges. `None` chooses again.
     pub fn set_inject_bin_edge(&mut self, edge: Option<u32>) -> Result<(), GpuError> {
         if let Some(e) = edge.filter(|e| !binning::BIN_EDGES.contains(e)) {
-            return Err(GpuError::Invalid(format!("injection bin edge {e}: must be one of {:?} cells", binning::BIN_EDGES)));
+            return Err(GpuError::Invalid(format!(
+                "injection bin edge {e}: must be one of {:?} cells",
+                binning::BIN_EDGES
+            )));
         }
         self.inject_bin_edge = edge;
         self.baked.ev = None;
@@ -1337,7 +1445,8 @@ impl FogPipeline {
             // A layer too large to bind is not uploaded (wgpu would panic); `check_limits`
             // refuses its grid with the limit named.
             let bytes: &[u8] = bytemuck::cast_slice(&v.data);
-            let buf = storage_buffer(&self.ctx.device, "base layer", if bytes.len() as u64 > binding { &[] } else { bytes });
+            let buf =
+                storage_buffer(&self.ctx.device, "base layer", if bytes.len() as u64 > binding { &[] } else { bytes });
             (v, buf)
         });
         self.base_layer_generation += 1;
@@ -1372,7 +1481,10 @@ impl FogPipeline {
             SliceSource::Extinction => (0, 0),
             SliceSource::OpticalDepth { light } if light < g.light_count => (light as u32, 1),
             SliceSource::OpticalDepth { light } => {
-                return Err(GpuError::Invalid(format!("light {light} does not exist (the scene has {})", g.light_count)))
+                return Err(GpuError::Invalid(format!(
+                    "light {light} does not exist (the scene has {})",
+                    g.light_count
+                )))
             }
         };
         let inputs = SliceInputs { grid_buf: &g.grid_buf, ev_view: &g.ev_view, opv: &g.opv[0] };
@@ -1388,7 +1500,8 @@ impl FogPipeline {
 
     /// The image on show as linear HDR radiance (after [`update`](Self::update): the full frame).
     pub fn read_image(&self) -> Result<Image, GpuError> {
-        let img = self.shown_target().ok_or_else(|| GpuError::Invalid("nothing rendered yet: call update first".into()))?;
+        let img =
+            self.shown_target().ok_or_else(|| GpuError::Invalid("nothing rendered yet: call update first".into()))?;
         let rgba = read_texture(&self.ctx, &img.hdr, [img.width, img.height, 1], 16)?;
         Ok(Image { width: img.width, height: img.height, rgba })
     }
@@ -1456,16 +1569,31 @@ fn light_gpu(l: &Light, culled: bool) -> LightGpu {
     let rgb = if l.hidden || culled { glam::Vec3::ZERO } else { l.radiance_rgb() };
     let (kind, direction, angle, blend) = match l.kind {
         LightKind::Point => (0, glam::Vec3::ZERO, 0.0, 0.0),
-        LightKind::Spot { direction, angle_deg, blend } => (1, direction.normalize_or_zero(), angle_deg.to_radians(), blend),
+        LightKind::Spot { direction, angle_deg, blend } => {
+            (1, direction.normalize_or_zero(), angle_deg.to_radians(), blend)
+        }
         LightKind::Directional { direction } => (2, direction.normalize_or_zero(), 0.0, 0.0),
     };
-    LightGpu { position: l.position.to_array(), kind, rgb: rgb.to_array(), angle, direction: direction.to_array(), blend }
+    LightGpu {
+        position: l.position.to_array(),
+        kind,
+        rgb: rgb.to_array(),
+        angle,
+        direction: direction.to_array(),
+        blend,
+    }
 }
 
 /// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
-fn light_buffers(device: &wgpu::Device, layout: OpvLayout, spec: &GridSpec, light_count: usize) -> (wgpu::Buffer, [OpvVolumes; 2]) {
+fn light_buffers(
+    device: &wgpu::Device,
+    layout: OpvLayout,
+    spec: &GridSpec,
+    light_count: usize,
+) -> (wgpu::Buffer, [OpvVolumes; 2]) {
     let lights = light_count.max(1) as u64;
-    let opv = ["optical depth A", "optical depth B"].map(|label| OpvVolumes::new(device, layout, spec.resolution, lights, label));
+    let opv = ["optical depth A", "optical depth B"]
+        .map(|label| OpvVolumes::new(device, layout, spec.resolution, lights, label));
     let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("lights"),
         size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
@@ -1479,7 +1607,10 @@ fn light_buffers(device: &wgpu::Device, layout: OpvLayout, spec: &GridSpec, ligh
 /// the grid box (a spot's cone, a point light's reach) and is not negligible. The others add
 /// nothing to the image, so their volumes are never read (their contents are unspecified).
 pub fn light_has_opv(project: &Project, l: &Light) -> bool {
-    !(l.hidden || l.intensity <= 0.0 || light_is_negligible(project, l) || !l.reaches_box(project.grid.min, project.grid.max))
+    !(l.hidden
+        || l.intensity <= 0.0
+        || light_is_negligible(project, l)
+        || !l.reaches_box(project.grid.min, project.grid.max))
 }
 
 /// Radiance below which a light's whole contribution is dropped: the tone-mapped display
@@ -1497,7 +1628,11 @@ pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
     {
         return true;
     }
-    if matches!(l.kind, crate::scene::LightKind::Directional { .. }) || project.medium.base_extinction > 0.0 || !project.surfaces.is_empty() || project.base_volume.is_some() {
+    if matches!(l.kind, crate::scene::LightKind::Directional { .. })
+        || project.medium.base_extinction > 0.0
+        || !project.surfaces.is_empty()
+        || project.base_volume.is_some()
+    {
         return false;
     }
     let g = project.grid;
@@ -1610,7 +1745,11 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
         max_step: 4.0 * step,
         surface_count,
         row_offset: 0,
-        sun_count: project.lights.iter().filter(|l| matches!(l.kind, crate::scene::LightKind::Directional { .. })).count() as u32,
+        sun_count: project
+            .lights
+            .iter()
+            .filter(|l| matches!(l.kind, crate::scene::LightKind::Directional { .. }))
+            .count() as u32,
         _pad: 0,
     }
 }

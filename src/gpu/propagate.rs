@@ -4,7 +4,7 @@
 
 use super::gpu_types::{AnalyticParticle, ExactParams, PlaneParams, SweepBox, SweepStep};
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, VOLUME_LOOKUP};
-use super::opv_store::{OpvVolumes, OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
+use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING, EXTRA_BINDING_2};
 use super::Counters;
 use crate::scene::{GridSpec, Particle, Scheme};
 use bytemuck::Zeroable;
@@ -63,11 +63,19 @@ impl Propagator {
     /// `cells_per_thread`: see [`sweep_cells_per_thread`].
     pub fn new(device: &wgpu::Device, opv: OpvLayout, cells_per_thread: u32) -> Self {
         let cells_per_thread = cells_per_thread.max(1);
-        let two = |a: bool, b: bool| [opv.layout_entries(EXTRA_BINDING, a), opv.layout_entries(EXTRA_BINDING_2, b)].concat();
+        let two =
+            |a: bool, b: bool| [opv.layout_entries(EXTRA_BINDING, a), opv.layout_entries(EXTRA_BINDING_2, b)].concat();
         let giroud_layout = bind_group_layout_with(
             device,
             "propagate_giroud",
-            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::StorageRead, Slot::Opv { read_only: true }, Slot::Opv { read_only: false }],
+            &[
+                Slot::Uniform,
+                Slot::Texture3d,
+                Slot::StorageRead,
+                Slot::StorageRead,
+                Slot::Opv { read_only: true },
+                Slot::Opv { read_only: false },
+            ],
             two(true, false),
         );
         let src_dst = opv.wgsl("src", 4, EXTRA_BINDING, false) + &opv.wgsl("dst", 5, EXTRA_BINDING_2, true);
@@ -153,7 +161,12 @@ impl Propagator {
             ],
             opv.layout_entries(EXTRA_BINDING, false),
         );
-        let analytic = compute_pipeline(device, "propagate_analytic", &[&opv_rw, include_str!("../../shaders/propagate_analytic.wgsl")], &analytic_layout);
+        let analytic = compute_pipeline(
+            device,
+            "propagate_analytic",
+            &[&opv_rw, include_str!("../../shaders/propagate_analytic.wgsl")],
+            &analytic_layout,
+        );
         // Same bindings as the exact scheme, one plane of one sun per dispatch.
         let directional = compute_pipeline(
             device,
@@ -214,12 +227,23 @@ impl Propagator {
             }
         }
         let mut job = if points.is_empty() {
-            PropagationJob { lights: Vec::new(), work: Work::Empty, groups: Vec::new(), whole: Vec::new(), units: Vec::new(), next: 0, iterations: 0, cells: 0, suns: None }
+            PropagationJob {
+                lights: Vec::new(),
+                work: Work::Empty,
+                groups: Vec::new(),
+                whole: Vec::new(),
+                units: Vec::new(),
+                next: 0,
+                iterations: 0,
+                cells: 0,
+                suns: None,
+            }
         } else {
             self.plan_points(device, inputs, scheme, &points, &points_changed)
         };
         if !suns.is_empty() {
-            let params: Vec<PlaneParams> = suns.iter().flat_map(|&(l, direction)| sun_planes(inputs.grid, l, direction, SUN_STRIDE)).collect();
+            let params: Vec<PlaneParams> =
+                suns.iter().flat_map(|&(l, direction)| sun_planes(inputs.grid, l, direction, SUN_STRIDE)).collect();
             let r = inputs.grid.resolution.to_array();
             let start = job.groups.len();
             for p in &params {
@@ -272,7 +296,8 @@ impl Propagator {
                     )
                 };
                 let [a, b] = inputs.opv;
-                let work = Work::Giroud { ab: make(a, b), ba: make(b, a), a: a.clone(), b: b.clone(), _active: active_buf };
+                let work =
+                    Work::Giroud { ab: make(a, b), ba: make(b, a), a: a.clone(), b: b.clone(), _active: active_buf };
                 let r = inputs.grid.resolution;
                 let g = [r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4) * active.len() as u32];
                 (work, vec![g; iterations as usize], vec![cells * active.len() as u64; iterations as usize], iterations)
@@ -286,7 +311,8 @@ impl Propagator {
                         let first = changed.get(k).copied().flatten().map_or(0, |cells| {
                             // With refine, a cell's path also reads the detail of the bricks
                             // it crosses, which a change reaches one cell beyond its bricks.
-                            let cells = if inputs.sweep_refine.is_some() { bricks_around(inputs.grid, cells) } else { cells };
+                            let cells =
+                                if inputs.sweep_refine.is_some() { bricks_around(inputs.grid, cells) } else { cells };
                             first_changed_batch(inputs.grid, position, inputs.sweep_stride, cells)
                         });
                         (l, position, first)
@@ -328,7 +354,8 @@ impl Propagator {
                 }
                 let work = self.per_dispatch(device, inputs, &entries, Which::Sweep, &extra, Some(boxes.clone()));
                 // Dispatches when the whole job is encoded at once.
-                let iterations = (plan.steps.len() - plan.whole.iter().map(|(r, _, _)| r.len() - 1).sum::<usize>()) as u32;
+                let iterations =
+                    (plan.steps.len() - plan.whole.iter().map(|(r, _, _)| r.len() - 1).sum::<usize>()) as u32;
                 (work, plan.groups, units, iterations)
             }
             Scheme::Exact | Scheme::Analytic => {
@@ -346,12 +373,17 @@ impl Propagator {
                     })
                     .collect();
                 // The analytic scheme's workgroups are rows of 64 cells along x.
-                let g = if scheme == Scheme::Analytic { [r.x.div_ceil(64), r.y, 4] } else { [r.x.div_ceil(4), r.y.div_ceil(4), 1] };
+                let g = if scheme == Scheme::Analytic {
+                    [r.x.div_ceil(64), r.y, 4]
+                } else {
+                    [r.x.div_ceil(4), r.y.div_ceil(4), 1]
+                };
                 let groups = vec![g; params.len()];
                 let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
                 let work = if scheme == Scheme::Analytic {
                     let lists = inputs.analytic_lists.expect("FogPipeline builds the analytic lists before it plans");
-                    let particles: Vec<AnalyticParticle> = lists.particles.iter().map(|&i| AnalyticParticle::new(&inputs.particles[i as usize])).collect();
+                    let particles: Vec<AnalyticParticle> =
+                        lists.particles.iter().map(|&i| AnalyticParticle::new(&inputs.particles[i as usize])).collect();
                     let storage = |label: &str, bytes: &[u8]| super::pipeline::storage_buffer(device, label, bytes);
                     let particles = storage("analytic particles", bytemuck::cast_slice(&particles));
                     let offsets = storage("analytic brick offsets", bytemuck::cast_slice(&lists.offsets));
@@ -391,7 +423,10 @@ impl Propagator {
         }
         let mut dispatches = 0u32;
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("propagate"), timestamp_writes: timestamps });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("propagate"),
+                timestamp_writes: timestamps,
+            });
             match &job.work {
                 Work::Giroud { ab, ba, .. } => {
                     dispatches = range.len() as u32;
@@ -508,7 +543,13 @@ enum Work {
     /// Jacobi iterations ping-ponging between the two OPV buffers.
     Giroud { ab: wgpu::BindGroup, ba: wgpu::BindGroup, a: OpvVolumes, b: OpvVolumes, _active: wgpu::Buffer },
     /// One dispatch per uniform entry, each seeing its entry through a dynamic offset.
-    PerDispatch { which: Which, bind_group: wgpu::BindGroup, stride: u64, _buf: wgpu::Buffer, _keep: Option<wgpu::Buffer> },
+    PerDispatch {
+        which: Which,
+        bind_group: wgpu::BindGroup,
+        stride: u64,
+        _buf: wgpu::Buffer,
+        _keep: Option<wgpu::Buffer>,
+    },
     /// Nothing but directional lights to propagate.
     Empty,
 }
@@ -530,7 +571,13 @@ fn sun_planes(grid: &GridSpec, light: u32, direction: Vec3, stride: u32) -> Vec<
     (0..n)
         .map(|k| {
             let plane = if from_top { n - 1 - k } else { k };
-            let previous = if k < stride { plane } else if from_top { plane + stride } else { plane - stride };
+            let previous = if k < stride {
+                plane
+            } else if from_top {
+                plane + stride
+            } else {
+                plane - stride
+            };
             PlaneParams { light, axis: axis as u32, plane, previous }
         })
         .collect()
@@ -776,8 +823,15 @@ pub fn sweep_steps(grid: &GridSpec, lights: &[(u32, Vec3)], stride: u32) -> Swee
 /// [`sweep_steps`] where each light `(index, position, first)` starts at batch `first` (the
 /// batches before it are left as they are), with `cells_per_thread` cells per thread and at
 /// most `max_threads` threads per dispatch where boxes allow.
-pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u32, cells_per_thread: u64, max_threads: u64) -> SweepPlan {
-    let frames: Vec<(u32, ShellFrame, u32)> = lights.iter().map(|&(l, p, first)| (l, ShellFrame::new(grid, p, stride), first)).collect();
+pub fn sweep_steps_from(
+    grid: &GridSpec,
+    lights: &[(u32, Vec3, u32)],
+    stride: u32,
+    cells_per_thread: u64,
+    max_threads: u64,
+) -> SweepPlan {
+    let frames: Vec<(u32, ShellFrame, u32)> =
+        lights.iter().map(|&(l, p, first)| (l, ShellFrame::new(grid, p, stride), first)).collect();
     let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
     let workgroups = |threads: u64| {
@@ -807,7 +861,9 @@ pub fn sweep_steps_from(grid: &GridSpec, lights: &[(u32, Vec3, u32)], stride: u3
         let (batch_box, batch_step) = (plan.boxes.len(), plan.steps.len());
         let (mut first_box, mut offset, mut threads) = (plan.boxes.len(), 0u64, 0u64);
         for &(light, frame, _) in frames.iter().filter(|(_, f, first)| batch < f.batches && batch >= *first) {
-            for (face, (lo, size)) in (0..6).flat_map(|face| frame.face_boxes(grid, batch, face).into_iter().map(move |b| (face, b))) {
+            for (face, (lo, size)) in
+                (0..6).flat_map(|face| frame.face_boxes(grid, batch, face).into_iter().map(move |b| (face, b)))
+            {
                 let box_threads = size.iter().map(|&s| s as u64).product::<u64>().div_ceil(cells_per_thread);
                 if threads - offset + box_threads > max_threads && threads > offset {
                     flush(&mut plan, first_box, offset, threads);
@@ -862,7 +918,8 @@ pub fn first_changed_batch(grid: &GridSpec, position: Vec3, stride: u32, changed
         return 0;
     }
     let (lo, hi) = (changed.0.as_vec3().to_array(), changed.1.as_vec3().to_array());
-    let nearest = (0..3).map(|i| (lo[i] - frame.anchor[i]).max(frame.anchor[i] - hi[i]).max(0.0)).fold(0.0f32, f32::max);
+    let nearest =
+        (0..3).map(|i| (lo[i] - frame.anchor[i]).max(frame.anchor[i] - hi[i]).max(0.0)).fold(0.0f32, f32::max);
     let first = ((nearest - 2.0 - frame.level0) / frame.width).floor() - 1.0;
     if first > 0.0 {
         first as u32
@@ -965,7 +1022,14 @@ mod tests {
     fn placements(grid: &GridSpec) -> Vec<Vec3> {
         let (lo, hi, c) = (grid.min, grid.max, (grid.min + grid.max) * 0.5);
         let size = grid.size();
-        let mut out = vec![c, lo + size * Vec3::new(0.13, 0.71, 0.37), lo, hi, Vec3::new(lo.x, c.y, hi.z), Vec3::new(c.x, hi.y, c.z)];
+        let mut out = vec![
+            c,
+            lo + size * Vec3::new(0.13, 0.71, 0.37),
+            lo,
+            hi,
+            Vec3::new(lo.x, c.y, hi.z),
+            Vec3::new(c.x, hi.y, c.z),
+        ];
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
@@ -987,7 +1051,12 @@ mod tests {
     /// box lists only cells of its own face (the shader runs every listed cell).
     #[test]
     fn sweep_plan_solves_each_cell_once_after_its_inputs() {
-        for (res, stride) in [(UVec3::new(12, 12, 12), 3), (UVec3::new(20, 9, 5), 8), (UVec3::new(40, 6, 6), 16), (UVec3::new(17, 17, 17), 5)] {
+        for (res, stride) in [
+            (UVec3::new(12, 12, 12), 3),
+            (UVec3::new(20, 9, 5), 8),
+            (UVec3::new(40, 6, 6), 16),
+            (UVec3::new(17, 17, 17), 5),
+        ] {
             let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -0.5), max: Vec3::new(1.5, 1.0, 0.5), resolution: res };
             for light in placements(&grid) {
                 let frame = ShellFrame::new(&grid, light, stride);
@@ -998,7 +1067,12 @@ mod tests {
                         for j in 0..b.size[1] as i32 {
                             for i in 0..b.size[0] as i32 {
                                 let c = [b.lo[0] + i, b.lo[1] + j, b.lo[2] + k];
-                                assert_eq!(frame.claim(c).1, b.face, "{res} {light}: cell {c:?} listed for face {}", b.face);
+                                assert_eq!(
+                                    frame.claim(c).1,
+                                    b.face,
+                                    "{res} {light}: cell {c:?} listed for face {}",
+                                    b.face
+                                );
                             }
                         }
                     }
@@ -1018,7 +1092,10 @@ mod tests {
                             assert_eq!(holders, 1, "{res} {light} cell {c:?} batch {batch} face {face}");
                             for r in reads(&grid, light, stride, c) {
                                 let (rb, _) = frame.claim(r);
-                                assert!(rb < batch, "{res} s{stride} {light}: cell {c:?} (batch {batch}) reads {r:?} (batch {rb})");
+                                assert!(
+                                    rb < batch,
+                                    "{res} s{stride} {light}: cell {c:?} (batch {batch}) reads {r:?} (batch {rb})"
+                                );
                             }
                         }
                     }

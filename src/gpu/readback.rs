@@ -4,7 +4,12 @@ use super::{GpuContext, GpuError};
 use bytemuck::Pod;
 
 /// Reads `count` elements of `T` starting at byte `offset` of `buffer` (which needs COPY_SRC).
-pub fn read_buffer<T: Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, offset: u64, count: usize) -> Result<Vec<T>, GpuError> {
+pub fn read_buffer<T: Pod>(
+    ctx: &GpuContext,
+    buffer: &wgpu::Buffer,
+    offset: u64,
+    count: usize,
+) -> Result<Vec<T>, GpuError> {
     let size = (count * std::mem::size_of::<T>()) as u64;
     if size == 0 {
         return Ok(Vec::new());
@@ -18,7 +23,12 @@ pub fn read_buffer<T: Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, offset: u64,
 }
 
 /// Reads a whole 2D or 3D texture of `texel_bytes`-sized texels, rows unpadded.
-pub fn read_texture<T: Pod>(ctx: &GpuContext, texture: &wgpu::Texture, extent: [u32; 3], texel_bytes: u32) -> Result<Vec<T>, GpuError> {
+pub fn read_texture<T: Pod>(
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
+    extent: [u32; 3],
+    texel_bytes: u32,
+) -> Result<Vec<T>, GpuError> {
     read_texture_region(ctx, texture, wgpu::Origin3d::ZERO, extent, texel_bytes)
 }
 
@@ -38,7 +48,11 @@ pub fn read_texture_region<T: Pod>(
         wgpu::TexelCopyTextureInfo { texture, mip_level: 0, origin, aspect: wgpu::TextureAspect::All },
         wgpu::TexelCopyBufferInfo {
             buffer: &staging,
-            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row), rows_per_image: Some(height) },
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded_row),
+                rows_per_image: Some(height),
+            },
         },
         wgpu::Extent3d { width, height, depth_or_array_layers: depth },
     );
@@ -66,9 +80,7 @@ fn map_read(ctx: &GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuErro
         let _ = tx.send(r);
     });
     ctx.wait()?;
-    rx.recv()
-        .map_err(|e| GpuError::Readback(e.to_string()))?
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
+    rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
     let bytes = staging.get_mapped_range(..).map_err(|e| GpuError::Readback(e.to_string()))?.to_vec();
     staging.unmap();
     Ok(bytes)

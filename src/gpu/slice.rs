@@ -2,7 +2,7 @@
 //! without copying the whole EV or OPV to the CPU.
 
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
-use super::opv_store::{OpvVolumes, OpvLayout, EXTRA_BINDING};
+use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
@@ -56,7 +56,8 @@ impl Slicer {
             opv.layout_entries(EXTRA_BINDING, true),
         );
         let opv_read = opv.wgsl("opv", 2, EXTRA_BINDING, false);
-        let pipeline = compute_pipeline(device, "slice", &[&opv_read, include_str!("../../shaders/slice.wgsl")], &layout);
+        let pipeline =
+            compute_pipeline(device, "slice", &[&opv_read, include_str!("../../shaders/slice.wgsl")], &layout);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("slice params"),
             size: std::mem::size_of::<SliceParams>() as u64,
@@ -68,7 +69,13 @@ impl Slicer {
     }
 
     /// Gathers plane `index` across `axis` of a `dims` grid and reads it back.
-    pub fn read(&mut self, ctx: &GpuContext, inputs: &SliceInputs, dims: [u32; 3], params: SliceParams) -> Result<Plane, GpuError> {
+    pub fn read(
+        &mut self,
+        ctx: &GpuContext,
+        inputs: &SliceInputs,
+        dims: [u32; 3],
+        params: SliceParams,
+    ) -> Result<Plane, GpuError> {
         let axis = params.axis as usize;
         let (a, b) = match axis {
             0 => (1, 2),
@@ -101,7 +108,8 @@ impl Slicer {
         );
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("slice"), timestamp_writes: None });
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("slice"), timestamp_writes: None });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups(plane_dims[0].div_ceil(8), plane_dims[1].div_ceil(8), 1);

@@ -118,8 +118,16 @@ impl GridMedium64 {
         let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
         let v = |i: usize, j: usize, k: usize| self.value(i, j, k);
         lerp(
-            lerp(lerp(v(i0[0], i0[1], i0[2]), v(i1[0], i0[1], i0[2]), f[0]), lerp(v(i0[0], i1[1], i0[2]), v(i1[0], i1[1], i0[2]), f[0]), f[1]),
-            lerp(lerp(v(i0[0], i0[1], i1[2]), v(i1[0], i0[1], i1[2]), f[0]), lerp(v(i0[0], i1[1], i1[2]), v(i1[0], i1[1], i1[2]), f[0]), f[1]),
+            lerp(
+                lerp(v(i0[0], i0[1], i0[2]), v(i1[0], i0[1], i0[2]), f[0]),
+                lerp(v(i0[0], i1[1], i0[2]), v(i1[0], i1[1], i0[2]), f[0]),
+                f[1],
+            ),
+            lerp(
+                lerp(v(i0[0], i0[1], i1[2]), v(i1[0], i0[1], i1[2]), f[0]),
+                lerp(v(i0[0], i1[1], i1[2]), v(i1[0], i1[1], i1[2]), f[0]),
+                f[1],
+            ),
             f[2],
         )
     }
@@ -137,7 +145,9 @@ impl GridMedium64 {
     /// Optical depth along `a + t·dir` (unit `dir`), t in [0, len]; `len` may be infinite
     /// (the path to a sun).
     pub fn ray_depth(&self, a: DVec3, dir: DVec3, len: f64) -> f64 {
-        let Some((t0, t1)) = clip_to_box(self.min, self.max, a, dir, len) else { return self.outside_depth(a, dir, len) };
+        let Some((t0, t1)) = clip_to_box(self.min, self.max, a, dir, len) else {
+            return self.outside_depth(a, dir, len);
+        };
         let mut cuts = vec![t0, t1];
         for ax in 0..3 {
             if dir[ax] == 0.0 {
@@ -198,7 +208,9 @@ pub fn clipped_optical_depth(grid: &GridSpec, medium: &Medium64, a: DVec3, b: DV
     let dir = (b - a) / len;
     match clip_to_box(grid.min.as_dvec3(), grid.max.as_dvec3(), a, dir, len) {
         Some((t0, t1)) => {
-            medium.optical_depth(a + dir * t0, a + dir * t1) + medium.base_depth(a, dir, t0) + medium.base_depth(a + dir * t1, dir, len - t1)
+            medium.optical_depth(a + dir * t0, a + dir * t1)
+                + medium.base_depth(a, dir, t0)
+                + medium.base_depth(a + dir * t1, dir, len - t1)
         }
         None => medium.base_depth(a, dir, len),
     }
@@ -219,7 +231,8 @@ mod tests {
     /// and outside the box.
     #[test]
     fn grid_line_integral_matches_fine_quadrature() {
-        let grid = GridSpec { min: Vec3::new(-1.0, 0.0, 0.5), max: Vec3::new(1.0, 0.5, 2.0), resolution: UVec3::new(7, 3, 5) };
+        let grid =
+            GridSpec { min: Vec3::new(-1.0, 0.0, 0.5), max: Vec3::new(1.0, 0.5, 2.0), resolution: UVec3::new(7, 3, 5) };
         let mut s = 3;
         let values: Vec<f64> = (0..grid.cell_count()).map(|_| lcg(&mut s) * 4.0).collect();
         let m = GridMedium64::new(&grid, values, 0.3);

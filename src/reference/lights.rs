@@ -34,7 +34,14 @@ use glam::DVec3;
 /// [`Medium::base_at`] does at the start point. Infinite when the path never thins out (k = 0
 /// or not rising, over an infinite length); never NaN.
 pub fn height_fog_depth(medium: &Medium, o: DVec3, d: DVec3, len: f64) -> f64 {
-    height_fog_depth_raw(medium.base_extinction as f64, medium.height_falloff as f64, medium.height_origin as f64, o, d, len)
+    height_fog_depth_raw(
+        medium.base_extinction as f64,
+        medium.height_falloff as f64,
+        medium.height_origin as f64,
+        o,
+        d,
+        len,
+    )
 }
 
 /// [`height_fog_depth`] with β₀, k and y₀ given.
@@ -97,7 +104,12 @@ pub fn sun_optical_depth_cells(project: &Project, light: usize, cells: &[[u32; 3
 
 /// [`sun_optical_depth_cells`] with the medium inside the box given (without base fog, such
 /// as [`Medium64::without_base`] of a medium with a base volume).
-pub fn sun_optical_depth_cells_with(project: &Project, gaussians: &Medium64, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+pub fn sun_optical_depth_cells_with(
+    project: &Project,
+    gaussians: &Medium64,
+    light: usize,
+    cells: &[[u32; 3]],
+) -> Vec<f64> {
     let crate::scene::LightKind::Directional { direction } = project.lights[light].kind else {
         panic!("light {light} is not directional");
     };
@@ -239,7 +251,14 @@ mod tests {
             let want = if infinite {
                 // Substituting t = s/(1 − s) maps [0, ∞) onto [0, 1).
                 let f = |u: f64| m.base_at(y as f64 + d.y * u / (1.0 - u)) / ((1.0 - u) * (1.0 - u));
-                crate::quad::integrate(f, &crate::quad::breakpoints((1..12).map(|i| 1.0 - 0.5f64.powi(i)).collect(), 0.0, 1.0), 1e-12, 0.0, 10_000).0
+                crate::quad::integrate(
+                    f,
+                    &crate::quad::breakpoints((1..12).map(|i| 1.0 - 0.5f64.powi(i)).collect(), 0.0, 1.0),
+                    1e-12,
+                    0.0,
+                    10_000,
+                )
+                .0
             } else {
                 let f = |t: f64| m.base_at(y as f64 + d.y * t);
                 crate::quad::integrate(f, &[0.0, len], 1e-12, 0.0, 10_000).0

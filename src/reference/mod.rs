@@ -26,8 +26,8 @@ pub mod surface_glow;
 
 pub use grid::{clip_to_box, clipped_optical_depth, GridMedium64};
 pub use render::{
-    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, render_reference_with, shadowed,
-    RefRenderOptions,
+    camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, render_reference_with,
+    shadowed, RefRenderOptions,
 };
 
 use crate::scene::{GridSpec, Project, Volume};
@@ -252,7 +252,10 @@ impl Medium64 {
         let points = quad::breakpoints(points, lo, hi);
         let f = |t: f64| {
             let x = a + dir * t;
-            let sum: f64 = active.iter().map(|g| g.density * (-(x - g.center).length_squared() / (g.radius * g.radius)).exp()).sum();
+            let sum: f64 = active
+                .iter()
+                .map(|g| g.density * (-(x - g.center).length_squared() / (g.radius * g.radius)).exp())
+                .sum();
             if sum > 0.0 {
                 sum * noise.modulation(x)
             } else {
@@ -264,7 +267,13 @@ impl Medium64 {
 
     /// The gaussians that can contribute anywhere along the line `origin + t·dir` (unit `dir`).
     pub fn along_line(&self, origin: DVec3, dir: DVec3) -> Self {
-        let mut kept = Self { base: self.base, height: self.height, gaussians: Vec::new(), cull: Vec::new(), noisy: Vec::new(), noise: self.noise,
+        let mut kept = Self {
+            base: self.base,
+            height: self.height,
+            gaussians: Vec::new(),
+            cull: Vec::new(),
+            noisy: Vec::new(),
+            noise: self.noise,
             layer: self.layer.clone(),
         };
         for ((g, &cull), &noisy) in self.gaussians.iter().zip(&self.cull).zip(&self.noisy) {
@@ -411,7 +420,12 @@ pub fn clipped_optical_depth_cells(project: &Project, light: usize, cells: &[[u3
 ///
 /// # Panics
 /// If `light` is not an index into `project.lights`.
-pub fn clipped_optical_depth_cells_with(project: &Project, medium: &Medium64, light: usize, cells: &[[u32; 3]]) -> Vec<f64> {
+pub fn clipped_optical_depth_cells_with(
+    project: &Project,
+    medium: &Medium64,
+    light: usize,
+    cells: &[[u32; 3]],
+) -> Vec<f64> {
     if matches!(project.lights[light].kind, crate::scene::LightKind::Directional { .. }) {
         return lights::sun_optical_depth_cells_with(project, &medium.without_base(), light, cells);
     }
@@ -488,7 +502,11 @@ mod tests {
     /// nothing outside the box, to σ_t and to every optical depth (against fine quadrature).
     #[test]
     fn a_base_volume_adds_as_injected() {
-        let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -0.5), max: Vec3::new(1.0, 1.0, 0.5), resolution: UVec3::new(5, 4, 3) };
+        let grid = GridSpec {
+            min: Vec3::new(-1.0, 0.0, -0.5),
+            max: Vec3::new(1.0, 1.0, 0.5),
+            resolution: UVec3::new(5, 4, 3),
+        };
         let mut s = 11;
         let layer = crate::scene::Volume::new(grid, (0..grid.cell_count()).map(|_| lcg(&mut s) as f32 * 3.0).collect());
         let g = Gaussian64 { center: DVec3::new(0.2, 0.5, 0.0), radius: 0.3, density: 2.0 };
@@ -499,16 +517,26 @@ mod tests {
             let x = cell_center64(&grid, i, j, k);
             assert!((m.extinction(x) - plain.extinction(x) - layer.data[idx] as f64).abs() < 1e-12);
         }
-        assert_eq!(m.extinction(DVec3::new(1.5, 0.5, 0.0)), plain.extinction(DVec3::new(1.5, 0.5, 0.0)), "nothing outside the box");
+        assert_eq!(
+            m.extinction(DVec3::new(1.5, 0.5, 0.0)),
+            plain.extinction(DVec3::new(1.5, 0.5, 0.0)),
+            "nothing outside the box"
+        );
         for _ in 0..10 {
             let p = |s: &mut u64| DVec3::new(lcg(s) * 3.0 - 1.5, lcg(s) * 1.6 - 0.3, lcg(s) * 1.6 - 0.8);
             let (a, b) = (p(&mut s), p(&mut s));
             let n = 100_000;
-            let fine = (0..n).map(|i| m.extinction(a + (b - a) * ((i as f64 + 0.5) / n as f64))).sum::<f64>() * (b - a).length() / n as f64;
+            let fine = (0..n).map(|i| m.extinction(a + (b - a) * ((i as f64 + 0.5) / n as f64))).sum::<f64>()
+                * (b - a).length()
+                / n as f64;
             let exact = m.optical_depth(a, b);
             // Midpoint quadrature errs by up to a step times the jump at the box faces.
             assert!((exact - fine).abs() < 1e-4 * fine.max(1.0), "{exact} vs {fine}");
-            assert!(exact > plain.optical_depth(a, b) || clip_to_box(grid.min.as_dvec3(), grid.max.as_dvec3(), a, (b - a).normalize(), (b - a).length()).is_none());
+            assert!(
+                exact > plain.optical_depth(a, b)
+                    || clip_to_box(grid.min.as_dvec3(), grid.max.as_dvec3(), a, (b - a).normalize(), (b - a).length())
+                        .is_none()
+            );
         }
         let outside = DVec3::new(1.5, 0.5, 2.0);
         assert!(m.without_base().extinction(outside) < 1e-20, "without base fog nothing is left outside the box");

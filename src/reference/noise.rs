@@ -122,7 +122,10 @@ mod tests {
         use crate::scene::{Particle, Project};
         let mut p = Project {
             grid: GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::splat(32) },
-            particles: vec![Particle::new(Vec3::new(0.1, 0.0, -0.2), 0.5, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.2), 0.2, 6.0)],
+            particles: vec![
+                Particle::new(Vec3::new(0.1, 0.0, -0.2), 0.5, 3.0),
+                Particle::new(Vec3::new(-0.4, 0.3, 0.2), 0.2, 6.0),
+            ],
             ..Project::default()
         };
         p.particles[1].noise = false;
@@ -130,10 +133,14 @@ mod tests {
         for amplitude in [0.5f32, 4.0] {
             p.medium.noise = Some(Noise { amplitude, frequency: 2.0, octaves: 4, seed: 5 });
             let m = Medium64::from_project(&p);
-            for (a, b) in [(DVec3::new(-1.0, -0.3, -0.9), DVec3::new(1.0, 0.2, 0.7)), (DVec3::new(0.1, -1.0, 0.0), DVec3::new(0.1, 1.0, -0.2))] {
+            for (a, b) in [
+                (DVec3::new(-1.0, -0.3, -0.9), DVec3::new(1.0, 0.2, 0.7)),
+                (DVec3::new(0.1, -1.0, 0.0), DVec3::new(0.1, 1.0, -0.2)),
+            ] {
                 let n = 400_000;
                 let h = (b - a).length() / n as f64;
-                let fine: f64 = (0..n).map(|i| m.extinction(a + (b - a) * ((i as f64 + 0.5) / n as f64))).sum::<f64>() * h;
+                let fine: f64 =
+                    (0..n).map(|i| m.extinction(a + (b - a) * ((i as f64 + 0.5) / n as f64))).sum::<f64>() * h;
                 let exact = m.optical_depth(a, b);
                 assert!((exact - fine).abs() < 1e-7 * fine, "a = {amplitude}: {exact} vs {fine}");
                 // The noise matters: without it the depth differs.

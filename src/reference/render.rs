@@ -89,8 +89,7 @@ fn lights64(project: &Project, medium: &Medium64) -> Vec<Light64> {
                 crate::scene::LightKind::Directional { direction } => Some(direction.as_dvec3().normalize()),
                 _ => None,
             },
-            gaussians: matches!(l.kind, crate::scene::LightKind::Directional { .. })
-                .then(|| medium.without_base()),
+            gaussians: matches!(l.kind, crate::scene::LightKind::Directional { .. }).then(|| medium.without_base()),
         })
         .filter(|l| l.rgb.max_element() > 0.0)
         .collect()
@@ -200,8 +199,10 @@ pub fn radiance_along_ray(
         let inside = t >= b0 && t < b1;
         // Outside the box a step spans about rel_step of base fog optical depth (at most a
         // million steps' worth of the grid's own step, where height fog has all but vanished).
-        let mut h = if inside || medium.base() <= 0.0 { step } else { (opts.rel_step / medium.base_at(x.y)).min(1e6 * step) };
-        let near = lights.iter().filter(|l| l.sun.is_none()).map(|l| (x - l.position).length()).fold(f64::INFINITY, f64::min);
+        let mut h =
+            if inside || medium.base() <= 0.0 { step } else { (opts.rel_step / medium.base_at(x.y)).min(1e6 * step) };
+        let near =
+            lights.iter().filter(|l| l.sun.is_none()).map(|l| (x - l.position).length()).fold(f64::INFINITY, f64::min);
         h = h.min((opts.rel_step * near).max(min_step));
         if t < b0 {
             h = h.min(b0 - t);
@@ -215,7 +216,8 @@ pub fn radiance_along_ray(
         let seg = view.optical_depth(x, origin + dir * t_next);
         let weight = (-tau).exp() * albedo * -(-seg).exp_m1();
         if weight > 0.0 {
-            radiance += weight * in_scattered(medium, project, &lights, phase, origin + dir * (0.5 * (t + t_next)), dir);
+            radiance +=
+                weight * in_scattered(medium, project, &lights, phase, origin + dir * (0.5 * (t + t_next)), dir);
         }
         tau += seg;
         t = t_next;
@@ -280,7 +282,12 @@ pub fn in_scatter_adaptive(
         let integrand = |t: f64| {
             let x = origin + dir * t;
             let Some((travel, geometry, tr)) = arriving(medium, project, light, x) else { return 0.0 };
-            geometry * albedo * medium.extinction(x) * phase.eval(travel.dot(-dir)) * tr * (-view.optical_depth(origin, x)).exp()
+            geometry
+                * albedo
+                * medium.extinction(x)
+                * phase.eval(travel.dot(-dir))
+                * tr
+                * (-view.optical_depth(origin, x)).exp()
         };
         let mut points = split.clone();
         if light.sun.is_none() {
@@ -328,7 +335,13 @@ pub fn render_reference(project: &Project, width: u32, height: u32, opts: &RefRe
 }
 
 /// [`render_reference`] through `medium` (the project's, with its base volume).
-pub fn render_reference_with(project: &Project, medium: &Medium64, width: u32, height: u32, opts: &RefRenderOptions) -> Vec<[f64; 3]> {
+pub fn render_reference_with(
+    project: &Project,
+    medium: &Medium64,
+    width: u32,
+    height: u32,
+    opts: &RefRenderOptions,
+) -> Vec<[f64; 3]> {
     let lights = lights64(project, medium);
     let origin = project.camera.position.as_dvec3();
     let mut out = vec![[0.0; 3]; width as usize * height as usize];
@@ -356,7 +369,14 @@ pub fn render_reference_with(project: &Project, medium: &Medium64, width: u32, h
 /// directions in [`super::surface_glow`]), times the medium's albedo, the spot's cone factor
 /// at x and the transmittance of the medium's optical depth beyond the base fog's on the
 /// direct path.
-fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x: DVec3, dir: DVec3, hit: &crate::scene::SurfaceHit) -> DVec3 {
+fn surface_radiance(
+    medium: &Medium64,
+    project: &Project,
+    lights: &[Light64],
+    x: DVec3,
+    dir: DVec3,
+    hit: &crate::scene::SurfaceHit,
+) -> DVec3 {
     let (normal, albedo, ks, n) = (hit.normal, hit.albedo, hit.specular, hit.phong_exponent);
     let mirror = dir - 2.0 * dir.dot(normal) * normal;
     let beta = project.medium.base_extinction as f64;
@@ -376,7 +396,15 @@ fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x:
                     let mut rho = albedo * g;
                     if ks > 0.0 {
                         let theta_r = mirror.dot(to_light / d).clamp(-1.0, 1.0).acos();
-                        rho += DVec3::splat(ks * crate::surface_table::spec_radiance(beta, d, theta_r, n, crate::surface_table::s_exact));
+                        rho += DVec3::splat(
+                            ks * crate::surface_table::spec_radiance(
+                                beta,
+                                d,
+                                theta_r,
+                                n,
+                                crate::surface_table::s_exact,
+                            ),
+                        );
                     }
                     out += rho * l.rgb * (project.medium.albedo as f64 * cone * extra);
                 }
@@ -385,7 +413,8 @@ fn surface_radiance(medium: &Medium64, project: &Project, lights: &[Light64], x:
                 let cos = normal.dot(-travel);
                 let reach = if l.sun.is_some() { f64::INFINITY } else { (l.position - x).length() };
                 if cos > 0.0 && !shadowed(project, x, normal, -travel, reach) {
-                    let brdf = albedo / PI * cos + DVec3::splat(ks * crate::surface_table::phong_lobe(mirror.dot(-travel), n));
+                    let brdf =
+                        albedo / PI * cos + DVec3::splat(ks * crate::surface_table::phong_lobe(mirror.dot(-travel), n));
                     out += brdf * l.rgb * (geometry * tr);
                 }
             }

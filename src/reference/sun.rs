@@ -21,8 +21,8 @@
 use super::quad;
 use std::f64::consts::{FRAC_PI_2, PI};
 
-pub use crate::sun_table::*;
 use crate::sun_table::knees_cot;
+pub use crate::sun_table::*;
 
 /// The half-angle form of Sun's parameters: (A1, a, b, T_sv cosγ) for a clamped γ, or None
 /// where the result is 0 or undefined.

@@ -79,7 +79,8 @@ pub fn specular_glow_quadrature(beta: f64, d: f64, theta_r: f64, n: f64) -> f64 
     points.extend(crate::sun_table::KNEES.iter().map(|k| (k / t.max(1e-300)).min(PI)));
     let points = quad::breakpoints(points, 0.0, PI);
     let norm = (n + 1.0) / (2.0 * PI);
-    let integrand = |g: f64| sun_la(g, d, f64::INFINITY, beta, 1.0) * g.sin() * lobe_azimuth_quadrature(theta_r, g, n) * norm;
+    let integrand =
+        |g: f64| sun_la(g, d, f64::INFINITY, beta, 1.0) * g.sin() * lobe_azimuth_quadrature(theta_r, g, n) * norm;
     quad::integrate(integrand, &points, 1e-9, 1e-300, 4_000).0
 }
 

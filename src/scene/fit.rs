@@ -88,7 +88,9 @@ impl Project {
                 let r = p.support_radius();
                 !p.hidden
                     && p.density > 0.0
-                    && (0..3).any(|a| (!sealed[a][0] && p.center[a] - r < g.min[a]) || (!sealed[a][1] && p.center[a] + r > g.max[a]))
+                    && (0..3).any(|a| {
+                        (!sealed[a][0] && p.center[a] - r < g.min[a]) || (!sealed[a][1] && p.center[a] + r > g.max[a])
+                    })
             })
             .map(|(i, _)| i)
             .collect()
@@ -138,7 +140,9 @@ impl Project {
                 hi[a] = hi[a].min(g.max[a]);
             }
             if hi[a] <= lo[a] {
-                return Err("the visible particles lie outside the sealed faces of the grid box; move them in first".into());
+                return Err(
+                    "the visible particles lie outside the sealed faces of the grid box; move them in first".into()
+                );
             }
         }
         match keep {
@@ -216,16 +220,28 @@ mod tests {
                 match keep {
                     FitKeep::Resolution => assert_eq!(g.resolution, p.grid.resolution),
                     FitKeep::CellSize => {
-                        assert!((g.cell_size() - cell).abs().max_element() < 1e-4 * cell.max_element(), "{:?} vs {cell:?}", g.cell_size());
+                        assert!(
+                            (g.cell_size() - cell).abs().max_element() < 1e-4 * cell.max_element(),
+                            "{:?} vs {cell:?}",
+                            g.cell_size()
+                        );
                         // No whole cell to spare on any axis.
-                        let lo = p.particles.iter().map(|q| q.center - q.support_radius()).fold(Vec3::INFINITY, Vec3::min);
-                        let hi = p.particles.iter().map(|q| q.center + q.support_radius()).fold(Vec3::NEG_INFINITY, Vec3::max);
+                        let lo =
+                            p.particles.iter().map(|q| q.center - q.support_radius()).fold(Vec3::INFINITY, Vec3::min);
+                        let hi = p
+                            .particles
+                            .iter()
+                            .map(|q| q.center + q.support_radius())
+                            .fold(Vec3::NEG_INFINITY, Vec3::max);
                         assert!((g.size() - (hi - lo)).cmplt(cell + 1e-3).all(), "{:?} vs {:?}", g.size(), hi - lo);
                     }
                 }
             }
         }
-        assert!(Project::default().fit_grid_to_particles(FitKeep::CellSize).unwrap_err().contains("no visible particles"));
+        assert!(Project::default()
+            .fit_grid_to_particles(FitKeep::CellSize)
+            .unwrap_err()
+            .contains("no visible particles"));
     }
 
     #[test]
@@ -233,11 +249,17 @@ mod tests {
         use crate::scene::{Ground, SurfaceBox};
         let mut p = Project::default();
         // Default grid: (-2, 0, -2) .. (2, 4, 2). One particle through the floor, one through -x.
-        p.particles = vec![Particle::new(Vec3::new(0.0, 0.1, 0.0), 0.3, 1.0), Particle::new(Vec3::new(-1.9, 2.0, 0.0), 0.3, 1.0)];
+        p.particles =
+            vec![Particle::new(Vec3::new(0.0, 0.1, 0.0), 0.3, 1.0), Particle::new(Vec3::new(-1.9, 2.0, 0.0), 0.3, 1.0)];
         assert_eq!(p.particles_crossing_grid(), [0, 1]);
         p.surfaces.ground = Some(Ground { height: 0.0, albedo: Vec3::splat(0.5), ..Ground::default() });
         assert_eq!(p.particles_crossing_grid(), [1], "the ground hides the floor face");
-        let wall = SurfaceBox { min: Vec3::new(-2.1, -0.1, -2.1), max: Vec3::new(-2.0, 4.1, 2.1), albedo: Vec3::splat(0.5), ..SurfaceBox::default() };
+        let wall = SurfaceBox {
+            min: Vec3::new(-2.1, -0.1, -2.1),
+            max: Vec3::new(-2.0, 4.1, 2.1),
+            albedo: Vec3::splat(0.5),
+            ..SurfaceBox::default()
+        };
         p.surfaces.boxes.push(SurfaceBox { max: Vec3::new(-2.0, 4.1, 1.0), ..wall });
         assert_eq!(p.particles_crossing_grid(), [1], "a wall that covers part of the face does not seal it");
         p.surfaces.boxes.push(wall);

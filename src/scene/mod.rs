@@ -19,7 +19,8 @@ pub use fit::{FitKeep, SUPPORT_FRACTION};
 pub use ids::NextIds;
 pub use io::{load_project, parse_project, save_project, ProjectError};
 pub use validate::{
-    ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_HEIGHT_FALLOFF, MAX_INTENSITY, MAX_NOISE_AMPLITUDE, MAX_RESOLUTION_DEFAULT,
+    ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_HEIGHT_FALLOFF, MAX_INTENSITY, MAX_NOISE_AMPLITUDE,
+    MAX_RESOLUTION_DEFAULT,
 };
 pub use volume::Volume;
 
@@ -169,7 +170,14 @@ pub struct Medium {
 
 impl Default for Medium {
     fn default() -> Self {
-        Self { base_extinction: 0.0, albedo: 1.0, anisotropy: 0.0, height_falloff: 0.0, height_origin: 0.0, noise: None }
+        Self {
+            base_extinction: 0.0,
+            albedo: 1.0,
+            anisotropy: 0.0,
+            height_falloff: 0.0,
+            height_origin: 0.0,
+            noise: None,
+        }
     }
 }
 
@@ -177,7 +185,8 @@ impl Medium {
     /// Base-fog extinction at height `y`: β₀·exp(−k·(y − y₀)), the exponent clamped so that
     /// it cannot overflow far below y₀.
     pub fn base_at(&self, y: f64) -> f64 {
-        self.base_extinction as f64 * (-(self.height_falloff as f64) * (y - self.height_origin as f64)).min(MAX_HEIGHT_EXPONENT).exp()
+        self.base_extinction as f64
+            * (-(self.height_falloff as f64) * (y - self.height_origin as f64)).min(MAX_HEIGHT_EXPONENT).exp()
     }
 }
 
@@ -618,7 +627,13 @@ impl Surfaces {
             let t_in = tn.max_element();
             let t_out = tf.min_element();
             if t_in > 0.0 && t_in <= t_out {
-                let axis = if t_in == tn.x { 0 } else if t_in == tn.y { 1 } else { 2 };
+                let axis = if t_in == tn.x {
+                    0
+                } else if t_in == tn.y {
+                    1
+                } else {
+                    2
+                };
                 let mut normal = DVec3::ZERO;
                 normal[axis] = -dir[axis].signum();
                 consider(SurfaceHit {
@@ -675,7 +690,13 @@ pub struct SurfaceBox {
 
 impl Default for SurfaceBox {
     fn default() -> Self {
-        Self { min: Vec3::ZERO, max: Vec3::ONE, albedo: grey(), specular: 0.0, phong_exponent: default_phong_exponent() }
+        Self {
+            min: Vec3::ZERO,
+            max: Vec3::ONE,
+            albedo: grey(),
+            specular: 0.0,
+            phong_exponent: default_phong_exponent(),
+        }
     }
 }
 
@@ -761,7 +782,12 @@ impl PropagationSettings {
 
 impl Default for PropagationSettings {
     fn default() -> Self {
-        Self { scheme: Scheme::default(), sweep_stride: 8, sweep_refine: true, sweep_tolerance: DEFAULT_SWEEP_TOLERANCE }
+        Self {
+            scheme: Scheme::default(),
+            sweep_stride: 8,
+            sweep_refine: true,
+            sweep_tolerance: DEFAULT_SWEEP_TOLERANCE,
+        }
     }
 }
 

@@ -51,9 +51,7 @@ pub fn write_recovery(dir: &Path, original: Option<&Path>, project: &Project) ->
     let path = recovery_path(dir, original);
     let io_err = |source| ProjectError::Io { path: path.clone(), source };
     std::fs::create_dir_all(dir).map_err(io_err)?;
-    let saved_unix = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
+    let saved_unix = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let rec = Recovery { original: original.map(Path::to_path_buf), saved_unix, project: project.clone() };
     let text = ron::ser::to_string_pretty(&rec, ron::ser::PrettyConfig::new())
         .map_err(|e| ProjectError::Serialize(e.to_string()))?;
@@ -70,7 +68,8 @@ pub fn find_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectErr
         .map(|e| e.path())
         .filter(|p| p.to_string_lossy().ends_with(".recovery.ron"))
         .map(|path| {
-            let text = std::fs::read_to_string(&path).map_err(|source| ProjectError::Io { path: path.clone(), source })?;
+            let text =
+                std::fs::read_to_string(&path).map_err(|source| ProjectError::Io { path: path.clone(), source })?;
             let rec: Recovery = ron::from_str(&text).map_err(|e| ProjectError::Syntax {
                 path: path.clone(),
                 line: e.position.line,
@@ -87,7 +86,9 @@ pub fn find_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectErr
 /// Removes a recovery file once its work is saved or deliberately discarded.
 pub fn remove_recovery(path: &Path) -> Result<(), ProjectError> {
     match std::fs::remove_file(path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(ProjectError::Io { path: path.to_owned(), source: e }),
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            Err(ProjectError::Io { path: path.to_owned(), source: e })
+        }
         _ => Ok(()),
     }
 }

@@ -58,7 +58,10 @@ fn position(field: &str, v: Vec3) -> Result<(), ValidationError> {
     if v.abs().max_element() > MAX_COORDINATE {
         return Err(err(
             field,
-            format!("must be within ±{MAX_COORDINATE:e} m on every axis, got ({}, {}, {}); move it closer", v.x, v.y, v.z),
+            format!(
+                "must be within ±{MAX_COORDINATE:e} m on every axis, got ({}, {}, {}); move it closer",
+                v.x, v.y, v.z
+            ),
         ));
     }
     Ok(())
@@ -67,7 +70,10 @@ fn position(field: &str, v: Vec3) -> Result<(), ValidationError> {
 fn extinction(field: &str, v: f32) -> Result<(), ValidationError> {
     at_least(field, v, 0.0)?;
     if v > MAX_EXTINCTION {
-        return Err(err(field, format!("must be at most {MAX_EXTINCTION:e} /m (already opaque within a picometre), got {v}")));
+        return Err(err(
+            field,
+            format!("must be at most {MAX_EXTINCTION:e} /m (already opaque within a picometre), got {v}"),
+        ));
     }
     Ok(())
 }
@@ -103,7 +109,10 @@ fn light_kind(i: usize, kind: &LightKind) -> Result<(), ValidationError> {
             let field = format!("lights[{i}].kind.angle_deg");
             finite(&field, angle_deg)?;
             if !(angle_deg > 0.0 && angle_deg <= 90.0) {
-                return Err(err(field, format!("the cone's half-angle must be within (0, 90] degrees, got {angle_deg}")));
+                return Err(err(
+                    field,
+                    format!("the cone's half-angle must be within (0, 90] degrees, got {angle_deg}"),
+                ));
             }
             let field = format!("lights[{i}].kind.blend");
             finite(&field, blend)?;
@@ -122,7 +131,10 @@ impl GridSpec {
         position("grid.max", self.max)?;
         for (axis, (lo, hi)) in ["x", "y", "z"].iter().zip(self.min.to_array().into_iter().zip(self.max.to_array())) {
             if lo >= hi {
-                return Err(err(format!("grid.max.{axis}"), format!("must be greater than grid.min.{axis} ({lo}), got {hi}")));
+                return Err(err(
+                    format!("grid.max.{axis}"),
+                    format!("must be greater than grid.min.{axis} ({lo}), got {hi}"),
+                ));
             }
         }
         for (axis, n) in ["x", "y", "z"].iter().zip(self.resolution.to_array()) {
@@ -143,7 +155,11 @@ impl Project {
         if self.version == 0 || self.version > super::PROJECT_VERSION {
             return Err(err(
                 "version",
-                format!("unsupported project version {}; this build reads 1..={}", self.version, super::PROJECT_VERSION),
+                format!(
+                    "unsupported project version {}; this build reads 1..={}",
+                    self.version,
+                    super::PROJECT_VERSION
+                ),
             ));
         }
         self.grid.validate(max_resolution)?;
@@ -161,12 +177,18 @@ impl Project {
         if m.height_falloff > MAX_HEIGHT_FALLOFF {
             return Err(err(
                 "medium.height_falloff",
-                format!("must be at most {MAX_HEIGHT_FALLOFF:e} /m (a layer a micrometre thick), got {}", m.height_falloff),
+                format!(
+                    "must be at most {MAX_HEIGHT_FALLOFF:e} /m (a layer a micrometre thick), got {}",
+                    m.height_falloff
+                ),
             ));
         }
         finite("medium.height_origin", m.height_origin)?;
         if m.height_origin.abs() > MAX_COORDINATE {
-            return Err(err("medium.height_origin", format!("must be within ±{MAX_COORDINATE:e} m, got {}", m.height_origin)));
+            return Err(err(
+                "medium.height_origin",
+                format!("must be within ±{MAX_COORDINATE:e} m, got {}", m.height_origin),
+            ));
         }
         if let Some(n) = &m.noise {
             finite("medium.noise.amplitude", n.amplitude)?;
@@ -178,7 +200,10 @@ impl Project {
             }
             finite("medium.noise.frequency", n.frequency)?;
             if !(n.frequency > 0.0 && n.frequency <= 1e6) {
-                return Err(err("medium.noise.frequency", format!("must be within (0, 1e6] per metre, got {}", n.frequency)));
+                return Err(err(
+                    "medium.noise.frequency",
+                    format!("must be within (0, 1e6] per metre, got {}", n.frequency),
+                ));
             }
             if !(1..=super::MAX_NOISE_OCTAVES).contains(&n.octaves) {
                 return Err(err(
@@ -194,7 +219,10 @@ impl Project {
                 return Err(err(format!("particles[{i}].radius"), format!("must be > 0, got {}", p.radius)));
             }
             if p.radius > MAX_COORDINATE {
-                return Err(err(format!("particles[{i}].radius"), format!("must be at most {MAX_COORDINATE:e} m, got {}", p.radius)));
+                return Err(err(
+                    format!("particles[{i}].radius"),
+                    format!("must be at most {MAX_COORDINATE:e} m, got {}", p.radius),
+                ));
             }
             extinction(&format!("particles[{i}].density"), p.density)?;
         }
@@ -274,7 +302,10 @@ impl Project {
         if let Some(g) = &self.surfaces.ground {
             finite("surfaces.ground.height", g.height)?;
             if g.height.abs() > MAX_COORDINATE {
-                return Err(err("surfaces.ground.height", format!("must be within ±{MAX_COORDINATE:e} m, got {}", g.height)));
+                return Err(err(
+                    "surfaces.ground.height",
+                    format!("must be within ±{MAX_COORDINATE:e} m, got {}", g.height),
+                ));
             }
             if !albedo_ok(g.albedo) {
                 return Err(err("surfaces.ground.albedo", "components must be within [0, 1]"));

@@ -18,7 +18,8 @@ pub fn pipeline() -> FogPipeline {
 /// A small cloud of gaussians in a unit-ish box with one or more lights.
 pub fn small_scene(res: u32, lights: &[Vec3]) -> Project {
     let mut p = Project::default();
-    p.grid = GridSpec { min: Vec3::new(-1.0, -1.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::splat(res) };
+    p.grid =
+        GridSpec { min: Vec3::new(-1.0, -1.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::splat(res) };
     p.medium = Medium { base_extinction: 0.05, albedo: 0.8, anisotropy: 0.0, ..Medium::default() };
     p.particles = vec![
         Particle::new(Vec3::new(0.0, 0.0, 0.0), 0.35, 4.0),
