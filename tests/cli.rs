@@ -357,7 +357,8 @@ fn a_wrong_base_volume_in_the_reference_is_detected() {
     let dir = tempfile::tempdir().unwrap();
     let path = base_volume_project(dir.path(), 5);
     let project = fogsmith::scene::load_project(&path).unwrap();
-    let layer = project.load_base_volume(Some(&path)).unwrap().expect("the project has a base volume");
+    let layer =
+        fogsmith::export::load_base_layer(&project, Some(&path)).unwrap().expect("the project has a base volume");
     assert!(layer.data.iter().any(|&v| v > 1.0), "the layer is substantial");
     let mut gpu = common::pipeline();
     gpu.set_base_layer(Some(layer.clone()));

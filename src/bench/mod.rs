@@ -63,7 +63,7 @@ pub fn run(opts: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>,
     let mut ctx = suites::Context::new(opts)?;
     for suite in &opts.suites {
         let start = records.len();
-        suites::run(*suite, &mut ctx, &mut records, log)?;
+        run_suite(*suite, &mut ctx, &mut records, log)?;
         plot::plot_suite(*suite, &records[start..], &opts.out)
             .map_err(|message| BenchError::Write { path: opts.out.clone(), message })?;
     }
@@ -115,5 +115,34 @@ fn flatten(prefix: &str, v: &Value) -> Vec<(String, String)> {
         Value::String(s) => vec![(prefix.to_string(), s.replace(',', ";"))],
         Value::Null => vec![(prefix.to_string(), String::new())],
         other => vec![(prefix.to_string(), other.to_string().replace(',', ";"))],
+    }
+}
+
+/// One suite: `scale` and `interaction` live beside the others, so the dispatch is here.
+fn run_suite(
+    suite: Suite,
+    ctx: &mut suites::Context,
+    out: &mut Vec<Value>,
+    log: &mut dyn FnMut(&str),
+) -> Result<(), BenchError> {
+    match suite {
+        Suite::Opv => suites::opv(ctx, out, log),
+        Suite::March => suites::march(ctx, out, log),
+        Suite::Sun => {
+            suites::sun(ctx.quick, out, log);
+            Ok(())
+        }
+        Suite::Scaling => suites::scaling(ctx, out, log),
+        Suite::Kinds => suites::kinds(ctx, out, log),
+        Suite::Scale => scale::run(ctx, out, log),
+        Suite::Interaction => {
+            use crate::editor::app::Quality;
+            // Blocking (every frame renders to convergence) is the editor before the frame budget.
+            let modes = if ctx.quick { vec![Quality::Balanced] } else { vec![Quality::Balanced, Quality::Full] };
+            for quality in modes {
+                out.extend(interaction::run(quality, log)?);
+            }
+            Ok(())
+        }
     }
 }

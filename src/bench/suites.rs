@@ -77,29 +77,6 @@ impl Context {
     }
 }
 
-pub fn run(suite: Suite, ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
-    match suite {
-        Suite::Opv => opv(ctx, out, log),
-        Suite::March => march(ctx, out, log),
-        Suite::Sun => {
-            sun(ctx.quick, out, log);
-            Ok(())
-        }
-        Suite::Scaling => scaling(ctx, out, log),
-        Suite::Kinds => kinds(ctx, out, log),
-        Suite::Scale => super::scale::run(ctx, out, log),
-        Suite::Interaction => {
-            use crate::editor::app::Quality;
-            // Blocking (every frame renders to convergence) is the editor before the frame budget.
-            let modes = if ctx.quick { vec![Quality::Balanced] } else { vec![Quality::Balanced, Quality::Full] };
-            for quality in modes {
-                out.extend(super::interaction::run(quality, log)?);
-            }
-            Ok(())
-        }
-    }
-}
-
 /// The demo without its noise: the exact optical depth of noisy particles is an adaptive
 /// quadrature, too slow for the scheme and step-policy sweeps over whole demos (the `kinds`
 /// suite measures noise on a small scene).
@@ -134,7 +111,7 @@ const OPV_SCHEMES: [((Scheme, u32, bool), &str); 7] = [
     ((Scheme::Analytic, 4, false), "analytic"),
 ];
 
-fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+pub(super) fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let scenes: Vec<String> = if !ctx.scenes.is_empty() {
         ctx.scenes.clone()
     } else if ctx.quick {
@@ -248,7 +225,7 @@ fn median_propagation(ctx: &mut Context, project: &Project) -> Result<(FrameRepo
     }
 }
 
-fn march(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+pub(super) fn march(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let scenes: &[&str] = if ctx.quick { &["cornell"] } else { &["cornell", "cloud"] };
     let (res, width) = if ctx.quick { (32, 64) } else { (64, 128) };
     let pick = |v: &[f32]| -> Vec<f32> {
@@ -332,7 +309,7 @@ fn f_error(table: &FTable, interp: Interp) -> (f64, f64) {
     (sum / n as f64, max)
 }
 
-fn sun(quick: bool, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) {
+pub(super) fn sun(quick: bool, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) {
     let sizes: &[usize] = if quick { &[16, 64, 256] } else { &[8, 16, 32, 64, 128, 256] };
     let samples = if quick { 300 } else { 2000 };
     for &n in sizes {
@@ -428,7 +405,7 @@ pub(super) fn loglog_slope(points: &[(f64, f64)]) -> f64 {
     num / den
 }
 
-fn scaling(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+pub(super) fn scaling(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let (w, h) = if ctx.quick { (64, 36) } else { (128, 72) };
     let resolutions: &[u32] = if ctx.quick { &[16, 32, 64] } else { &[16, 32, 64, 128] };
     let light_counts: &[usize] = if ctx.quick { &[1, 4] } else { &[1, 2, 4, 8, 16] };
@@ -584,7 +561,7 @@ fn kind_variants(res: u32) -> Vec<(&'static str, Project)> {
     out
 }
 
-fn kinds(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+pub(super) fn kinds(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let resolutions: Vec<u32> = if !ctx.resolutions.is_empty() {
         ctx.resolutions.clone()
     } else if ctx.quick {

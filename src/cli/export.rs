@@ -1,6 +1,6 @@
 //! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files.
 
-use super::progress::{check, Bar, Staged};
+use super::progress::{check, Bar};
 use super::{bake, BakeArgs};
 use crate::export::exr::{write_atlas_exr_in_frame, write_render_exr, write_slices_exr};
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
@@ -8,6 +8,7 @@ use crate::export::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format};
 use crate::export::light_infos;
 use crate::export::usd::{asset_path, write_usd, UsdField, UsdOptions};
 use crate::export::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions};
+use crate::export::Staged;
 use std::path::PathBuf;
 use std::time::Instant;
 

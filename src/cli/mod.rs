@@ -198,7 +198,7 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     let mut pipeline = FogPipeline::new(ctx);
     // Before the base layer is resampled and uploaded: it is as large as one light's OPV.
     pipeline.check_limits(&project, request.width, request.height)?;
-    let layer = project.load_base_volume(Some(&args.project))?;
+    let layer = crate::export::load_base_layer(&project, Some(&args.project))?;
     pipeline.set_base_layer(layer);
     let mut bar = progress::Bar::new(args.quiet);
     let report = match pipeline

@@ -77,7 +77,7 @@ impl Bar {
 
     /// Shows the pipeline's progress; returns false once Ctrl+C asks to stop.
     pub fn pipeline(&mut self, p: &Progress) -> bool {
-        let name = stage_name(p.stage);
+        let name = p.stage.name();
         self.stage(&name, p.stage_fraction);
         !interrupted()
     }
@@ -100,63 +100,5 @@ impl Bar {
 impl Drop for Bar {
     fn drop(&mut self) {
         self.finish();
-    }
-}
-
-/// What the pipeline is doing, in words.
-pub fn stage_name(stage: Stage) -> String {
-    match stage {
-        Stage::Inject => "inject".into(),
-        Stage::Propagate { lights } => format!("propagate {lights} light{}", if lights == 1 { "" } else { "s" }),
-        Stage::March => "march".into(),
-        Stage::Done => "done".into(),
-    }
-}
-
-/// Output files written beside their targets and moved into place together at the end, so
-/// that an error or Ctrl+C leaves every existing output untouched and no temporary behind.
-#[derive(Default)]
-pub struct Staged {
-    files: Vec<(std::path::PathBuf, std::path::PathBuf)>,
-}
-
-impl Staged {
-    /// Where to write `target` for now.
-    pub fn path(&mut self, target: &std::path::Path) -> std::path::PathBuf {
-        // The extension stays last: some writers check it.
-        let stem = target.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let temp = match target.extension() {
-            Some(ext) => target.with_file_name(format!(".{stem}.fogsmith-partial.{}", ext.to_string_lossy())),
-            None => target.with_file_name(format!(".{stem}.fogsmith-partial")),
-        };
-        self.files.push((temp.clone(), target.to_path_buf()));
-        temp
-    }
-
-    /// Runs `write` on the staged path of `target`; an error names `target`, not the staged file.
-    pub fn write<T, E: std::fmt::Display>(
-        &mut self,
-        target: &std::path::Path,
-        write: impl FnOnce(&std::path::Path) -> Result<T, E>,
-    ) -> Result<T, String> {
-        let temp = self.path(target);
-        write(&temp).map_err(|e| e.to_string().replace(&*temp.to_string_lossy(), &target.to_string_lossy()))
-    }
-
-    /// Moves every staged file onto its target.
-    pub fn commit(mut self) -> std::io::Result<()> {
-        while let Some((temp, target)) = self.files.first().cloned() {
-            std::fs::rename(&temp, &target)?;
-            self.files.remove(0);
-        }
-        Ok(())
-    }
-}
-
-impl Drop for Staged {
-    fn drop(&mut self) {
-        for (temp, _) in &self.files {
-            let _ = std::fs::remove_file(temp);
-        }
     }
 }

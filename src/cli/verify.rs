@@ -30,7 +30,7 @@ pub fn run(
     gpu.check_limits(&project, width, height)?;
     // The base volume, resampled and scaled once: the GPU injects these values and the exact
     // medium holds the same ones, trilinear between cell centres as the EV is read.
-    let layer = project.load_base_volume(Some(path))?;
+    let layer = crate::export::load_base_layer(&project, Some(path))?;
     let exact = Medium64::for_project(&project, layer.as_ref());
     gpu.set_base_layer(layer);
     let mut bar = super::progress::Bar::new(quiet);

@@ -901,7 +901,7 @@ impl EditorState {
         let project = self.session.project();
         let key = (project.base_volume.clone(), project.grid, self.session.path().map(Path::to_owned));
         if self.base_loaded.as_ref() != Some(&key) {
-            let loaded = project.load_base_volume(self.session.path());
+            let loaded = crate::export::load_base_layer(&project, self.session.path());
             let failed = loaded.as_ref().err().map(|e| format!("The base volume is left out of the fog: {e}"));
             gpu.pipeline.set_base_layer(loaded.ok().flatten());
             gpu.converged = None;
@@ -1164,7 +1164,7 @@ impl EditorState {
         self.jobs.export_job = Some(job);
         self.spawn(&format!("Exporting {}", path.display()), move || {
             // Written beside the target and moved onto it only if not cancelled meanwhile.
-            let mut staged = crate::cli::progress::Staged::default();
+            let mut staged = crate::export::Staged::default();
             let set = |f: f32| fraction.store(f.to_bits(), Ordering::Relaxed);
             let result = match kind {
                 Export::Vdb => {
@@ -1266,8 +1266,7 @@ impl EditorState {
         let path = self.session.path().map(Path::to_owned);
         self.spawn("Computing the exact optical depth", move || JobResult::Exact {
             key,
-            result: project
-                .load_base_volume(path.as_deref())
+            result: crate::export::load_base_layer(&project, path.as_deref())
                 .map_err(|e| format!("The base volume cannot be loaded for the exact reference: {e}"))
                 .and_then(|layer| super::slices::exact_optical_depth(&project, layer.as_ref(), key.light, &cells)),
         });
@@ -1830,7 +1829,7 @@ impl EditorState {
             }
             if let Some(gpu) = self.gpu.as_ref().filter(|g| g.refining()) {
                 let p = gpu.progress;
-                let stage = crate::cli::progress::stage_name(p.stage);
+                let stage = p.stage.name();
                 ui.add(
                     egui::ProgressBar::new(p.stage_fraction as f32)
                         .desired_width(120.0)

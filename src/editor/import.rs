@@ -1,6 +1,6 @@
 //! File → Import VDB…: pick a float grid of a VDB file and the scale that turns its values
 //! into extinction, and make it the project's base volume (one undo step). The preview,
-//! the slices and exports then show it, loaded by [`crate::scene::Project::load_base_volume`].
+//! the slices and exports then show it, loaded by [`crate::export::load_base_layer`].
 
 use crate::export::vdb_read::{list_vdb_grids, VdbGridInfo};
 use crate::scene::BaseVolume;

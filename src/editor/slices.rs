@@ -343,7 +343,7 @@ pub fn colorize(slice: &Slice, colormap: Colormap, scale: &Scale) -> egui::Color
 /// (the analytic medium sampled at the cell centres, as the EV holds it), then as many through
 /// the analytic medium clipped to the grid box (base fog beyond it), the most any grid can
 /// hold, so neither view shows the particles' tails outside the box. `layer`: the project's
-/// base volume as [`Project::load_base_volume`] returns it, part of both references.
+/// base volume as [`crate::export::load_base_layer`] returns it, part of both references.
 pub fn exact_optical_depth(
     project: &Project,
     layer: Option<&crate::scene::Volume>,

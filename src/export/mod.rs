@@ -22,9 +22,12 @@
 pub mod exr;
 pub mod frame;
 pub mod ktx;
+pub mod staged;
 pub mod usd;
 pub mod vdb;
 pub mod vdb_read;
+
+pub use staged::Staged;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -116,13 +119,21 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), ExportError> {
     write_bytes_atomic(path, text.as_bytes())
 }
 
-/// The project's `base_volume` resampled into its grid, or None when it has none: see
-/// [`crate::scene::Project::load_base_volume`], which every path uses.
+/// The project's `base_volume` resampled into its grid and multiplied by its scale, or
+/// `None` when it has none: the one place that turns `base_volume` into extinction values.
+/// The editor's preview, slices and exports, `verify`, `render` and `export` all load it
+/// here, so none of them can leave the imported fog out. A relative path is resolved
+/// against the folder of `project_path` (the project file; `None` for a project never
+/// saved, when it is taken as relative to the working directory). It lives here, not in
+/// `scene`, so that the model does not depend on a file format.
 pub fn load_base_layer(
     project: &crate::scene::Project,
     project_path: Option<&Path>,
 ) -> Result<Option<crate::scene::Volume>, ExportError> {
-    project.load_base_volume(project_path)
+    let Some(base) = &project.base_volume else { return Ok(None) };
+    let dir = project_path.and_then(Path::parent).filter(|d| !d.as_os_str().is_empty());
+    let path = base.resolved_path(dir);
+    vdb_read::import_density(&path, Some(&base.grid), &project.grid, base.scale).map(Some)
 }
 
 /// Export metadata of the project's lights, indexed like its OPVs.

@@ -102,6 +102,17 @@ pub fn bind_group_layout_with(
 /// `shaders/volume_lookup.wgsl`, for shaders that sample σ_t between cells.
 pub const VOLUME_LOOKUP: &str = include_str!("../../shaders/volume_lookup.wgsl");
 
+/// `LightGpu::kind`.
+pub const LIGHT_POINT: u32 = 0;
+pub const LIGHT_SPOT: u32 = 1;
+pub const LIGHT_DIRECTIONAL: u32 = 2;
+/// `MarchParams::policy`.
+pub const POLICY_FIXED: u32 = 0;
+pub const POLICY_TWO_LEVEL: u32 = 1;
+pub const POLICY_ADAPTIVE: u32 = 2;
+/// `SurfaceGpu::kind`: an axis-aligned box, or the ground plane y = min.y facing +y.
+pub const SURFACE_BOX: u32 = 0;
+pub const SURFACE_GROUND: u32 = 1;
 /// Constants the Rust side and the shaders share, written once here for WGSL.
 pub fn shared_constants() -> String {
     use crate::sun_table as sun;

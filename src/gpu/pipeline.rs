@@ -124,6 +124,18 @@ pub enum Stage {
     Done,
 }
 
+impl Stage {
+    /// What the pipeline is doing, in words (progress bars and the status bar).
+    pub fn name(self) -> String {
+        match self {
+            Stage::Inject => "inject".into(),
+            Stage::Propagate { lights } => format!("propagate {lights} light{}", if lights == 1 { "" } else { "s" }),
+            Stage::March => "march".into(),
+            Stage::Done => "done".into(),
+        }
+    }
+}
+
 /// What [`FogPipeline::advance`] left behind.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Progress {

@@ -75,7 +75,7 @@ impl Medium64 {
     }
 
     /// [`from_project`](Self::from_project) plus the project's base volume `layer` as
-    /// [`Project::load_base_volume`] returns it (already scaled, on the project's grid).
+    /// [`crate::export::load_base_layer`] returns it (already scaled, on the project's grid).
     ///
     /// # Panics
     /// If `layer` is not on `project.grid`.

@@ -7,7 +7,6 @@
 //! Every optional field has a default documented on its type, so a project file only
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
 
-mod base;
 mod fit;
 mod ids;
 pub mod io;
