@@ -113,6 +113,7 @@ pub const POLICY_ADAPTIVE: u32 = 2;
 /// `SurfaceGpu::kind`: an axis-aligned box, or the ground plane y = min.y facing +y.
 pub const SURFACE_BOX: u32 = 0;
 pub const SURFACE_GROUND: u32 = 1;
+
 /// Constants the Rust side and the shaders share, written once here for WGSL.
 pub fn shared_constants() -> String {
     use crate::sun_table as sun;
