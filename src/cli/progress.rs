@@ -2,7 +2,7 @@
 //! terminal and `--quiet` is not given, so `--json` on stdout never changes), and Ctrl+C,
 //! which stops the work at the next work item instead of killing the process.
 
-use crate::gpu::{Progress, Stage};
+use crate::gpu::Progress;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};
