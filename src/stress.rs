@@ -71,10 +71,12 @@ const DEFAULT_RES: u32 = 32;
 
 /// A unit-ish box [-1, 1]³ seen from outside, no fog, no lights.
 fn base(res: u32) -> Project {
-    let mut p = Project::default();
-    p.grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(res) };
-    p.medium = Medium { base_extinction: 0.0, albedo: 0.8, anisotropy: 0.3, ..Medium::default() };
-    p.camera = Camera { position: Vec3::new(0.3, 0.4, 3.5), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 45.0 };
+    let mut p = Project {
+        grid: GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(res) },
+        medium: Medium { base_extinction: 0.0, albedo: 0.8, anisotropy: 0.3, ..Medium::default() },
+        camera: Camera { position: Vec3::new(0.3, 0.4, 3.5), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 45.0 },
+        ..Project::default()
+    };
     p.render.width = 24;
     p.render.height = 17;
     p
@@ -90,6 +92,9 @@ fn sun(direction: Vec3) -> Light {
     l.kind = LightKind::Directional { direction };
     l
 }
+
+/// Where a case puts its light, from the project.
+type Placement = Box<dyn Fn(&Project) -> Vec3>;
 
 /// Centre of cell (i, j, k) of a project's grid.
 fn center(p: &Project, c: [u32; 3]) -> Vec3 {
@@ -136,7 +141,7 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
     }
 
     // Light placement in homogeneous fog.
-    let placements: Vec<(&str, Box<dyn Fn(&Project) -> Vec3>)> = vec![
+    let placements: Vec<(&str, Placement)> = vec![
         ("light on a cell centre", Box::new(|p| center(p, [13, 20, 7]))),
         ("light on a grid face", Box::new(|p| Vec3::new(p.grid.max.x, 0.1, -0.2))),
         ("light on a grid corner", Box::new(|p| p.grid.min)),
@@ -226,7 +231,6 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
         });
         // The same brightest light seen straight on in a grid 20 µm across, with the
         // finest step allowed: the largest inverse-square factor the march can meet.
-        let mut p = p;
         let scale = 1e-5f32;
         p.grid.min *= scale;
         p.grid.max *= scale;
@@ -367,7 +371,7 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
     }
 
     // Particle counts.
-    let counts: &[usize] = if quick { &[1, 1000, 100_000, 1_000_000] } else { &[1, 1000, 100_000, 1_000_000] };
+    let counts: &[usize] = &[1, 1000, 100_000, 1_000_000];
     for &n in counts {
         let mut p = base(DEFAULT_RES);
         let mut s = 17u64;

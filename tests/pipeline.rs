@@ -277,8 +277,8 @@ fn an_imported_base_layer_adds_under_the_particles() {
     let report = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
     assert_eq!(report.counters.cells_injected, p.grid.cell_count(), "a new layer re-injects everything");
     let with = gpu.read_ev().unwrap();
-    for i in 0..layer.len() {
-        let want = without.data[i] + 2.0 * layer[i];
+    for (i, &cell) in layer.iter().enumerate() {
+        let want = without.data[i] + 2.0 * cell;
         assert!((with.data[i] - want).abs() <= 1e-5 * want.max(1.0), "cell {i}: {} vs {want}", with.data[i]);
     }
 

@@ -180,9 +180,12 @@ fn duplicate_ids_and_unknown_versions_are_clear_errors() {
 /// A project built in code (every id 0) is numbered when saved, so the file loads again.
 #[test]
 fn code_built_projects_save_with_distinct_ids() {
-    let mut p = Project::default();
-    p.particles =
-        (0..3).map(|i| fogsmith::scene::Particle::new(glam::Vec3::new(i as f32 * 0.3, 1.0, 0.0), 0.2, 1.0)).collect();
+    let p = Project {
+        particles: (0..3)
+            .map(|i| fogsmith::scene::Particle::new(glam::Vec3::new(i as f32 * 0.3, 1.0, 0.0), 0.2, 1.0))
+            .collect(),
+        ..Project::default()
+    };
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("code.ron");
     save_project(&path, &p).unwrap();

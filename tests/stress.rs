@@ -23,7 +23,7 @@ fn reduced(cases: Vec<StressCase>, max_3d: u32) -> Vec<StressCase> {
 fn reduced_stress_matrix_holds() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
-    let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     let cases = reduced(
         matrix(true, limits.max_texture_dimension_3d, binding, opv_capacity(&limits)),
         limits.max_texture_dimension_3d,
@@ -54,7 +54,7 @@ fn opv_capacity(limits: &wgpu::Limits) -> u64 {
 fn limits_are_refused_before_allocation_with_the_limit_named() {
     let gpu = pipeline();
     let limits = gpu.context().limits.clone();
-    let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     let limit_message = |p: &fogsmith::scene::Project, w: u32, h: u32| match gpu.check_limits(p, w, h) {
         Err(e @ GpuError::Limit { .. }) => e.to_string(),
         other => panic!("expected a limit error, got {other:?}"),
@@ -128,7 +128,7 @@ fn grids_with_more_bricks_than_one_dispatch_are_fully_injected() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
     let max_groups = limits.max_compute_workgroups_per_dimension as u64;
-    let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     // Shallow in y and z so that x alone makes the bricks, within the OPV budget.
     let (ny, nz) = (64u32, 128u32);
     let nx = ((max_groups + 1).div_ceil((ny / 8 * nz / 8) as u64) * 8) as u32;
@@ -216,7 +216,7 @@ fn random_extreme_scenes_stay_finite_and_in_range() {
 fn oversized_base_layer_and_empty_frames_are_errors() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
-    let binding = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     let mut p = small_scene(8, &[Vec3::ONE]);
     let nz = (binding / 4 / (256 * 256) + 1) as u32;
     p.grid.resolution = UVec3::new(256, 256, nz);
@@ -234,13 +234,9 @@ fn oversized_base_layer_and_empty_frames_are_errors() {
 fn stress_results_serialise_with_the_documented_keys() {
     let mut gpu = pipeline();
     let limits = gpu.context().limits.clone();
-    let case = matrix(
-        true,
-        limits.max_texture_dimension_3d,
-        limits.max_storage_buffer_binding_size as u64,
-        opv_capacity(&limits),
-    )
-    .remove(0);
+    let case =
+        matrix(true, limits.max_texture_dimension_3d, limits.max_storage_buffer_binding_size, opv_capacity(&limits))
+            .remove(0);
     let v = serde_json::to_value(vec![run_case(&mut gpu, &case)]).unwrap();
     let row = &v[0];
     for key in ["case", "max_error", "nan_or_inf", "time_ms", "passed", "bound", "scheme"] {

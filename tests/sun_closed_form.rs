@@ -17,9 +17,11 @@ fn gpu_base_fog_matches_sun_closed_form() {
         (0.5, Vec3::new(-0.3, 0.2, -1.0), 90.0),
         (0.04, Vec3::new(0.0, 0.0, -3.0), 20.0),
     ] {
-        let mut p = Project::default();
         // A grid far behind the camera: every ray and every light path misses it.
-        p.grid = GridSpec { min: Vec3::splat(100.0), max: Vec3::splat(101.0), resolution: UVec3::splat(4) };
+        let mut p = Project {
+            grid: GridSpec { min: Vec3::splat(100.0), max: Vec3::splat(101.0), resolution: UVec3::splat(4) },
+            ..Project::default()
+        };
         p.medium.base_extinction = beta;
         p.lights = vec![Light::new(light, 3.0, Vec3::new(1.0, 0.5, 0.25))];
         p.camera = Camera { position: Vec3::ZERO, target: Vec3::new(0.0, 0.0, -1.0), up: Vec3::Y, fov_y_deg: fov };

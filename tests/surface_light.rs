@@ -24,9 +24,11 @@ fn gpu_image(p: &Project) -> Vec<[f32; 4]> {
 /// above it, and (with `block`) a block hovering between the light and the ground, above the
 /// camera's view: the block changes nothing in the image but its shadow.
 fn shadow_scene(kind: LightKind, beta: f32, block: bool) -> Project {
-    let mut p = Project::default();
-    p.grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(16) };
-    p.medium = Medium { base_extinction: beta, albedo: 1.0, anisotropy: 0.0, ..Medium::default() };
+    let mut p = Project {
+        grid: GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(16) },
+        medium: Medium { base_extinction: beta, albedo: 1.0, anisotropy: 0.0, ..Medium::default() },
+        ..Project::default()
+    };
     p.particles.clear();
     let mut light = Light::new(Vec3::new(0.1, 3.0, -0.1), 6.0, Vec3::new(1.0, 0.9, 0.8));
     light.kind = kind;
@@ -349,8 +351,10 @@ fn specular_surfaces_match_reference_on_random_scenes() {
 /// with the field named; absent in an older project, they default to a matte surface.
 #[test]
 fn specular_fields_default_and_are_validated() {
-    let mut p = Project::default();
-    p.surfaces = ron::from_str("(ground: Some((height: 0.0)), boxes: [(min: (0, 0, 0), max: (1, 1, 1))])").unwrap();
+    let p = Project {
+        surfaces: ron::from_str("(ground: Some((height: 0.0)), boxes: [(min: (0, 0, 0), max: (1, 1, 1))])").unwrap(),
+        ..Project::default()
+    };
     assert_eq!(p.surfaces.ground.unwrap().specular, 0.0);
     assert_eq!(p.surfaces.boxes[0].specular, 0.0);
     p.validate(1024).unwrap();

@@ -59,17 +59,17 @@ impl Project {
             sealed[1][0] = ground.height >= g.min.y - eps;
         }
         for b in &self.surfaces.boxes {
-            for a in 0..3 {
+            for (a, sealed_a) in sealed.iter_mut().enumerate() {
                 let (u, v) = ((a + 1) % 3, (a + 2) % 3);
                 let covers = |c: usize| b.min[c] <= g.min[c] + eps && b.max[c] >= g.max[c] - eps;
                 if !(covers(u) && covers(v)) {
                     continue;
                 }
                 if b.min[a] < g.min[a] && b.max[a] >= g.min[a] - eps {
-                    sealed[a][0] = true;
+                    sealed_a[0] = true;
                 }
                 if b.max[a] > g.max[a] && b.min[a] <= g.max[a] + eps {
-                    sealed[a][1] = true;
+                    sealed_a[1] = true;
                 }
             }
         }
@@ -247,10 +247,14 @@ mod tests {
     #[test]
     fn faces_behind_surfaces_do_not_count() {
         use crate::scene::{Ground, SurfaceBox};
-        let mut p = Project::default();
         // Default grid: (-2, 0, -2) .. (2, 4, 2). One particle through the floor, one through -x.
-        p.particles =
-            vec![Particle::new(Vec3::new(0.0, 0.1, 0.0), 0.3, 1.0), Particle::new(Vec3::new(-1.9, 2.0, 0.0), 0.3, 1.0)];
+        let mut p = Project {
+            particles: vec![
+                Particle::new(Vec3::new(0.0, 0.1, 0.0), 0.3, 1.0),
+                Particle::new(Vec3::new(-1.9, 2.0, 0.0), 0.3, 1.0),
+            ],
+            ..Project::default()
+        };
         assert_eq!(p.particles_crossing_grid(), [0, 1]);
         p.surfaces.ground = Some(Ground { height: 0.0, albedo: Vec3::splat(0.5), ..Ground::default() });
         assert_eq!(p.particles_crossing_grid(), [1], "the ground hides the floor face");

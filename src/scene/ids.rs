@@ -109,8 +109,10 @@ mod tests {
 
     #[test]
     fn code_built_projects_get_distinct_ids_and_new_ids_are_never_reused() {
-        let mut p = Project::default();
-        p.particles = (0..4).map(|i| Particle::new(Vec3::splat(i as f32), 0.1, 1.0)).collect();
+        let mut p = Project {
+            particles: (0..4).map(|i| Particle::new(Vec3::splat(i as f32), 0.1, 1.0)).collect(),
+            ..Project::default()
+        };
         p.ensure_unique_ids();
         let ids: Vec<u32> = p.particles.iter().map(|q| q.id).collect();
         assert_eq!(ids, [0, 1, 2, 3]);

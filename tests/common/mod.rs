@@ -17,17 +17,22 @@ pub fn pipeline() -> FogPipeline {
 
 /// A small cloud of gaussians in a unit-ish box with one or more lights.
 pub fn small_scene(res: u32, lights: &[Vec3]) -> Project {
-    let mut p = Project::default();
-    p.grid =
-        GridSpec { min: Vec3::new(-1.0, -1.0, -1.0), max: Vec3::new(1.0, 1.0, 1.0), resolution: UVec3::splat(res) };
-    p.medium = Medium { base_extinction: 0.05, albedo: 0.8, anisotropy: 0.0, ..Medium::default() };
-    p.particles = vec![
-        Particle::new(Vec3::new(0.0, 0.0, 0.0), 0.35, 4.0),
-        Particle::new(Vec3::new(0.4, -0.2, 0.1), 0.25, 6.0),
-        Particle::new(Vec3::new(-0.45, 0.3, -0.2), 0.3, 3.0),
-        Particle::new(Vec3::new(0.1, 0.5, 0.4), 0.2, 8.0),
-    ];
-    p.lights = lights.iter().map(|&pos| Light::new(pos, 5.0, Vec3::new(1.0, 0.9, 0.8))).collect();
+    let mut p = Project {
+        grid: GridSpec {
+            min: Vec3::new(-1.0, -1.0, -1.0),
+            max: Vec3::new(1.0, 1.0, 1.0),
+            resolution: UVec3::splat(res),
+        },
+        medium: Medium { base_extinction: 0.05, albedo: 0.8, anisotropy: 0.0, ..Medium::default() },
+        particles: vec![
+            Particle::new(Vec3::new(0.0, 0.0, 0.0), 0.35, 4.0),
+            Particle::new(Vec3::new(0.4, -0.2, 0.1), 0.25, 6.0),
+            Particle::new(Vec3::new(-0.45, 0.3, -0.2), 0.3, 3.0),
+            Particle::new(Vec3::new(0.1, 0.5, 0.4), 0.2, 8.0),
+        ],
+        lights: lights.iter().map(|&pos| Light::new(pos, 5.0, Vec3::new(1.0, 0.9, 0.8))).collect(),
+        ..Project::default()
+    };
     p.camera = Camera { position: Vec3::new(0.3, 0.4, 3.5), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 45.0 };
     p.render.width = 48;
     p.render.height = 36;
