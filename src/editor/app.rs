@@ -901,7 +901,7 @@ impl EditorState {
         let project = self.session.project();
         let key = (project.base_volume.clone(), project.grid, self.session.path().map(Path::to_owned));
         if self.base_loaded.as_ref() != Some(&key) {
-            let loaded = crate::export::load_base_layer(&project, self.session.path());
+            let loaded = crate::export::load_base_layer(project, self.session.path());
             let failed = loaded.as_ref().err().map(|e| format!("The base volume is left out of the fog: {e}"));
             gpu.pipeline.set_base_layer(loaded.ok().flatten());
             gpu.converged = None;

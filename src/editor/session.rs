@@ -469,8 +469,10 @@ mod tests {
     use super::*;
 
     fn session() -> Session {
-        let mut p = Project::default();
-        p.particles = (0..4).map(|i| Particle::new(Vec3::new(i as f32, 1.0, 0.0), 0.2, 1.0)).collect();
+        let p = Project {
+            particles: (0..4).map(|i| Particle::new(Vec3::new(i as f32, 1.0, 0.0), 0.2, 1.0)).collect(),
+            ..Project::default()
+        };
         Session::new(p, Some(PathBuf::from("/tmp/x.ron")), "x")
     }
 

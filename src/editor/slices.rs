@@ -382,8 +382,7 @@ mod tests {
 
     #[test]
     fn slices_index_cells_consistently() {
-        let mut grid = GridSpec::default();
-        grid.resolution = glam::UVec3::new(3, 4, 5);
+        let grid = GridSpec { resolution: glam::UVec3::new(3, 4, 5), ..GridSpec::default() };
         let data = (0..60).map(|i| i as f32).collect();
         let vol = Volume::new(grid, data);
         for axis in Axis::ALL {
@@ -404,11 +403,13 @@ mod tests {
     /// that reference with the clipped analytic one, on a scene where both are known.
     #[test]
     fn error_views_pick_their_references() {
-        let mut p = Project::default();
-        p.grid = GridSpec { min: glam::Vec3::ZERO, max: glam::Vec3::ONE, resolution: glam::UVec3::new(4, 4, 1) };
+        let mut p = Project {
+            grid: GridSpec { min: glam::Vec3::ZERO, max: glam::Vec3::ONE, resolution: glam::UVec3::new(4, 4, 1) },
+            particles: Vec::new(),
+            lights: vec![crate::scene::Light::new(glam::Vec3::new(3.0, 0.5, 0.5), 1.0, glam::Vec3::ONE)],
+            ..Project::default()
+        };
         p.medium.base_extinction = 0.5;
-        p.particles.clear();
-        p.lights = vec![crate::scene::Light::new(glam::Vec3::new(3.0, 0.5, 0.5), 1.0, glam::Vec3::ONE)];
         let vol = Volume::new(p.grid, vec![0.0; 16]);
         let slice = extract(&vol, Axis::Z, 0);
         let cells = slice.cells();

@@ -76,7 +76,8 @@ pub fn fog_depth_point(ev: &crate::scene::Volume, origin: Vec3, dir: Vec3, tau: 
     let (ta, tb) = ((g.min - origin) * inv, (g.max - origin) * inv);
     let t0 = ta.min(tb).max_element().max(0.0);
     let t1 = ta.max(tb).min_element();
-    if !(t0 < t1) || !t0.is_finite() || !t1.is_finite() {
+    // Also rejects NaN bounds.
+    if t0.partial_cmp(&t1) != Some(std::cmp::Ordering::Less) || !t0.is_finite() || !t1.is_finite() {
         return None;
     }
     let cell = g.cell_size();

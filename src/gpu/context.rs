@@ -71,7 +71,7 @@ impl GpuContext {
 
     /// Bytes one storage binding may hold: the binding limit, capped by the buffer limit.
     pub fn max_binding_bytes(&self) -> u64 {
-        (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size)
+        self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size)
     }
 
     pub fn supports_timestamps(&self) -> bool {

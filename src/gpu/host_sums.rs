@@ -157,7 +157,7 @@ impl Setup<'_> {
             let from = ((c[a] - reach - self.min[a]) / self.cell[a] - 0.5).max(lo[a] as f32);
             let from = from as u32 + (((from as u32) as f32) < from) as u32;
             let to = ((c[a] + reach - self.min[a]) / self.cell[a] - 0.5).min(hi[a] as f32);
-            if !(to >= from as f32) {
+            if to.partial_cmp(&(from as f32)).is_none_or(|o| o == std::cmp::Ordering::Less) {
                 return 0;
             }
             range[a] = (from, to as u32);

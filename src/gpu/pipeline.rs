@@ -12,6 +12,10 @@
 use super::binning;
 use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
 use super::inject::{InjectInputs, InjectJob, Injector};
+use super::layout::{
+    LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT, POLICY_ADAPTIVE, POLICY_FIXED, POLICY_TWO_LEVEL, SURFACE_BOX,
+    SURFACE_GROUND,
+};
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::opv_store::{OpvLayout, OpvVolumes, MAX_TEXTURE_BYTES};
 use super::propagate::{sweep_cells_per_thread, PropagationInputs, PropagationJob, Propagator};
@@ -1306,7 +1310,7 @@ impl FogPipeline {
     /// Reallocates the per-light buffers for a new light count on the same grid, keeping the
     /// OPVs of the lights that remain (by index), so adding a light propagates only that one.
     fn resize_lights(&mut self, light_count: usize) {
-        let Some(spec) = self.grid.as_ref().map(|g| g.spec.clone()) else { return };
+        let Some(spec) = self.grid.as_ref().map(|g| g.spec) else { return };
         let layout = self.stages_for(&spec, light_count);
         let Some(g) = &mut self.grid else { return };
         let device = &self.ctx.device;
@@ -1580,11 +1584,11 @@ fn light_gpu(l: &Light, culled: bool) -> LightGpu {
     use crate::scene::LightKind;
     let rgb = if l.hidden || culled { glam::Vec3::ZERO } else { l.radiance_rgb() };
     let (kind, direction, angle, blend) = match l.kind {
-        LightKind::Point => (0, glam::Vec3::ZERO, 0.0, 0.0),
+        LightKind::Point => (LIGHT_POINT, glam::Vec3::ZERO, 0.0, 0.0),
         LightKind::Spot { direction, angle_deg, blend } => {
-            (1, direction.normalize_or_zero(), angle_deg.to_radians(), blend)
+            (LIGHT_SPOT, direction.normalize_or_zero(), angle_deg.to_radians(), blend)
         }
-        LightKind::Directional { direction } => (2, direction.normalize_or_zero(), 0.0, 0.0),
+        LightKind::Directional { direction } => (LIGHT_DIRECTIONAL, direction.normalize_or_zero(), 0.0, 0.0),
     };
     LightGpu {
         position: l.position.to_array(),
@@ -1694,7 +1698,7 @@ fn surfaces_gpu(project: &Project) -> Vec<SurfaceGpu> {
         .iter()
         .map(|b| SurfaceGpu {
             min: b.min.to_array(),
-            kind: 0,
+            kind: SURFACE_BOX,
             max: b.max.to_array(),
             specular: b.specular,
             albedo: b.albedo.to_array(),
@@ -1704,7 +1708,7 @@ fn surfaces_gpu(project: &Project) -> Vec<SurfaceGpu> {
     if let Some(g) = &project.surfaces.ground {
         out.push(SurfaceGpu {
             min: [0.0, g.height, 0.0],
-            kind: 1,
+            kind: SURFACE_GROUND,
             max: [0.0; 3],
             specular: g.specular,
             albedo: g.albedo.to_array(),
@@ -1744,9 +1748,9 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
         tr_cutoff: r.transmittance_cutoff,
         far_distance,
         policy: match r.step_policy {
-            StepPolicy::Fixed => 0,
-            StepPolicy::TwoLevel => 1,
-            StepPolicy::Adaptive => 2,
+            StepPolicy::Fixed => POLICY_FIXED,
+            StepPolicy::TwoLevel => POLICY_TWO_LEVEL,
+            StepPolicy::Adaptive => POLICY_ADAPTIVE,
         },
         near_steps: r.near_steps,
         far_steps: r.far_steps,
