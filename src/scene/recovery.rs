@@ -1,5 +1,6 @@
-//! Crash recovery files. While a project has unsaved changes the editor writes it here every
-//! few seconds (atomically, like a save); a clean save or exit removes the file. At the next
+//! Crash recovery files. While a project has unsaved changes the editor writes it here when
+//! an edit ends and every few seconds during a long one (atomically, like a save, on a
+//! [`RecoveryWriter`]'s thread); a clean save or exit removes the file. At the next
 //! start, any file left behind means the editor did not exit cleanly, and it offers to
 //! restore the work.
 //!
@@ -93,6 +94,113 @@ pub fn remove_recovery(path: &Path) -> Result<(), ProjectError> {
     }
 }
 
+/// A request to the writer thread.
+enum Request {
+    Write { dir: PathBuf, original: Option<PathBuf>, project: Box<Project> },
+    Remove(PathBuf),
+}
+
+impl Request {
+    fn path(&self) -> PathBuf {
+        match self {
+            Request::Write { dir, original, .. } => recovery_path(dir, original.as_deref()),
+            Request::Remove(path) => path.clone(),
+        }
+    }
+}
+
+/// Writes and removes recovery files on one background thread, in the order asked, so the
+/// UI never waits on the disk. Of several requests for one file waiting together only the
+/// last is carried out: a newer state always wins over an older one, and a removal is never
+/// undone by a write queued before it.
+pub struct RecoveryWriter {
+    requests: Option<std::sync::mpsc::Sender<Request>>,
+    errors: std::sync::mpsc::Receiver<ProjectError>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Default for RecoveryWriter {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RecoveryWriter {
+    pub fn new() -> Self {
+        let (requests, rx) = std::sync::mpsc::channel::<Request>();
+        let (error_tx, errors) = std::sync::mpsc::channel();
+        let thread = std::thread::Builder::new()
+            .name("fogsmith-recovery".into())
+            .spawn(move || {
+                while let Ok(first) = rx.recv() {
+                    let mut batch = vec![first];
+                    batch.extend(rx.try_iter());
+                    let paths: Vec<PathBuf> = batch.iter().map(Request::path).collect();
+                    for (i, request) in batch.into_iter().enumerate() {
+                        if paths[i + 1..].contains(&paths[i]) {
+                            continue;
+                        }
+                        let result = match request {
+                            Request::Write { dir, original, project } => {
+                                write_recovery(&dir, original.as_deref(), &project).map(drop)
+                            }
+                            Request::Remove(path) => remove_recovery(&path),
+                        };
+                        if let Err(e) = result {
+                            if error_tx.send(e).is_err() {
+                                return;
+                            }
+                        }
+                    }
+                }
+            })
+            .ok();
+        Self { requests: thread.as_ref().map(|_| requests), errors, thread }
+    }
+
+    /// Queues writing `project` as the recovery file of `original` in `dir`.
+    pub fn write(&self, dir: &Path, original: Option<&Path>, project: Project) -> Result<(), ProjectError> {
+        self.send(Request::Write {
+            dir: dir.to_owned(),
+            original: original.map(Path::to_owned),
+            project: Box::new(project),
+        })
+    }
+
+    /// Queues removing the recovery file at `path`.
+    pub fn remove(&self, path: &Path) -> Result<(), ProjectError> {
+        self.send(Request::Remove(path.to_owned()))
+    }
+
+    fn send(&self, request: Request) -> Result<(), ProjectError> {
+        let path = request.path();
+        let stopped = || ProjectError::Io {
+            path: path.clone(),
+            source: std::io::Error::other("the recovery writer thread could not be started or has stopped"),
+        };
+        self.requests.as_ref().ok_or_else(stopped)?.send(request).map_err(|_| stopped())
+    }
+
+    /// Errors of requests carried out since the last call.
+    pub fn errors(&self) -> Vec<ProjectError> {
+        self.errors.try_iter().collect()
+    }
+
+    /// Carries out every queued request, then stops the thread (also done on drop).
+    pub fn finish(&mut self) {
+        self.requests = None;
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl Drop for RecoveryWriter {
+    fn drop(&mut self) {
+        self.finish();
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -116,5 +224,38 @@ mod tests {
         assert!(find_recoveries(dir.path()).is_empty());
         std::fs::write(dir.path().join("bad.recovery.ron"), "not ron").unwrap();
         assert!(find_recoveries(dir.path())[0].is_err(), "a damaged file is reported, not dropped");
+    }
+
+    /// The writer carries out requests in order: the newest state of a file wins, and a
+    /// removal queued after writes leaves no file.
+    #[test]
+    fn writer_keeps_the_newest_state_and_honours_removal() {
+        let dir = tempfile::tempdir().unwrap();
+        let original = dir.path().join("fog.ron");
+        let mut writer = RecoveryWriter::new();
+        let mut p = Project::default();
+        for i in 0..20 {
+            p.particles.push(Particle::new(Vec3::splat(i as f32), 0.5, 2.0));
+            writer.write(dir.path(), Some(&original), p.clone()).unwrap();
+        }
+        writer.finish();
+        let found = find_recoveries(dir.path());
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].as_ref().unwrap().1.project, p, "the last state queued is the one on disk");
+        let path = found[0].as_ref().unwrap().0.clone();
+
+        let mut writer = RecoveryWriter::new();
+        writer.write(dir.path(), Some(&original), Project::default()).unwrap();
+        writer.remove(&path).unwrap();
+        writer.finish();
+        assert!(find_recoveries(dir.path()).is_empty(), "a removal after a write leaves no file");
+
+        let blocked = dir.path().join("a-file");
+        std::fs::write(&blocked, "").unwrap();
+        let mut writer = RecoveryWriter::new();
+        writer.write(&blocked, Some(&original), p).unwrap();
+        writer.finish();
+        let errors = writer.errors();
+        assert_eq!(errors.len(), 1, "a failed write is reported: {errors:?}");
     }
 }
