@@ -323,3 +323,24 @@ pub fn help_sheet() -> Vec<(String, String)> {
         .chain(GESTURES.iter().map(|(k, v)| (k.to_string(), v.to_string())))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_lists_every_command_once_and_the_mappings_round_trip() {
+        for (i, c) in Command::ALL.iter().enumerate() {
+            assert!(!Command::ALL[..i].contains(c), "{c:?} is listed twice");
+            assert!(!c.text().is_empty(), "{c:?} has a menu text");
+        }
+        for tool in Tool::ALL {
+            assert_eq!(Command::for_tool(tool).tool(), Some(tool));
+        }
+        for tab in Tab::ALL {
+            assert_eq!(Command::for_panel(tab).panel(), Some(tab));
+        }
+        assert_eq!(Command::ALL.iter().filter(|c| c.tool().is_some()).count(), Tool::ALL.len());
+        assert_eq!(Command::ALL.iter().filter(|c| c.panel().is_some()).count(), Tab::ALL.len());
+    }
+}

@@ -3,7 +3,7 @@
 //! volume back for painting at the fog's depth.
 
 use super::session::{Session, Version};
-use super::state::{EditorState, FogEv, GpuView, PreviewKey, Quality};
+use super::state::{BaseKey, EditorState, FogEv, GpuView, PreviewKey, Quality};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext, Progress};
 use eframe::egui_wgpu::{self, wgpu};
 use std::path::Path;
@@ -121,7 +121,11 @@ impl EditorState {
         };
         // The base volume, loaded through the project like every other path.
         let project = self.session.project();
-        let key = (project.base_volume.clone(), project.grid, self.session.path().map(Path::to_owned));
+        let key = BaseKey {
+            base_volume: project.base_volume.clone(),
+            grid: project.grid,
+            project_path: self.session.path().map(Path::to_owned),
+        };
         if self.base_loaded.as_ref() != Some(&key) {
             let loaded = crate::export::load_base_layer(project, self.session.path());
             let failed = loaded.as_ref().err().map(|e| format!("The base volume is left out of the fog: {e}"));

@@ -256,8 +256,8 @@ pub struct EditorState {
     /// The built-in file dialog while it is open, and what it was opened for.
     pub(super) built_in_dialog: Option<(Pick, egui_file_dialog::FileDialog)>,
     pub(super) built_in_explained: bool,
-    /// What the pipeline's base layer was loaded from: base volume, grid and project file.
-    pub(super) base_loaded: Option<(Option<crate::scene::BaseVolume>, crate::scene::GridSpec, Option<PathBuf>)>,
+    /// What the pipeline's base layer was loaded from.
+    pub(super) base_loaded: Option<BaseKey>,
     /// File → Import VDB… while its window is open.
     pub(super) import: Option<super::import::ImportVdb>,
     /// The command run last, for scripted drivers.
@@ -356,6 +356,15 @@ pub(crate) struct SliceKey {
     /// frames after the edit.
     pub volumes: u64,
     pub settings: SliceSettings,
+}
+
+/// What the pipeline's base layer is loaded from: it reloads when any of these change.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct BaseKey {
+    pub base_volume: Option<crate::scene::BaseVolume>,
+    pub grid: crate::scene::GridSpec,
+    /// The project file, which relative base volume paths start from.
+    pub project_path: Option<PathBuf>,
 }
 
 /// The last recovery file written: which content, and when.
