@@ -12,6 +12,8 @@ use std::sync::Arc;
 const EXPORT_CANCELLED: &str = "cancelled";
 
 impl EditorState {
+    /// Runs `job` in a background thread, labelled in the status bar until its result is
+    /// handled at the start of a frame.
     pub(super) fn spawn(&mut self, label: &str, job: impl FnOnce() -> JobResult + Send + 'static) {
         self.jobs.busy.push(label.to_owned());
         let tx = self.jobs.tx.clone();

@@ -1,5 +1,6 @@
-//! Scripted runs: `--screenshot` saves the window once the preview is on screen, and
-//! `--measure-fps` redraws still then orbiting and prints the frame rates; both then exit.
+//! Scripted runs: `--screenshot` saves the window once the preview is on screen and
+//! `--measure-fps` redraws still then orbiting and prints the frame rates, both then
+//! exiting; `--scripted-stroke` paints one stroke at start.
 
 use super::state::EditorState;
 use egui::Context;
