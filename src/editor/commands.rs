@@ -1,10 +1,14 @@
 //! The editor's commands, in one table: each has its text, tooltip and keyboard shortcuts,
-//! and the menus, the key dispatch and the Help → Shortcuts sheet are generated from it
-//! (after rerun's `UICommand`). What a command does is [`super::app::EditorState::run`].
+//! and every menu item, the key dispatch and the Help → Shortcuts sheet are generated from
+//! it (after rerun's `UICommand`). What a command does is
+//! [`EditorState::run`](super::state::EditorState::run).
 
+use super::layout::Tab;
+use super::tools::Tool;
 use egui::{Key, KeyboardShortcut, ModifierNames, Modifiers};
+use strum::{EnumCount, VariantArray};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, EnumCount, VariantArray)]
 pub enum Command {
     New,
     Open,
@@ -14,6 +18,8 @@ pub enum Command {
     ExportVdb,
     ExportExr,
     Revert,
+    /// Drop the imported VDB grid (shown only while there is one).
+    RemoveBaseVolume,
     Quit,
     Undo,
     Redo,
@@ -34,10 +40,23 @@ pub enum Command {
     ViewFront,
     ViewRight,
     ViewTop,
+    ViewBack,
+    ViewLeft,
     ZoomIn,
     ZoomOut,
     SliceNext,
     SlicePrevious,
+    /// View → Panels: show or hide one dockable panel.
+    PanelViewport,
+    PanelSlices,
+    PanelOutliner,
+    PanelInspector,
+    PanelStats,
+    ResetLayout,
+    /// View toggles, shown as check boxes.
+    ParticleOutlines,
+    SlicePlane,
+    MoveGizmo,
     Shortcuts,
 }
 
@@ -52,44 +71,51 @@ const fn cmd_shift(k: Key) -> KeyboardShortcut {
 }
 
 impl Command {
-    pub const ALL: [Command; 32] = [
-        Command::New,
-        Command::Open,
-        Command::Save,
-        Command::SaveAs,
-        Command::ImportVdb,
-        Command::ExportVdb,
-        Command::ExportExr,
-        Command::Revert,
-        Command::Quit,
-        Command::Undo,
-        Command::Redo,
-        Command::SelectAll,
-        Command::Duplicate,
-        Command::Delete,
-        Command::Escape,
-        Command::Grab,
-        Command::ScaleSelection,
-        Command::FitGrid,
-        Command::ToolSelect,
-        Command::ToolPaint,
-        Command::ToolScale,
-        Command::ToolErase,
-        Command::ToolLight,
-        Command::FrameSelection,
-        Command::ViewFront,
-        Command::ViewRight,
-        Command::ViewTop,
-        Command::ZoomIn,
-        Command::ZoomOut,
-        Command::SliceNext,
-        Command::SlicePrevious,
-        Command::Shortcuts,
-    ];
+    /// Every command, in declaration order.
+    pub const ALL: [Command; Command::COUNT] = {
+        let mut all = [Command::New; Command::COUNT];
+        let mut i = 0;
+        while i < Command::COUNT {
+            all[i] = Command::VARIANTS[i];
+            i += 1;
+        }
+        all
+    };
 
-    /// (menu text, tooltip)
+    /// The command that picks `tool` (its shortcut lives here).
+    pub fn for_tool(tool: Tool) -> Command {
+        match tool {
+            Tool::Select => Command::ToolSelect,
+            Tool::Paint => Command::ToolPaint,
+            Tool::Scale => Command::ToolScale,
+            Tool::Erase => Command::ToolErase,
+            Tool::Light => Command::ToolLight,
+        }
+    }
+
+    /// The tool this command picks, if it picks one.
+    pub fn tool(self) -> Option<Tool> {
+        Tool::ALL.into_iter().find(|&t| Command::for_tool(t) == self)
+    }
+
+    /// The command that shows or hides `tab`.
+    pub fn for_panel(tab: Tab) -> Command {
+        match tab {
+            Tab::Viewport => Command::PanelViewport,
+            Tab::Slices => Command::PanelSlices,
+            Tab::Outliner => Command::PanelOutliner,
+            Tab::Inspector => Command::PanelInspector,
+            Tab::Stats => Command::PanelStats,
+        }
+    }
+
+    /// The panel this command shows or hides, if it is a panel toggle.
+    pub fn panel(self) -> Option<Tab> {
+        Tab::ALL.into_iter().find(|&t| Command::for_panel(t) == self)
+    }
+
+    /// (menu text, tooltip); an empty tooltip shows none.
     pub fn text_and_tooltip(self) -> (&'static str, &'static str) {
-        use super::tools::Tool;
         match self {
             Command::New => ("New", "Start an empty project"),
             Command::Open => ("Open…", "Open a .ron project"),
@@ -99,6 +125,7 @@ impl Command {
             Command::ExportVdb => ("OpenVDB…", "Density and optical depth per light as an OpenVDB file"),
             Command::ExportExr => ("EXR slices…", "Every z slice of density and optical depth per light in one OpenEXR"),
             Command::Revert => ("Revert", "Reload the file, dropping unsaved changes"),
+            Command::RemoveBaseVolume => ("Remove base volume", "Drop the imported VDB grid from the fog"),
             Command::Quit => ("Quit", "Close the editor (asks about unsaved changes)"),
             Command::Undo => ("Undo", "Take back the last edit"),
             Command::Redo => ("Redo", "Bring back the edit undone last"),
@@ -118,10 +145,21 @@ impl Command {
             Command::ViewFront => ("Front", "Look along −z"),
             Command::ViewRight => ("Right", "Look along −x"),
             Command::ViewTop => ("Top", "Look down −y"),
+            Command::ViewBack => ("Back", ""),
+            Command::ViewLeft => ("Left", ""),
             Command::ZoomIn => ("Zoom in", "Move the camera towards its target"),
             Command::ZoomOut => ("Zoom out", "Move the camera away from its target"),
             Command::SliceNext => ("Next slice", "Step the Slices panel one cell up its axis"),
             Command::SlicePrevious => ("Previous slice", "Step the Slices panel one cell down its axis"),
+            Command::PanelViewport => (Tab::Viewport.title(), "Show or hide this panel"),
+            Command::PanelSlices => (Tab::Slices.title(), "Show or hide this panel"),
+            Command::PanelOutliner => (Tab::Outliner.title(), "Show or hide this panel"),
+            Command::PanelInspector => (Tab::Inspector.title(), "Show or hide this panel"),
+            Command::PanelStats => (Tab::Stats.title(), "Show or hide this panel"),
+            Command::ResetLayout => ("Reset layout", "Back to the default arrangement of panels"),
+            Command::ParticleOutlines => ("Particle outlines", "Outline every particle in the viewport; when off, only the selection is outlined"),
+            Command::SlicePlane => ("Slice plane", "Show the Slices panel's plane in the viewport, in its axis colour"),
+            Command::MoveGizmo => ("Move gizmo", "With the Select tool, arrows and squares at the selection's centre: drag one to move along that axis or in that plane (Ctrl snaps to the grid cell; Esc or right click cancels)"),
             Command::Shortcuts => ("Shortcuts", "All keyboard and mouse shortcuts"),
         }
     }
@@ -166,8 +204,20 @@ impl Command {
             | Command::ExportVdb
             | Command::ExportExr
             | Command::Revert
+            | Command::RemoveBaseVolume
             | Command::Quit
-            | Command::FitGrid => vec![],
+            | Command::FitGrid
+            | Command::ViewBack
+            | Command::ViewLeft
+            | Command::PanelViewport
+            | Command::PanelSlices
+            | Command::PanelOutliner
+            | Command::PanelInspector
+            | Command::PanelStats
+            | Command::ResetLayout
+            | Command::ParticleOutlines
+            | Command::SlicePlane
+            | Command::MoveGizmo => vec![],
         }
     }
 
@@ -193,8 +243,25 @@ impl Command {
 
     /// [`Self::menu_button`] with other text (Undo with the step's name).
     pub fn menu_button_text(self, ui: &mut egui::Ui, enabled: bool, text: &str) -> bool {
-        let shortcut = self.shortcuts().first().map(format_shortcut).unwrap_or_default();
-        ui.add_enabled(enabled, egui::Button::new(text).shortcut_text(shortcut)).on_hover_text(self.tooltip()).clicked()
+        let button = match self.shortcuts().first() {
+            Some(shortcut) => egui::Button::new(text).shortcut_text(format_shortcut(shortcut)),
+            None => egui::Button::new(text),
+        };
+        let response = ui.add_enabled(enabled, button);
+        self.with_tooltip(response).clicked()
+    }
+
+    /// A menu check box for a toggle command, showing `checked`; true when clicked.
+    pub fn menu_checkbox(self, ui: &mut egui::Ui, checked: bool) -> bool {
+        let mut value = checked;
+        self.with_tooltip(ui.checkbox(&mut value, self.text())).changed()
+    }
+
+    fn with_tooltip(self, response: egui::Response) -> egui::Response {
+        match self.tooltip() {
+            "" => response,
+            tip => response.on_hover_text(tip),
+        }
     }
 
     /// The commands whose shortcut was pressed this frame, consuming those key presses.
@@ -255,4 +322,25 @@ pub fn help_sheet() -> Vec<(String, String)> {
         .map(|c| (c.shortcut_text(), c.text().to_string()))
         .chain(GESTURES.iter().map(|(k, v)| (k.to_string(), v.to_string())))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_lists_every_command_once_and_the_mappings_round_trip() {
+        for (i, c) in Command::ALL.iter().enumerate() {
+            assert!(!Command::ALL[..i].contains(c), "{c:?} is listed twice");
+            assert!(!c.text().is_empty(), "{c:?} has a menu text");
+        }
+        for tool in Tool::ALL {
+            assert_eq!(Command::for_tool(tool).tool(), Some(tool));
+        }
+        for tab in Tab::ALL {
+            assert_eq!(Command::for_panel(tab).panel(), Some(tab));
+        }
+        assert_eq!(Command::ALL.iter().filter(|c| c.tool().is_some()).count(), Tool::ALL.len());
+        assert_eq!(Command::ALL.iter().filter(|c| c.panel().is_some()).count(), Tab::ALL.len());
+    }
 }

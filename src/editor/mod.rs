@@ -4,25 +4,44 @@
 //! - [`session`]: the project under edit, selection, undo/redo and file state (no UI).
 //! - [`tools`], [`gizmo`], [`view`], [`slices`]: the geometry and data behind tools, the viewport and
 //!   the slice views (no UI either).
-//! - [`app`]: the eframe application (menus, shortcuts, files, dialogs, messages);
-//!   `viewport` and `panels` draw the dockable tabs.
+//! - [`commands`]: every command in one table (text, tooltip, shortcuts), behind the menus,
+//!   the key dispatch and the help sheet.
+//! - [`app`]: the eframe application: the dock and the state it shows, persisted between runs.
+//! - `state`: what the panels share (the session, view state, jobs, recovery, the preview);
+//!   what acts on it is split by concern: `preview` (the pipeline driver), `jobs`
+//!   (background work and exports), `file_actions`, `recovery`, `dispatch` (commands and
+//!   keys), `menus`, `shell` (status bar, messages), `scripted` (`--screenshot`,
+//!   `--measure-fps`).
+//! - `viewport`, `slice_panel` and `panels` draw the dockable tabs, from the state alone.
 //!
 //! The editor never calls wgpu itself: it shares egui-wgpu's device with the
 //! [`FogPipeline`](crate::gpu::FogPipeline) and hands the pipeline's display view to egui-wgpu.
 
 pub mod app;
 pub mod commands;
+mod dispatch;
+mod file_actions;
 pub mod files;
 pub mod gizmo;
 mod import;
+mod jobs;
+mod layout;
+mod menus;
 mod panels;
+mod preview;
+mod recovery;
+mod scripted;
 pub mod session;
+mod shell;
+mod slice_panel;
 pub mod slices;
+mod state;
 pub mod tools;
 pub mod view;
 mod viewport;
 
-pub use app::{EditorApp, Tab};
+pub use app::EditorApp;
+pub use layout::Tab;
 
 use crate::scene::Project;
 use eframe::egui_wgpu;

@@ -36,6 +36,16 @@ impl Selection {
     }
 }
 
+/// One state of the project under edit, for keying what is derived from it (the preview,
+/// read-backs, recovery files). `epoch` counts whole-project replacements (new, open,
+/// restore), kept by the editor; `generation` is [`Session::generation`] or
+/// [`Session::content_generation`] within one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Version {
+    pub epoch: u64,
+    pub generation: u64,
+}
+
 /// A tag that lets consecutive edits (one brush stroke, one slider drag) share one undo step.
 pub type EditTag = u64;
 

@@ -30,17 +30,6 @@ impl Tool {
             Tool::Light => "Light",
         }
     }
-    /// The command that picks this tool (its shortcut lives there).
-    pub fn command(self) -> super::commands::Command {
-        use super::commands::Command;
-        match self {
-            Tool::Select => Command::ToolSelect,
-            Tool::Paint => Command::ToolPaint,
-            Tool::Scale => Command::ToolScale,
-            Tool::Erase => Command::ToolErase,
-            Tool::Light => Command::ToolLight,
-        }
-    }
     pub fn tooltip(self) -> &'static str {
         match self {
             Tool::Select => "Select / Move: click to select, Shift/Ctrl-click to add or toggle, drag on empty space for a box, drag a selected item to move it in the view plane. The move gizmo at the selection's centre: drag an arrow to move along x, y or z, a square to move in that plane (Ctrl snaps to the grid cell, Esc or right click cancels). G grabs, S scales the selection.",

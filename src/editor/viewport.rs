@@ -2,8 +2,9 @@
 //! pointer handling and the overlays (grid box, particle outlines, light gizmos, selection,
 //! the move gizmo).
 
-use super::app::{EditorState, Gesture};
+use super::commands::Command;
 use super::gizmo::{self, Gizmo, Handle};
+use super::state::{EditorState, Gesture};
 use super::tools::{self, Hit, Stroke, Tool};
 use super::view::{self, ViewProjection};
 use crate::scene::FitKeep;
@@ -118,7 +119,7 @@ pub(crate) fn fit_grid(state: &mut EditorState) {
 fn toolbar(state: &mut EditorState, ui: &mut Ui) {
     ui.horizontal_wrapped(|ui| {
         for tool in Tool::ALL {
-            let text = format!("{} ({})", tool.label(), tool.command().shortcut_text());
+            let text = format!("{} ({})", tool.label(), Command::for_tool(tool).shortcut_text());
             if ui.selectable_label(state.view.tool == tool, text).on_hover_text(tool.tooltip()).clicked() {
                 state.view.tool = tool;
             }
@@ -148,7 +149,7 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             .on_hover_text("Where Paint puts a stroke along the view ray");
     });
     ui.horizontal_wrapped(|ui| {
-        use super::app::Quality;
+        use super::state::Quality;
         egui::ComboBox::new("quality", "preview")
             .selected_text(match state.view.quality {
                 Quality::Balanced => "live",
@@ -166,7 +167,7 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             .width(52.0)
             .selected_text(state.view.preview_scale.label())
             .show_ui(ui, |ui| {
-                for scale in super::app::PreviewScale::ALL {
+                for scale in super::state::PreviewScale::ALL {
                     ui.selectable_value(&mut state.view.preview_scale, scale, scale.label());
                 }
             })

@@ -1,0 +1,55 @@
+//! The dock's tabs and their default arrangement.
+
+use egui_dock::{DockState, NodeIndex};
+use serde::{Deserialize, Serialize};
+
+/// The dockable panels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Tab {
+    Viewport,
+    Slices,
+    Outliner,
+    Inspector,
+    Stats,
+}
+
+impl Tab {
+    pub const ALL: [Tab; 5] = [Tab::Viewport, Tab::Slices, Tab::Outliner, Tab::Inspector, Tab::Stats];
+    pub fn title(self) -> &'static str {
+        match self {
+            Tab::Viewport => "Viewport",
+            Tab::Slices => "Slices",
+            Tab::Outliner => "Outliner",
+            Tab::Inspector => "Inspector",
+            Tab::Stats => "Stats",
+        }
+    }
+}
+
+/// The default arrangement: outliner left, viewport centre with slices below, inspector and
+/// stats right.
+pub fn default_layout() -> DockState<Tab> {
+    let mut dock = DockState::new(vec![Tab::Viewport]);
+    let tree = dock.main_surface_mut();
+    let [center, _right] = tree.split_right(NodeIndex::root(), 0.76, vec![Tab::Inspector, Tab::Stats]);
+    let [center, _left] = tree.split_left(center, 0.2, vec![Tab::Outliner]);
+    tree.split_below(center, 0.64, vec![Tab::Slices]);
+    dock
+}
+
+/// Opens (in the focused area) or closes a panel.
+pub(super) fn set_open(dock: &mut DockState<Tab>, tab: Tab, open: bool) {
+    match (dock.find_tab(&tab), open) {
+        (Some(path), false) => {
+            dock.remove_tab(path);
+        }
+        (None, true) => {
+            if dock.iter_all_tabs().next().is_none() {
+                *dock = DockState::new(vec![tab]);
+            } else {
+                dock.push_to_first_leaf(tab);
+            }
+        }
+        _ => {}
+    }
+}

@@ -1,0 +1,186 @@
+//! The preview driver: advances the pipeline on egui-wgpu's device once per frame within a
+//! time budget and hands its image to egui-wgpu as a texture; also reads the extinction
+//! volume back for painting at the fog's depth.
+
+use super::session::{Session, Version};
+use super::state::{BaseKey, EditorState, FogEv, GpuView, PreviewKey, Quality};
+use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext, Progress};
+use eframe::egui_wgpu::{self, wgpu};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// GPU time the preview may take per frame. The rest of a frame (egui's layout and
+/// painting) stays well within 100 ms on a software adapter, so the window keeps following
+/// the pointer while the pipeline refines the preview over the following frames.
+pub const FRAME_BUDGET_MS: f64 = 30.0;
+
+/// What the preview shows, for scripted drivers of the editor (tests, `bench`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreviewStatus {
+    /// Session generation of the scene the image on show was rendered from.
+    pub shown_generation: Option<u64>,
+    /// Full resolution with fresh optical depths, nothing left to do.
+    pub converged: bool,
+    /// The image on show reads optical depths that lag the scene.
+    pub shadows_stale: bool,
+    pub shown_size: [u32; 2],
+    /// Images shown so far.
+    pub renders: u64,
+}
+
+impl GpuView {
+    pub(super) fn new(render_state: &egui_wgpu::RenderState) -> Self {
+        let info = render_state.adapter.get_info();
+        let ctx = GpuContext::from_device(render_state.device.clone(), render_state.queue.clone(), info);
+        Self {
+            render_state: render_state.clone(),
+            pipeline: FogPipeline::new(ctx),
+            texture: None,
+            converged: None,
+            report: FrameReport::default(),
+            progress: Progress::default(),
+            error: None,
+            renders: 0,
+            update_ms: 0.0,
+            last_frame: u64::MAX,
+            shown: None,
+        }
+    }
+
+    /// Whether the preview still has work to do for the current inputs.
+    pub fn refining(&self) -> bool {
+        self.converged.is_none() && self.error.is_none()
+    }
+
+    /// Advances the pipeline towards the session's scene at `size` pixels within `budget`
+    /// (None: to convergence); returns whether a new image is on show.
+    fn render(&mut self, session: &Session, version: Version, size: [u32; 2], budget: Option<Duration>) -> bool {
+        let key = PreviewKey { version, size };
+        if self.converged == Some(key) {
+            return false;
+        }
+        self.converged = None;
+        let project = session.project();
+        let request =
+            FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
+        let started = Instant::now();
+        let result = self.pipeline.advance(project, &request, budget);
+        self.update_ms = started.elapsed().as_secs_f64() * 1e3;
+        let progress = match result {
+            Ok(p) => p,
+            Err(e) => {
+                self.error = Some(e.to_string());
+                self.converged = Some(key);
+                return false;
+            }
+        };
+        self.error = None;
+        if progress.report.counters.dispatches > 0 {
+            self.report = progress.report;
+        }
+        self.progress = progress;
+        if progress.converged() {
+            self.converged = Some(key);
+        }
+        if !progress.new_image {
+            return false;
+        }
+        self.renders += 1;
+        self.shown = Some(version);
+        if let Some((view, shown)) = self.pipeline.display_view() {
+            let mut renderer = self.render_state.renderer.write();
+            let device = &self.render_state.device;
+            match self.texture {
+                None => {
+                    let id = renderer.register_native_texture(device, view, wgpu::FilterMode::Linear);
+                    self.texture = Some((id, shown));
+                }
+                Some((id, _)) => {
+                    // Quick and full images live in different textures.
+                    renderer.update_egui_texture_from_wgpu_texture(device, view, wgpu::FilterMode::Linear, id);
+                    self.texture = Some((id, shown));
+                }
+            }
+        }
+        true
+    }
+}
+
+impl EditorState {
+    /// Advances the preview once per frame within the frame budget (or to convergence in
+    /// [`Quality::Full`]); while work remains, asks for another frame.
+    pub(crate) fn render_preview(&mut self) {
+        let Some(gpu) = &mut self.gpu else { return };
+        if gpu.last_frame == self.frames {
+            return;
+        }
+        gpu.last_frame = self.frames;
+        let budget = match self.view.quality {
+            Quality::Balanced => Some(Duration::from_secs_f64(FRAME_BUDGET_MS * 1e-3)),
+            Quality::Full => None,
+        };
+        // The base volume, loaded through the project like every other path.
+        let project = self.session.project();
+        let key = BaseKey {
+            base_volume: project.base_volume.clone(),
+            grid: project.grid,
+            project_path: self.session.path().map(Path::to_owned),
+        };
+        if self.base_loaded.as_ref() != Some(&key) {
+            let loaded = crate::export::load_base_layer(project, self.session.path());
+            let failed = loaded.as_ref().err().map(|e| format!("The base volume is left out of the fog: {e}"));
+            gpu.pipeline.set_base_layer(loaded.ok().flatten());
+            gpu.converged = None;
+            self.base_loaded = Some(key);
+            if let Some(message) = failed {
+                self.error(message);
+            }
+        }
+        let version = self.version();
+        let Some(gpu) = &mut self.gpu else { return };
+        let before = gpu.error.clone();
+        gpu.render(&self.session, version, self.view.preview_size, budget);
+        if gpu.refining() {
+            self.ctx.request_repaint();
+        }
+        if gpu.error.is_some() && gpu.error != before {
+            let message = gpu.error.clone().unwrap_or_default();
+            self.error(format!("Preview failed: {message}"));
+        }
+    }
+
+    /// The pipeline's extinction volume, read back once per content change (for painting at
+    /// the fog's depth); None without a pipeline or when the read fails.
+    pub(crate) fn fog_ev(&mut self) -> Option<&crate::scene::Volume> {
+        let key = self.content_version();
+        let fresh = self.view.fog_ev.as_ref().is_some_and(|f| f.version == key);
+        if !fresh {
+            let gpu = self.gpu.as_ref()?;
+            let grid = self.session.project().grid;
+            let stale_usable =
+                self.view.fog_ev.as_ref().is_some_and(|f| f.version.epoch == key.epoch && f.ev.grid == grid);
+            // While the bake catches up with an edit, the last complete read is close enough.
+            if !(gpu.refining() && stale_usable) {
+                let ev = gpu.pipeline.read_ev().ok()?;
+                if ev.grid != grid {
+                    return None;
+                }
+                let generation = if gpu.refining() { 0 } else { key.generation };
+                self.view.fog_ev = Some(FogEv { version: Version { generation, ..key }, ev });
+            }
+        }
+        self.view.fog_ev.as_ref().map(|f| &f.ev)
+    }
+
+    /// Where the preview stands: what it shows and what is left to refine.
+    pub(super) fn preview_status(&self) -> Option<PreviewStatus> {
+        let gpu = self.gpu.as_ref()?;
+        Some(PreviewStatus {
+            shown_generation: gpu.shown.filter(|v| v.epoch == self.epoch).map(|v| v.generation),
+            converged: !gpu.refining(),
+            shadows_stale: gpu.progress.shadows_stale,
+            shown_size: gpu.progress.shown_size,
+            renders: gpu.renders,
+        })
+    }
+}

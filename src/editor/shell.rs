@@ -1,0 +1,113 @@
+//! The shell around the panels: the status bar, messages and the shortcuts window.
+
+use super::state::EditorState;
+use egui::{Context, Id};
+use std::sync::atomic::Ordering;
+
+impl EditorState {
+    pub(super) fn status_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            if let Some(job) = self.jobs.busy.last() {
+                ui.spinner();
+                ui.label(job.as_str());
+                ui.separator();
+            }
+            if let Some(job) = &self.jobs.export_job {
+                let f = f32::from_bits(job.fraction.load(Ordering::Relaxed));
+                let name = job.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+                ui.add(
+                    egui::ProgressBar::new(f).desired_width(160.0).show_percentage().text(format!("exporting {name}")),
+                );
+                if job.cancel.load(Ordering::Relaxed) {
+                    ui.label("cancelling…");
+                } else if ui
+                    .button("Cancel")
+                    .on_hover_text(format!("Stop the export; {} stays as it was", job.path.display()))
+                    .clicked()
+                {
+                    job.cancel.store(true, Ordering::Relaxed);
+                }
+                ui.separator();
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+            }
+            if let Some((_, path)) = &self.jobs.pending_export {
+                let path = path.clone();
+                ui.label(format!(
+                    "{} waits for the bake",
+                    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+                ));
+                if ui.button("Cancel").on_hover_text("Do not export").clicked() {
+                    self.jobs.pending_export = None;
+                    self.info(format!("Export cancelled; {} is unchanged", path.display()));
+                }
+                ui.separator();
+            }
+            if let Some(gpu) = self.gpu.as_ref().filter(|g| g.refining()) {
+                let p = gpu.progress;
+                let stage = p.stage.name();
+                ui.add(
+                    egui::ProgressBar::new(p.stage_fraction as f32)
+                        .desired_width(120.0)
+                        .text(format!("preview: {stage}")),
+                )
+                .on_hover_text("The preview refines over the next frames: optical depths, then full resolution");
+                ui.separator();
+            }
+            let p = self.session.project();
+            ui.label(format!(
+                "{} particles · {} lights · {} selected · tool: {}",
+                p.particles.len(),
+                p.lights.len(),
+                self.session.selection.len(),
+                self.view.tool.label()
+            ));
+            if self.view.modal.is_some() {
+                ui.separator();
+                ui.label("Move the mouse; click or Enter to confirm, Esc or right-click to cancel");
+            }
+        });
+    }
+
+    pub(super) fn shortcuts_window(&mut self, ctx: &Context) {
+        let mut open = self.view.show_shortcuts;
+        egui::Window::new("Shortcuts").open(&mut open).resizable(false).show(ctx, |ui| {
+            egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
+                for (k, v) in super::commands::help_sheet() {
+                    ui.label(k);
+                    ui.label(v);
+                    ui.end_row();
+                }
+            });
+        });
+        self.view.show_shortcuts = open;
+    }
+
+    pub(super) fn show_toasts(&mut self, ctx: &Context) {
+        let now = ctx.input(|i| i.time);
+        self.toasts.retain(|t| t.error || now - t.born < 4.0);
+        if self.toasts.iter().any(|t| !t.error) {
+            ctx.request_repaint_after(std::time::Duration::from_millis(250));
+        }
+        let mut dismiss = None;
+        egui::Area::new(Id::new("toasts"))
+            .order(egui::Order::Foreground)
+            .anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0])
+            .show(ctx, |ui| {
+                for (i, t) in self.toasts.iter().enumerate() {
+                    egui::Frame::popup(ui.style()).show(ui, |ui| {
+                        ui.set_max_width(420.0);
+                        ui.horizontal(|ui| {
+                            let text = egui::RichText::new(&t.text);
+                            ui.label(if t.error { text.color(ui.visuals().error_fg_color) } else { text });
+                            if ui.small_button("✕").on_hover_text("Dismiss").clicked() {
+                                dismiss = Some(i);
+                            }
+                        });
+                    });
+                }
+            });
+        if let Some(i) = dismiss {
+            self.toasts.remove(i);
+        }
+    }
+}
