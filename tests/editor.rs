@@ -304,9 +304,7 @@ fn the_preview_resolution_follows_its_control() {
 #[test]
 fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
     let dir = tempfile::tempdir().expect("temp dir");
-    // Only this test enables recovery, so no other test reads this variable.
-    std::env::set_var("FOGSMITH_STATE_DIR", dir.path());
-    let options = EditorOptions { recovery: true, ..EditorOptions::default() };
+    let options = EditorOptions { recovery: true, state_dir: Some(dir.path().to_owned()), ..EditorOptions::default() };
     let mut h = harness_with(demo(), options.clone());
     h.state_mut().session_mut().select_all();
     h.key_press(egui::Key::Delete);
@@ -329,6 +327,49 @@ fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
     h.run_steps(2);
     assert!(h.state().session().project().particles.is_empty(), "the recovered work replaced the demo");
     assert!(h.state().session().is_dirty(), "recovered work is unsaved");
+}
+
+/// Recovery keeps every stroke: with no frame after the stroke's release (an idle editor) and
+/// no clean exit (a crash), the recovery file holds the project as it was at the release, and
+/// the next start restores exactly that.
+#[test]
+fn an_idle_crash_after_a_stroke_recovers_the_project_at_release() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let options = EditorOptions { recovery: true, state_dir: Some(dir.path().to_owned()), ..EditorOptions::default() };
+    let mut h = harness_with(demo(), options.clone());
+    let rect = h.state().viewport_rect().expect("the viewport is shown");
+    h.state_mut().set_tool(Tool::Paint);
+    h.state_mut().brush_mut().spacing = 0.3;
+    let c = rect.center();
+    let before = h.state().session().project().particles.len();
+    drag(&mut h, c - Vec2::new(60.0, 0.0), c + Vec2::new(60.0, 20.0), 12);
+    let at_release = h.state().session().project().clone();
+    assert!(at_release.particles.len() > before + 3, "the stroke deposited particles");
+    // Idle: no input and no frame from here on. The file is written off the UI thread.
+    let mut on_disk = None;
+    for _ in 0..400 {
+        let found = fogsmith::scene::recovery::find_recoveries(dir.path());
+        on_disk = found.into_iter().next().and_then(Result::ok).map(|(_, r)| r.project);
+        if on_disk.as_ref() == Some(&at_release) {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(25));
+    }
+    let on_disk = on_disk.expect("a recovery file for the unsaved stroke");
+    assert_eq!(
+        on_disk.particles.len(),
+        at_release.particles.len(),
+        "the recovery file holds the whole stroke, not the state at an earlier dab"
+    );
+    assert_eq!(on_disk, at_release);
+    // The crash: the editor never exits cleanly.
+    std::mem::forget(h);
+
+    let mut h = harness_with(demo(), options);
+    h.get_by_label("Recover unsaved work");
+    h.get_by_label("Restore").click();
+    h.run_steps(2);
+    assert_eq!(h.state().session().project(), &at_release, "the restored project is the one at the release");
 }
 
 /// The frame-budgeted preview: a dragged light's glow is on show in the frame of each move,

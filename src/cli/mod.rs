@@ -248,6 +248,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
                 measure_fps: cli.measure_fps,
                 recovery: !scripted,
                 scripted_stroke: cli.scripted_stroke,
+                state_dir: None,
                 file_dialogs: None,
             };
             crate::editor::run(cli.project, options)?;

@@ -298,6 +298,7 @@ impl eframe::App for EditorApp {
 
     fn on_exit(&mut self) {
         self.state.drop_recovery();
+        self.state.finish_recovery();
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {

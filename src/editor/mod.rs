@@ -77,6 +77,8 @@ pub struct EditorOptions {
     /// Write crash recovery files while there are unsaved changes, and offer to restore
     /// those left by an earlier run (see [`crate::scene::recovery`]).
     pub recovery: bool,
+    /// Where recovery files go; `None` means [`crate::scene::recovery::state_dir`].
+    pub state_dir: Option<PathBuf>,
     /// Paint this many particles as one stroke once the editor has opened.
     pub scripted_stroke: Option<usize>,
     /// Which file dialogs to use; `None` decides from the environment

@@ -1,7 +1,8 @@
-//! Crash recovery: while there are unsaved changes a recovery file is written every few
-//! seconds in the background; at start, work left by an earlier run is offered back.
+//! Crash recovery: while there are unsaved changes a recovery file is written when an edit
+//! ends and every few seconds during a long one, on a background thread; at start, work left
+//! by an earlier run is offered back.
 
-use super::state::{EditorState, JobResult, RecoveryWritten};
+use super::state::{EditorState, RecoveryWritten};
 use egui::Context;
 use std::path::Path;
 
@@ -21,7 +22,7 @@ fn recovery_interval_s() -> f64 {
 impl EditorState {
     /// Turns recovery on: finds what earlier runs left, to offer it back.
     pub(super) fn find_recoveries(&mut self) {
-        let dir = crate::scene::recovery::state_dir();
+        let dir = self.options.state_dir.clone().unwrap_or_else(crate::scene::recovery::state_dir);
         for found in crate::scene::recovery::find_recoveries(&dir) {
             match found {
                 Ok(r) => self.recovery.found.push(r),
@@ -29,43 +30,62 @@ impl EditorState {
             }
         }
         self.recovery.dir = Some(dir);
+        self.recovery.writer = Some(crate::scene::recovery::RecoveryWriter::new());
     }
 
     /// Removes this session's recovery file: its work was saved or deliberately dropped.
     pub(super) fn drop_recovery(&mut self) {
-        if let (Some(dir), Some(_)) = (&self.recovery.dir, self.recovery.written.take()) {
-            let path = crate::scene::recovery::recovery_path(dir, self.session.path());
-            if let Err(e) = crate::scene::recovery::remove_recovery(&path) {
-                self.error(e.to_string());
-            }
+        let (Some(writer), Some(written)) = (&self.recovery.writer, self.recovery.written.take()) else { return };
+        if let Err(e) = writer.remove(&written.path) {
+            self.error(format!("Could not remove the recovery file: {e}"));
         }
     }
 
-    /// Every few seconds while there are unsaved changes, writes a recovery file in the
-    /// background.
-    pub(super) fn write_recovery(&mut self, now: f64) {
+    /// Carries out the recovery writes and removals still queued (at exit).
+    pub(super) fn finish_recovery(&mut self) {
+        if let Some(writer) = &mut self.recovery.writer {
+            writer.finish();
+        }
+    }
+
+    /// While there are unsaved changes, queues a recovery file of the project: as soon as an
+    /// edit ends (a stroke's release, a drag's end, a one-step change), and every
+    /// [`recovery_interval_s`] during a long edit. A deferred write asks for a repaint when it
+    /// falls due, so an idle editor still writes it.
+    pub(super) fn write_recovery(&mut self, ctx: &Context) {
+        let Some(writer) = &self.recovery.writer else { return };
+        for e in writer.errors() {
+            self.error(format!("Could not write the recovery file: {e}"));
+        }
         let Some(dir) = self.recovery.dir.clone() else { return };
         if !self.session.is_dirty() {
             return;
         }
         let version = self.content_version();
-        if let Some(written) = self.recovery.written {
-            if written.version == version || now - written.at < recovery_interval_s() {
+        let now = ctx.input(|i| i.time);
+        if let Some(written) = &self.recovery.written {
+            if written.version == version {
+                return;
+            }
+            let editing = self.session.edit_in_progress() || ctx.input(|i| i.pointer.any_down());
+            let remaining = recovery_interval_s() - (now - written.at);
+            if editing && remaining > 0.0 {
+                ctx.request_repaint_after(std::time::Duration::from_secs_f64(remaining));
                 return;
             }
         }
-        self.recovery.written = Some(RecoveryWritten { version, at: now });
-        let project = self.session.project().clone();
         let original = self.session.path().map(Path::to_owned);
-        let tx = self.jobs.tx.clone();
-        std::thread::spawn(move || {
-            if let Err(e) = crate::scene::recovery::write_recovery(&dir, original.as_deref(), &project) {
-                let _ = tx.send(JobResult::Exported {
-                    path: dir,
-                    result: Err(format!("could not write the recovery file: {e}")),
-                });
-            }
-        });
+        let path = crate::scene::recovery::recovery_path(&dir, original.as_deref());
+        // A file written under another name (before a Save As) is replaced by this one.
+        if let Some(old) = self.recovery.written.take().filter(|w| w.path != path) {
+            self.recovery.written = Some(old);
+            self.drop_recovery();
+        }
+        let Some(writer) = &self.recovery.writer else { return };
+        match writer.write(&dir, original.as_deref(), self.session.project().clone()) {
+            Ok(()) => self.recovery.written = Some(RecoveryWritten { path, version, at: now }),
+            Err(e) => self.error(format!("Could not write the recovery file: {e}")),
+        }
     }
 
     pub(super) fn recovery_dialog(&mut self, ctx: &Context) {

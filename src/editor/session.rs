@@ -150,6 +150,11 @@ impl Session {
         self.open_tag = None;
     }
 
+    /// Whether a coalesced edit (a stroke, a drag) is in progress.
+    pub fn edit_in_progress(&self) -> bool {
+        self.open_tag.is_some()
+    }
+
     /// Ends the current coalesced edit: the next edit starts a new undo step.
     pub fn end_edit(&mut self) {
         self.open_tag = None;

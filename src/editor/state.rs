@@ -335,6 +335,8 @@ impl Jobs {
 pub(crate) struct RecoveryState {
     /// Where recovery files go, when enabled.
     pub(super) dir: Option<PathBuf>,
+    /// Writes and removes the files off the UI thread; present when recovery is enabled.
+    pub(super) writer: Option<crate::scene::recovery::RecoveryWriter>,
     pub(super) written: Option<RecoveryWritten>,
     /// Work left by an earlier run that did not exit cleanly, offered at start.
     pub found: Vec<(PathBuf, crate::scene::recovery::Recovery)>,
@@ -367,9 +369,10 @@ pub(crate) struct BaseKey {
     pub project_path: Option<PathBuf>,
 }
 
-/// The last recovery file written: which content, and when.
-#[derive(Clone, Copy, Debug)]
+/// The last recovery file written: where, which content, and when.
+#[derive(Clone, Debug)]
 pub(crate) struct RecoveryWritten {
+    pub path: PathBuf,
     pub version: Version,
     /// egui time, seconds.
     pub at: f64,
@@ -438,7 +441,7 @@ impl EditorState {
             self.session.end_edit();
             ctx.request_repaint();
         }
-        self.write_recovery(ctx.input(|i| i.time));
+        self.write_recovery(ctx);
         self.recovery_dialog(ctx);
         self.confirm_dialog(ctx);
         self.built_in_dialog(ctx);
