@@ -620,6 +620,19 @@ fn reset_layout_escape_and_the_viewport_tab() {
     h.run_steps(2);
     assert!(h.query_by_label("wait for full").is_none(), "Escape closes the drop-down");
 
+    // Escape closes the Shortcuts window before it touches the selection.
+    h.state_mut().session_mut().select_all();
+    h.key_press(egui::Key::F1);
+    h.run_steps(2);
+    assert!(h.query_by_label("Cancel / deselect").is_some(), "F1 opened the Shortcuts window");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    assert!(h.query_by_label("Cancel / deselect").is_none(), "Escape closes the Shortcuts window");
+    assert!(!h.state().session().selection.is_empty(), "that Escape keeps the selection");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    assert!(h.state().session().selection.is_empty(), "the next Escape clears it");
+
     assert!(
         !h.state_mut().state.is_closeable(&fogsmith::editor::Tab::Viewport),
         "the Viewport tab has no close button"
@@ -1213,8 +1226,9 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
         );
     }
 
-    // Ctrl held: the displacement is a whole number of grid cells along x.
-    let cell = h.state().session().project().grid.cell_size().x;
+    // Ctrl held: the particle's centre lands on a grid cell's centre along x.
+    let grid = h.state().session().project().grid;
+    let cell = grid.cell_size().x;
     h.event(Event::PointerMoved(grab));
     h.step();
     press(&mut h, grab, PointerButton::Primary, true);
@@ -1232,11 +1246,12 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
     h.step();
     h.event(Event::ModifiersChanged(Modifiers::NONE));
     h.step();
-    let d = h.state().session().project().particles[24].center - p0;
-    let cells = d.x / cell;
+    let moved = h.state().session().project().particles[24].center;
+    let d = moved - p0;
+    let cells = (moved.x - grid.min.x) / cell - 0.5;
     assert!(
         d.x > 0.0 && (cells - cells.round()).abs() < 1e-3 && d.y == 0.0 && d.z == 0.0,
-        "snapped to {cell} m cells: {d}"
+        "x snapped to a centre of the {cell} m cells: {p0} → {moved}"
     );
     h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
     h.run_steps(2);

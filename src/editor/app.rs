@@ -104,7 +104,7 @@ impl EditorApp {
                 outliner_anchor: None,
                 outline_all: persisted.outline_all.unwrap_or(true),
                 fit_keep: crate::scene::FitKeep::default(),
-                show_slice_plane: true,
+                show_slice_plane: false,
                 show_gizmo: persisted.show_gizmo.unwrap_or(true),
                 brush_point: None,
                 fog_ev: None,

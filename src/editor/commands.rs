@@ -132,7 +132,7 @@ impl Command {
             Command::SelectAll => ("Select all", "Select every particle and light"),
             Command::Duplicate => ("Duplicate", "Copy the selection, slightly offset, and select the copies"),
             Command::Delete => ("Delete", "Delete the selection"),
-            Command::Escape => ("Cancel / deselect", "Cancel grab or scale; otherwise clear the selection"),
+            Command::Escape => ("Cancel / deselect", "Cancel grab or scale, or close the Shortcuts window; otherwise clear the selection"),
             Command::Grab => ("Grab", "Move the selection with the mouse (pointer over the viewport); click confirms, Esc cancels"),
             Command::ScaleSelection => ("Scale", "Scale the selected particles with the mouse (pointer over the viewport)"),
             Command::FitGrid => ("Fit grid to particles", "Resize the grid box to hold every visible particle (keeps the cell size or the resolution, as chosen in the viewport's warning)"),
@@ -159,7 +159,7 @@ impl Command {
             Command::ResetLayout => ("Reset layout", "Back to the default arrangement of panels"),
             Command::ParticleOutlines => ("Particle outlines", "Outline every particle in the viewport; when off, only the selection is outlined"),
             Command::SlicePlane => ("Slice plane", "Show the Slices panel's plane in the viewport, in its axis colour"),
-            Command::MoveGizmo => ("Move gizmo", "With the Select tool, arrows and squares at the selection's centre: drag one to move along that axis or in that plane (Ctrl snaps to the grid cell; Esc or right click cancels)"),
+            Command::MoveGizmo => ("Move gizmo", "With the Select tool, arrows and squares at the selection's centre: drag one to move along that axis or in that plane (Ctrl snaps the centre to a grid cell's centre; Esc or right click cancels)"),
             Command::Shortcuts => ("Shortcuts", "All keyboard and mouse shortcuts"),
         }
     }

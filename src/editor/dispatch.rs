@@ -73,6 +73,8 @@ impl EditorState {
                     self.cancel_modal();
                 } else if matches!(self.view.gesture, Some(Gesture::Gizmo { .. })) {
                     self.cancel_gizmo();
+                } else if self.view.show_shortcuts {
+                    self.view.show_shortcuts = false;
                 } else {
                     self.session.selection.clear();
                 }

@@ -126,14 +126,25 @@ pub fn drag_point(handle: Handle, center: Vec3, vp: &ViewProjection, pos: Pos2) 
     }
 }
 
+/// Snapping a drag to the grid: the gizmo's centre (where the drag started) lands on the
+/// nearest cell centre along each axis the handle moves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Snap {
+    pub center: Vec3,
+    pub grid_min: Vec3,
+    pub cell: Vec3,
+}
+
 /// The displacement of a drag on `handle` from `grab` to `point`: only along the handle's
-/// axis or in its plane, each component rounded to a multiple of `snap` when given.
-pub fn displacement(handle: Handle, grab: Vec3, point: Vec3, snap: Option<Vec3>) -> Vec3 {
-    let mut d = Vec3::select(handle.mask().cmpeq(Vec3::ZERO), Vec3::ZERO, point - grab);
-    if let Some(cell) = snap {
+/// axis or in its plane; with `snap`, such that the moved centre sits on a cell centre.
+pub fn displacement(handle: Handle, grab: Vec3, point: Vec3, snap: Option<Snap>) -> Vec3 {
+    let mask = handle.mask();
+    let mut d = Vec3::select(mask.cmpeq(Vec3::ZERO), Vec3::ZERO, point - grab);
+    if let Some(s) = snap {
         for a in 0..3 {
-            if cell[a] > 0.0 && d[a] != 0.0 {
-                d[a] = (d[a] / cell[a]).round() * cell[a];
+            if mask[a] != 0.0 && s.cell[a] > 0.0 {
+                let k = ((s.center[a] + d[a] - s.grid_min[a]) / s.cell[a] - 0.5).round();
+                d[a] = s.grid_min[a] + (k + 0.5) * s.cell[a] - s.center[a];
             }
         }
     }
@@ -179,8 +190,13 @@ mod tests {
         let d = displacement(Handle::Axis(0), grab, to, None);
         let ppm = vp.points_per_metre(5.0);
         assert!((d.x - 80.0 / ppm).abs() < 1e-5 && d.y == 0.0 && d.z == 0.0, "{d:?}");
-        let snapped = displacement(Handle::Axis(0), grab, to, Some(Vec3::splat(0.25)));
-        assert_eq!(snapped, Vec3::new(0.5, 0.0, 0.0), "{d:?} snaps to 0.5");
+        let snap = Snap { center: g.center, grid_min: Vec3::splat(-1.0), cell: Vec3::splat(0.25) };
+        let snapped = displacement(Handle::Axis(0), grab, to, Some(snap));
+        let moved = g.center + snapped;
+        let k = (moved.x + 1.0) / 0.25 - 0.5;
+        assert!((k - k.round()).abs() < 1e-4, "{moved} is on a cell centre");
+        assert!((snapped.x - d.x).abs() <= 0.125 + 1e-5, "{snapped} is within half a cell of {d}");
+        assert_eq!((snapped.y, snapped.z), (0.0, 0.0));
     }
 
     #[test]

@@ -112,21 +112,25 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     });
     // World axes and units on the image, in the plane's axis colour.
     let [across, up, plane] = super::slices::slice_axis_labels(&grid, slice.axis, slice.index);
+    // Readable over any heatmap: 13 px, the axis colour lightened, on a near-opaque backing.
     let small = |t: String, c: Color32| {
-        egui::Label::new(egui::RichText::new(t).small().color(c).background_color(Color32::from_black_alpha(170)))
+        let light = c.lerp_to_gamma(Color32::WHITE, 0.45);
+        egui::Label::new(
+            egui::RichText::new(t).size(13.0).color(light).background_color(Color32::from_black_alpha(215)),
+        )
     };
     let (ua, va) = slice.axis.image_axes();
     let colour = |a: usize| [Axis::X, Axis::Y, Axis::Z][a].colour();
     let mut corner_label = |at: Pos2, label: egui::Label| {
-        let r = Rect::from_min_size(at, egui::vec2(w, 16.0));
+        let r = Rect::from_min_size(at, egui::vec2(w, 19.0));
         ui.scope_builder(
             egui::UiBuilder::new().max_rect(r).layout(egui::Layout::left_to_right(egui::Align::Min)),
             |ui| ui.add(label),
         );
     };
-    corner_label(img_rect.left_bottom() - egui::vec2(-2.0, 16.0), small(across, colour(ua)));
+    corner_label(img_rect.left_bottom() - egui::vec2(-2.0, 20.0), small(across, colour(ua)));
     corner_label(img_rect.left_top() + egui::vec2(2.0, 2.0), small(up, colour(va)));
-    corner_label(img_rect.left_top() + egui::vec2(2.0, 18.0), small(plane, slice.axis.colour()));
+    corner_label(img_rect.left_top() + egui::vec2(2.0, 22.0), small(plane, slice.axis.colour()));
     let probe = state.view.slice.hover.clone().unwrap_or_else(|| format!("range {lo:.4} … {hi:.4} {unit}"));
     painter.text(
         Pos2::new(avail.min.x, img_rect.max.y + 4.0),
@@ -203,8 +207,8 @@ fn colour_bar(painter: &egui::Painter, rect: Rect, cmap: Colormap, scale: &Scale
             Pos2::new(rect.max.x + 6.0, y),
             egui::Align2::LEFT_CENTER,
             text,
-            egui::FontId::monospace(10.0),
-            ui.visuals().text_color(),
+            egui::FontId::monospace(12.0),
+            ui.visuals().strong_text_color(),
         );
     }
 }

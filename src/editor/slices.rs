@@ -28,10 +28,10 @@ impl Field {
     pub fn label(self) -> &'static str {
         match self {
             Field::Extinction => "EV σt",
-            Field::OpticalDepth => "OPV T",
-            Field::Transmittance => "exp(−T)",
-            Field::Error => "scheme error |T − T grid|",
-            Field::ResolutionError => "resolution error |T grid − T exact|",
+            Field::OpticalDepth => "OPV optical depth τ",
+            Field::Transmittance => "transmittance exp(−τ)",
+            Field::Error => "scheme error |τ − τ grid|",
+            Field::ResolutionError => "resolution error |τ grid − τ exact|",
         }
     }
     pub fn unit(self) -> &'static str {

@@ -32,7 +32,7 @@ impl Tool {
     }
     pub fn tooltip(self) -> &'static str {
         match self {
-            Tool::Select => "Select / Move: click to select, Shift/Ctrl-click to add or toggle, drag on empty space for a box, drag a selected item to move it in the view plane. The move gizmo at the selection's centre: drag an arrow to move along x, y or z, a square to move in that plane (Ctrl snaps to the grid cell, Esc or right click cancels). G grabs, S scales the selection.",
+            Tool::Select => "Select / Move: click to select, Shift/Ctrl-click to add or toggle, drag on empty space for a box, drag a selected item to move it in the view plane. The move gizmo at the selection's centre: drag an arrow to move along x, y or z, a square to move in that plane (Ctrl snaps the centre to a grid cell's centre, Esc or right click cancels). G grabs, S scales the selection.",
             Tool::Paint => "Paint: click or drag to deposit particles at the depth of the fog under the cursor (where its optical depth from the camera reaches 0.5), or on the working plane (through the grid centre, facing the camera) where there is no fog or when the brush is set to the plane. A stroke stays at the depth where it began. In the Slices panel, paints on the slice plane.",
             Tool::Scale => "Scale: wheel or horizontal drag grows/shrinks the radius of the selection, or of the particles under the brush when nothing is selected. Hold Alt to change density instead.",
             Tool::Erase => "Erase: click or drag to remove the particles under the brush (through all depths).",

@@ -539,7 +539,9 @@ fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2
             // cannot reach (its axis along the view ray) leaves the selection where it is.
             let Some(point) = gizmo::drag_point(*handle, *center, vp, last) else { return };
             *snap = modifiers.ctrl || modifiers.command;
-            let total = gizmo::displacement(*handle, *grab, point, snap.then_some(cell));
+            let grid_min = state.session.project().grid.min;
+            let snap_to = gizmo::Snap { center: *center, grid_min, cell };
+            let total = gizmo::displacement(*handle, *grab, point, snap.then_some(snap_to));
             let step = total - *applied;
             *applied = total;
             let tag = *tag;
@@ -768,7 +770,7 @@ fn gizmo_overlay(state: &EditorState, painter: &egui::Painter, rect: Rect, point
     if let (Some((d, snap)), Some(p)) = (drag, pointer) {
         let mut text = format!("Δx {:+.3} m   Δy {:+.3} m   Δz {:+.3} m", d.x, d.y, d.z);
         if snap {
-            text.push_str("   (snapped to the grid cell)");
+            text.push_str("   (centre snapped to a grid cell)");
         }
         let galley = painter.layout_no_wrap(text, egui::FontId::proportional(13.0), Color32::WHITE);
         let at = p + egui::vec2(18.0, 18.0);
