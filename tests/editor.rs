@@ -833,6 +833,27 @@ fn an_imported_vdb_shows_in_the_ev_and_its_slice() {
         "{:?}",
         h.state().messages()
     );
+    h.state_mut().session_mut().edit(0).base_volume = None;
+
+    // Under the analytic scheme the dialog says, before the import, that the scheme cannot use
+    // the volume; importing switches to sweep in the same undo step, and the preview renders.
+    h.state_mut().session_mut().edit(0).propagation.scheme = fogsmith::scene::Scheme::Analytic;
+    h.run_steps(3);
+    let undo = h.state().session().undo_len();
+    h.state_mut().import_vdb(vdb.clone());
+    h.run_steps(2);
+    h.get_by_label_contains("cannot use an imported volume");
+    h.get_by_label("Switch to sweep and import").click();
+    h.run_steps(4);
+    let project = h.state().session().project();
+    assert!(project.base_volume.is_some(), "the import set the base volume");
+    assert_eq!(project.propagation.scheme, fogsmith::scene::Scheme::Sweep);
+    assert_eq!(h.state().session().undo_len(), undo + 1, "volume and scheme are one undo step");
+    assert_eq!(h.state().gpu_error(), None, "the preview renders the imported volume");
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    let project = h.state().session().project();
+    assert!(project.base_volume.is_none() && project.propagation.scheme == fogsmith::scene::Scheme::Analytic);
 }
 
 /// Particles reaching outside the grid box: the viewport warns with their count, and "Fit grid

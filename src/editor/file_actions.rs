@@ -167,12 +167,20 @@ impl EditorState {
 
     pub(super) fn import_window(&mut self, ctx: &Context) {
         let Some(import) = &mut self.import else { return };
-        match import.ui(ctx) {
+        let analytic = self.session.project().propagation.scheme == crate::scene::Scheme::Analytic;
+        match import.ui(ctx, analytic) {
             Some(true) => {
                 let base = import.base_volume(self.session.path());
                 self.import = None;
-                let text = format!("Base volume: grid {:?} of {}, × {}", base.grid, base.path.display(), base.scale);
-                self.session.edit(super::session::NEW_STEP).base_volume = Some(base);
+                let mut text =
+                    format!("Base volume: grid {:?} of {}, × {}", base.grid, base.path.display(), base.scale);
+                // One undo step: the volume and the scheme that can show it.
+                let project = self.session.edit(super::session::NEW_STEP);
+                project.base_volume = Some(base);
+                if analytic {
+                    project.propagation.scheme = crate::scene::Scheme::Sweep;
+                    text.push_str("; the scheme is now sweep");
+                }
                 self.info(text);
             }
             Some(false) => self.import = None,

@@ -43,7 +43,9 @@ impl ImportVdb {
     }
 
     /// Draws the window; returns `Some(true)` when the artist imports, `Some(false)` on Cancel.
-    pub fn ui(&mut self, ctx: &egui::Context) -> Option<bool> {
+    /// With `analytic` (the project's scheme, which integrates only the particles) it says so
+    /// before the import, and importing also switches the project to `sweep`.
+    pub fn ui(&mut self, ctx: &egui::Context, analytic: bool) -> Option<bool> {
         let mut answer = None;
         egui::Window::new("Import VDB").collapsible(false).resizable(false).show(ctx, |ui| {
             ui.label(self.path.display().to_string());
@@ -69,8 +71,16 @@ impl ImportVdb {
             ui.label(
                 "The grid is resampled into the project's grid under the particles; see it in the Slices panel (EV).",
             );
+            if analytic {
+                ui.colored_label(
+                    ui.visuals().warn_fg_color,
+                    "The project uses the analytic scheme, which integrates only the particles and cannot \
+                     use an imported volume. Importing switches the scheme to sweep.",
+                );
+            }
             ui.horizontal(|ui| {
-                if ui.button("Import").clicked() {
+                let text = if analytic { "Switch to sweep and import" } else { "Import" };
+                if ui.button(text).clicked() {
                     answer = Some(true);
                 }
                 if ui.button("Cancel").clicked() || ui.input(|i| i.key_pressed(egui::Key::Escape)) {

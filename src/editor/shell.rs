@@ -96,12 +96,15 @@ impl EditorState {
                 for (i, t) in self.toasts.iter().enumerate() {
                     egui::Frame::popup(ui.style()).show(ui, |ui| {
                         ui.set_max_width(420.0);
-                        ui.horizontal(|ui| {
-                            let text = egui::RichText::new(&t.text);
-                            ui.label(if t.error { text.color(ui.visuals().error_fg_color) } else { text });
+                        // The button first and the text wrapped after it, so a long message
+                        // grows downwards instead of past the window's edge.
+                        ui.horizontal_top(|ui| {
                             if ui.small_button("✕").on_hover_text("Dismiss").clicked() {
                                 dismiss = Some(i);
                             }
+                            let text = egui::RichText::new(&t.text);
+                            let text = if t.error { text.color(ui.visuals().error_fg_color) } else { text };
+                            ui.add(egui::Label::new(text).wrap());
                         });
                     });
                 }

@@ -46,28 +46,27 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
                 painter.image(id, rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
             }
             if let Some(e) = &gpu.error {
-                painter.text(
-                    rect.center(),
-                    egui::Align2::CENTER_CENTER,
-                    e,
-                    egui::FontId::proportional(14.0),
-                    ui.visuals().error_fg_color,
-                );
+                viewport_message(&painter, rect, e, ui.visuals().error_fg_color);
             }
         }
         None => {
             let msg = state.gpu_missing.clone().unwrap_or_default();
-            painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                msg,
-                egui::FontId::proportional(14.0),
-                ui.visuals().error_fg_color,
-            );
+            viewport_message(&painter, rect, &msg, ui.visuals().error_fg_color);
         }
     }
     overlays(state, &painter, rect, response.hover_pos());
     gizmo_overlay(state, &painter, rect, response.hover_pos().or(ui.input(|i| i.pointer.latest_pos())));
+}
+
+/// A message over the lower part of the viewport, wrapped to its width on a dark backing, so
+/// it is read whole and the last good image above it stays in view.
+fn viewport_message(painter: &egui::Painter, rect: Rect, text: &str, colour: Color32) {
+    let wrap = (rect.width() - 32.0).max(40.0);
+    let galley = painter.layout(text.to_owned(), egui::FontId::proportional(14.0), colour, wrap);
+    let at = Pos2::new(rect.center().x - galley.size().x * 0.5, rect.bottom() - galley.size().y - 20.0);
+    let at = Pos2::new(at.x, at.y.max(rect.top() + 8.0));
+    painter.rect_filled(Rect::from_min_size(at, galley.size()).expand(8.0), 4.0, Color32::from_black_alpha(215));
+    painter.galley(at, galley, colour);
 }
 
 /// A warning row while particles reach outside the grid box, with "Fit grid to particles".
