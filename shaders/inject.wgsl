@@ -18,7 +18,7 @@ struct ParticleGpu {
 @group(0) @binding(2) var<storage, read> bin_offsets: array<u32>;
 @group(0) @binding(3) var<storage, read> bin_items: array<u32>;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(BRICK, BRICK, 1)
 fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
     let b = dirty_brick(wg.x);
     let base = b * BRICK + vec3u(lid.xy, 0u);

@@ -7,7 +7,7 @@
 @group(0) @binding(1) var<storage, read> sums: array<f32>;
 @group(0) @binding(2) var<storage, read> slots: array<u32>;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(BRICK, BRICK, 1)
 fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
     let base = dirty_brick(wg.x) * BRICK + vec3u(lid.xy, 0u);
     if any(base.xy >= grid.dims.xy) {

@@ -26,6 +26,7 @@ mod opv_store;
 mod pipeline;
 mod propagate;
 mod readback;
+mod shaders;
 mod slice;
 mod timer;
 

@@ -3,8 +3,12 @@
 //! (see `opv_store`).
 
 use super::gpu_types::{AnalyticParticle, ExactParams, PlaneParams, SweepBox, SweepStep};
-use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, VOLUME_LOOKUP};
+use super::layout::{
+    bind_group_layout_with, bind_group_with, compute_pipeline, Slot, SWEEP_WORKGROUP, WORKGROUP_2D, WORKGROUP_3D,
+    WORKGROUP_ROW,
+};
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING, EXTRA_BINDING_2};
+use super::shaders;
 use super::Counters;
 use crate::scene::{GridSpec, Particle, Scheme};
 use bytemuck::Zeroable;
@@ -56,9 +60,6 @@ pub struct Propagator {
 /// Simpson steps per cell edge of the `exact` scheme.
 pub const EXACT_STEPS_PER_CELL: u32 = 4;
 
-/// The segment integral the sweeps share (shaders/integrate_exact.wgsl).
-pub(crate) const INTEGRATE: &str = include_str!("../../shaders/integrate_exact.wgsl");
-
 impl Propagator {
     /// `cells_per_thread`: see [`sweep_cells_per_thread`].
     pub fn new(device: &wgpu::Device, opv: OpvLayout, cells_per_thread: u32) -> Self {
@@ -78,13 +79,7 @@ impl Propagator {
             ],
             two(true, false),
         );
-        let src_dst = opv.wgsl("src", 4, EXTRA_BINDING, false) + &opv.wgsl("dst", 5, EXTRA_BINDING_2, true);
-        let giroud = compute_pipeline(
-            device,
-            "propagate_giroud",
-            &[&src_dst, include_str!("../../shaders/propagate_giroud.wgsl")],
-            &giroud_layout,
-        );
+        let giroud = compute_pipeline(device, "propagate_giroud", shaders::propagate_giroud(&opv), &giroud_layout);
         // The sweep samples σ_t with hardware trilinear filtering where r32float is filterable.
         let filtered = device.features().contains(wgpu::Features::FLOAT32_FILTERABLE);
         let sweep_layout = bind_group_layout_with(
@@ -103,23 +98,10 @@ impl Propagator {
             ],
             two(false, false),
         );
-        let opv_mean = opv.wgsl("opv", 4, EXTRA_BINDING, true) + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
-        let sigma = if filtered {
-            include_str!("../../shaders/sweep_sigma_filtered.wgsl")
-        } else {
-            include_str!("../../shaders/sweep_sigma_loads.wgsl")
-        };
         let sweep = compute_pipeline(
             device,
             "propagate_sweep",
-            &[
-                &sweep_cells_wgsl(cells_per_thread),
-                &opv_mean,
-                VOLUME_LOOKUP,
-                sigma,
-                INTEGRATE,
-                include_str!("../../shaders/propagate_sweep.wgsl"),
-            ],
+            shaders::propagate_sweep(&opv, cells_per_thread, filtered),
             &sweep_layout,
         );
         let sweep_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
@@ -138,13 +120,7 @@ impl Propagator {
             &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::UniformDynamic, Slot::Opv { read_only: false }],
             opv.layout_entries(EXTRA_BINDING, false),
         );
-        let opv_rw = opv.wgsl("opv", 4, EXTRA_BINDING, true);
-        let exact = compute_pipeline(
-            device,
-            "propagate_exact",
-            &[&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")],
-            &exact_layout,
-        );
+        let exact = compute_pipeline(device, "propagate_exact", shaders::propagate_exact(&opv), &exact_layout);
         // The exact scheme's bindings plus the particles and the bricks' lists of them.
         let analytic_layout = bind_group_layout_with(
             device,
@@ -161,25 +137,11 @@ impl Propagator {
             ],
             opv.layout_entries(EXTRA_BINDING, false),
         );
-        let analytic = compute_pipeline(
-            device,
-            "propagate_analytic",
-            &[&opv_rw, include_str!("../../shaders/propagate_analytic.wgsl")],
-            &analytic_layout,
-        );
+        let analytic =
+            compute_pipeline(device, "propagate_analytic", shaders::propagate_analytic(&opv), &analytic_layout);
         // Same bindings as the exact scheme, one plane of one sun per dispatch.
-        let directional = compute_pipeline(
-            device,
-            "propagate_directional",
-            &[
-                &opv_rw,
-                VOLUME_LOOKUP,
-                include_str!("../../shaders/sweep_sigma_loads.wgsl"),
-                INTEGRATE,
-                include_str!("../../shaders/propagate_directional.wgsl"),
-            ],
-            &exact_layout,
-        );
+        let directional =
+            compute_pipeline(device, "propagate_directional", shaders::propagate_directional(&opv), &exact_layout);
         let uniform_align = device.limits().min_uniform_buffer_offset_alignment as u64;
         Self {
             giroud_layout,
@@ -248,7 +210,7 @@ impl Propagator {
             let start = job.groups.len();
             for p in &params {
                 let (a1, a2) = ((p.axis as usize + 1) % 3, (p.axis as usize + 2) % 3);
-                job.groups.push([r[a1].div_ceil(8), r[a2].div_ceil(8), 1]);
+                job.groups.push([r[a1].div_ceil(WORKGROUP_2D), r[a2].div_ceil(WORKGROUP_2D), 1]);
                 job.units.push(r[a1] as u64 * r[a2] as u64);
             }
             job.cells += inputs.grid.cell_count() * suns.len() as u64;
@@ -299,7 +261,11 @@ impl Propagator {
                 let work =
                     Work::Giroud { ab: make(a, b), ba: make(b, a), a: a.clone(), b: b.clone(), _active: active_buf };
                 let r = inputs.grid.resolution;
-                let g = [r.x.div_ceil(4), r.y.div_ceil(4), r.z.div_ceil(4) * active.len() as u32];
+                let g = [
+                    r.x.div_ceil(WORKGROUP_3D),
+                    r.y.div_ceil(WORKGROUP_3D),
+                    r.z.div_ceil(WORKGROUP_3D) * active.len() as u32,
+                ];
                 (work, vec![g; iterations as usize], vec![cells * active.len() as u64; iterations as usize], iterations)
             }
             Scheme::Sweep => {
@@ -360,26 +326,26 @@ impl Propagator {
             }
             Scheme::Exact | Scheme::Analytic => {
                 let r = inputs.grid.resolution;
-                // One dispatch per light and slab of 4 layers, so the work can be spread.
+                // One dispatch per light and slab of WORKGROUP_3D layers, so the work can be spread.
                 let params: Vec<ExactParams> = active
                     .iter()
                     .flat_map(|&l| {
-                        (0..r.z.div_ceil(4)).map(move |s| ExactParams {
+                        (0..r.z.div_ceil(WORKGROUP_3D)).map(move |s| ExactParams {
                             light: l,
                             steps_per_cell: EXACT_STEPS_PER_CELL,
-                            z_offset: 4 * s,
+                            z_offset: WORKGROUP_3D * s,
                             _pad: 0,
                         })
                     })
                     .collect();
-                // The analytic scheme's workgroups are rows of 64 cells along x.
+                // The analytic scheme's workgroups are rows of cells along x.
                 let g = if scheme == Scheme::Analytic {
-                    [r.x.div_ceil(64), r.y, 4]
+                    [r.x.div_ceil(WORKGROUP_ROW), r.y, WORKGROUP_3D]
                 } else {
-                    [r.x.div_ceil(4), r.y.div_ceil(4), 1]
+                    [r.x.div_ceil(WORKGROUP_3D), r.y.div_ceil(WORKGROUP_3D), 1]
                 };
                 let groups = vec![g; params.len()];
-                let units = vec![r.x as u64 * r.y as u64 * 4; params.len()];
+                let units = vec![r.x as u64 * r.y as u64 * WORKGROUP_3D as u64; params.len()];
                 let work = if scheme == Scheme::Analytic {
                     let lists = inputs.analytic_lists.expect("FogPipeline builds the analytic lists before it plans");
                     let particles: Vec<AnalyticParticle> =
@@ -650,20 +616,11 @@ const ANCHOR_CELLS: f64 = (1u64 << 19) as f64;
 /// Threads per sweep dispatch before a batch is split over several dispatches.
 const MAX_THREADS_PER_DISPATCH: u64 = 1 << 30;
 
-/// Threads per workgroup of `propagate_sweep.wgsl` (its `@workgroup_size`). llvmpipe pays a
-/// fixed cost per workgroup, so larger groups amortise it over more cells.
-const SWEEP_WORKGROUP: u64 = 256;
-
 /// The cells of one of the scheduler's work items (a batch's cells do not read each other, so
 /// any split between its boxes is valid): small enough that one dispatch fits an interactive
 /// frame budget on a software adapter, large enough that dispatch overhead stays negligible
 /// on a GPU.
 pub const ITEM_CELLS: u64 = 1 << 15;
-
-/// The declaration propagate_sweep.wgsl expects before it: its cells per thread.
-pub(crate) fn sweep_cells_wgsl(cells_per_thread: u32) -> String {
-    format!("const SWEEP_CELLS: u32 = {cells_per_thread}u;\n")
-}
 
 /// Cells each sweep thread solves on an adapter of `device_type`. A CPU adapter (llvmpipe)
 /// pays a fixed cost per invocation that is comparable with a cell's work, which several
@@ -835,9 +792,9 @@ pub fn sweep_steps_from(
     let batches = frames.iter().map(|(_, f, _)| f.batches).max().unwrap_or(0);
     let mut plan = SweepPlan::default();
     let workgroups = |threads: u64| {
-        let groups = threads.div_ceil(SWEEP_WORKGROUP).max(1);
+        let groups = threads.div_ceil(SWEEP_WORKGROUP as u64).max(1);
         let x = groups.min(65_535);
-        ([x as u32, groups.div_ceil(x) as u32, 1], x as u32 * SWEEP_WORKGROUP as u32)
+        ([x as u32, groups.div_ceil(x) as u32, 1], x as u32 * SWEEP_WORKGROUP)
     };
     // Box `first` fields count threads from the start of the batch; a step starts at `offset`.
     let flush = |plan: &mut SweepPlan, first_box: usize, offset: u64, threads: u64| {
