@@ -13,7 +13,7 @@ struct ParticleGpu {
     _pad: f32,
 }
 
-// Bindings 0 and 4–6 and each cell's last step: inject_finish.wgsl.
+// Bindings 4–6 and each cell's last step: inject_finish.wgsl (binding 0: common.wgsl).
 @group(0) @binding(1) var<storage, read> particles: array<ParticleGpu>;
 @group(0) @binding(2) var<storage, read> bin_offsets: array<u32>;
 @group(0) @binding(3) var<storage, read> bin_items: array<u32>;

@@ -13,7 +13,6 @@
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read_write> brick_max: array<f32>;
 
-
 @compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
 fn main(@builtin(global_invocation_id) b: vec3u) {
     let bdims = (grid.dims + BRICK - 1u) / BRICK;

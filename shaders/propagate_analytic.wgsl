@@ -22,7 +22,6 @@ struct AnalyticParams {
     _pad1: u32,
 }
 
-
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> params: AnalyticParams;
 // binding 4: `opv`, declared with its helpers by src/gpu/opv_store.rs.

@@ -367,7 +367,7 @@ fn solve(c: vec3i, light: u32) {
 }
 
 // Threads per workgroup: SWEEP_WORKGROUP (src/gpu/layout.rs). Each thread solves
-// SWEEP_CELLS cells of its box (`const SWEEP_CELLS`, prepended by src/gpu/propagate.rs:
+// SWEEP_CELLS cells of its box (`const SWEEP_CELLS`, prepended by src/gpu/shaders.rs:
 // several on a CPU adapter, which pays a fixed cost per invocation). Consecutive threads take
 // consecutive cells, SWEEP_CHUNK threads at a time, so that neighbouring lanes follow nearby
 // paths and branch alike.
