@@ -23,9 +23,9 @@ fn sigma_at(c: vec3i) -> f32 {
 
 @compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
 fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: vec3u) {
-    let zgroups = (grid.dims.z + 3u) / 4u;
+    let zgroups = (grid.dims.z + WORKGROUP_3D - 1u) / WORKGROUP_3D;
     let slot = wg.z / zgroups;
-    let id = vec3u(gid.xy, gid.z - slot * zgroups * 4u);
+    let id = vec3u(gid.xy, gid.z - slot * zgroups * WORKGROUP_3D);
     if any(id >= grid.dims) || slot >= arrayLength(&active_lights) {
         return;
     }
