@@ -7,6 +7,12 @@
 //! relies on what earlier ones declare. Sources that depend on the device or the OPV layout
 //! (the OPV bindings of `opv_store`, the sweep's cells per thread and σ_t lookup) are
 //! parameters.
+//!
+//! Plain concatenation rather than a module system such as naga_oil: the sources form one
+//! shallow layer of shared helpers, the per-device parts (OPV bindings, cells per thread) are
+//! generated text either way, and a composer would mangle item names, which the struct-size
+//! test and shader debugging look up. `every_pipeline_validates` keeps naga's check of every
+//! assembled variant.
 
 use super::layout::shared_constants;
 use super::opv_store::{OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
