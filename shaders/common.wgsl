@@ -1,4 +1,6 @@
-// Shared declarations, prepended to every Fogsmith compute shader.
+// Shared declarations, prepended to every Fogsmith compute shader after the constants that
+// src/gpu/layout.rs generates (LIGHT_*, POLICY_*, SURFACE_*, workgroup sizes, PI, ...). Every
+// pipeline binds the grid at binding 0.
 
 struct GridParams {
     min: vec3f,
@@ -35,9 +37,7 @@ struct LightGpu {
     blend: f32,
 }
 
-const LIGHT_POINT: u32 = 0u;
-const LIGHT_SPOT: u32 = 1u;
-const LIGHT_DIRECTIONAL: u32 = 2u;
+@group(0) @binding(0) var<uniform> grid: GridParams;
 
 // The spot's cone factor at offset v from its apex (physics.md §9), 1 for other kinds:
 // t = clamp((A − θ)/(A·B), 0, 1), factor t²(3 − 2t); a hard edge when B = 0.
@@ -71,10 +71,8 @@ fn cell_count() -> u32 {
 
 // An optical depth standing for "opaque": exp(−OPAQUE) is 0 and sums of it stay finite.
 const OPAQUE: f32 = 1e30;
-// Largest exponent −k·(y − y₀) of the height fog (as MAX_HEIGHT_EXPONENT on the CPU).
-const MAX_HEIGHT_EXPONENT: f32 = 40.0;
-
-// Base-fog extinction at height y (physics.md §9), its exponent clamped far below y₀.
+// Base-fog extinction at height y (physics.md §9), its exponent clamped at
+// MAX_HEIGHT_EXPONENT far below y₀.
 fn base_fog_at(y: f32) -> f32 {
     if grid.height_falloff == 0.0 {
         return grid.base_extinction;
@@ -151,6 +149,26 @@ fn box_span(x: vec3f, u: vec3f) -> vec2f {
         }
     }
     return vec2f(t0, t1);
+}
+
+// 1/d for the slab tests, with components below 1e-30 in magnitude taken as 1e-30: a ray
+// parallel to a slab then gets finite distances, never 0·∞ = NaN when its origin lies on the
+// slab's plane.
+fn safe_inverse(d: vec3f) -> vec3f {
+    return 1.0 / select(d, vec3f(1e-30), abs(d) < vec3f(1e-30));
+}
+
+// The slab test of the ray o + t·d against the box [lo, hi], given inv = safe_inverse(d): per
+// axis, the distances where the ray enters (near) and leaves (far) that axis's slab.
+struct Slabs {
+    near: vec3f,
+    far: vec3f,
+}
+
+fn ray_slabs(o: vec3f, inv: vec3f, lo: vec3f, hi: vec3f) -> Slabs {
+    let ta = (lo - o) * inv;
+    let tb = (hi - o) * inv;
+    return Slabs(min(ta, tb), max(ta, tb));
 }
 
 // A sun's optical depth from a point x in the grid box: the base fog beyond the box exit

@@ -13,12 +13,12 @@ struct ParticleGpu {
     _pad: f32,
 }
 
-// Bindings 0 and 4–6 and each cell's last step: inject_finish.wgsl.
+// Bindings 4–6 and each cell's last step: inject_finish.wgsl (binding 0: common.wgsl).
 @group(0) @binding(1) var<storage, read> particles: array<ParticleGpu>;
 @group(0) @binding(2) var<storage, read> bin_offsets: array<u32>;
 @group(0) @binding(3) var<storage, read> bin_items: array<u32>;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(BRICK, BRICK, 1)
 fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec3u) {
     let b = dirty_brick(wg.x);
     let base = b * BRICK + vec3u(lid.xy, 0u);
@@ -29,7 +29,7 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
     let nb = base.xy / grid.bin_size;
     let bin = nb.x + ndims.x * (nb.y + ndims.y * b.z);
     let x0 = cell_center(base);
-    var sum: array<vec2f, 8>;
+    var sum: array<vec2f, BRICK>;
     for (var n = bin_offsets[bin]; n < bin_offsets[bin + 1u]; n++) {
         let p = particles[bin_items[n]];
         let dxy = x0.xy - p.center.xy;
@@ -37,7 +37,7 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
         if dxy2 >= p.cutoff2 {
             continue;
         }
-        for (var k = 0u; k < 8u; k++) {
+        for (var k = 0u; k < BRICK; k++) {
             // cell_center's z, written out: a table of the column's eight z values is slower
             // on llvmpipe (dynamically indexed arrays live in memory there).
             let d = grid.min.z + (f32(base.z + k) + 0.5) * grid.cell.z - p.center.z;
@@ -47,7 +47,7 @@ fn main(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_id) lid: vec
             }
         }
     }
-    for (var k = 0u; k < 8u; k++) {
+    for (var k = 0u; k < BRICK; k++) {
         let id = base + vec3u(0u, 0u, k);
         if id.z >= grid.dims.z {
             break;

@@ -3,7 +3,6 @@
 // modulated by the medium's noise) and stores the EV. The particle sums come from inject.wgsl
 // (evaluated here from binned lists) or inject_sums.wgsl (computed by the host).
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(4) var ev: texture_storage_3d<r32float, write>;
 @group(0) @binding(5) var<storage, read> dirty_bricks: array<u32>;
 // An imported density layer (e.g. from a VDB file) under the particles, when has_base_layer.

@@ -52,7 +52,7 @@ struct MarchParams {
     _pad2: u32,
 }
 
-// kind 0: an axis-aligned box [min, max]; kind 1: the ground plane y = min.y, facing +y.
+// kind SURFACE_BOX: an axis-aligned box [min, max]; SURFACE_GROUND: the plane y = min.y, facing +y.
 struct Surface {
     min: vec3f,
     kind: u32,
@@ -62,7 +62,6 @@ struct Surface {
     phong_exponent: f32,
 }
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var<uniform> params: MarchParams;
 @group(0) @binding(2) var ev: texture_3d<f32>;
 @group(0) @binding(3) var<storage, read> lights: array<LightGpu>;
@@ -73,11 +72,6 @@ struct Surface {
 @group(0) @binding(8) var<storage, read> brick_max: array<f32>;
 @group(0) @binding(9) var<storage, read> surfaces: array<Surface>;
 @group(0) @binding(10) var<storage, read> sun_table: array<f32>;
-
-const PI: f32 = 3.14159265358979;
-const POLICY_FIXED: u32 = 0u;
-const POLICY_TWO_LEVEL: u32 = 1u;
-const POLICY_ADAPTIVE: u32 = 2u;
 
 var<private> radiance: vec3f;
 var<private> transmittance: f32;
@@ -106,14 +100,6 @@ fn trilinear_at(x: vec3f) -> Trilinear {
 
 fn corner(t: Trilinear, n: u32) -> vec3u {
     return select(t.i0, t.i1, vec3<bool>((n & 1u) != 0u, (n & 2u) != 0u, (n & 4u) != 0u));
-}
-
-fn lerp3(c: array<f32, 8>, f: vec3f) -> f32 {
-    let x00 = mix(c[0], c[1], f.x);
-    let x10 = mix(c[2], c[3], f.x);
-    let x01 = mix(c[4], c[5], f.x);
-    let x11 = mix(c[6], c[7], f.x);
-    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
 }
 
 fn ev_at(t: Trilinear) -> f32 {
@@ -193,11 +179,9 @@ fn light_depth(x: vec3f, l: u32, d: f32) -> f32 {
     }
     let s = lights[l].position;
     let u = (x - s) / max(d, 1e-30);
-    let inv = 1.0 / u;
-    let ta = (grid.min - s) * inv;
-    let tb = (grid.max - s) * inv;
-    let t_in = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), max(min(ta.z, tb.z), 0.0));
-    let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), min(max(ta.z, tb.z), d));
+    let slabs = ray_slabs(s, 1.0 / u, grid.min, grid.max);
+    let t_in = max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0));
+    let t_out = min(min(slabs.far.x, slabs.far.y), min(slabs.far.z, d));
     if t_out <= t_in {
         return base_fog_depth(s, u, d);
     }
@@ -446,21 +430,11 @@ fn brick_max_at(b: vec3u) -> f32 {
     return brick_max[b.x + bdims.x * (b.y + bdims.y * b.z)];
 }
 
-// 1/d for the slab tests, with components below 1e-30 in magnitude taken as 1e-30: a ray
-// parallel to a slab then gets finite distances, never 0·∞ = NaN when its origin lies on the
-// slab's plane.
-fn safe_inverse(d: vec3f) -> vec3f {
-    return 1.0 / select(d, vec3f(1e-30), abs(d) < vec3f(1e-30));
-}
-
 // Distance along the ray from o + dir·t to the exit of brick b.
 fn brick_exit(o: vec3f, dir: vec3f, b: vec3u) -> f32 {
     let lo = grid.min + vec3f(b * BRICK) * grid.cell;
     let hi = min(grid.min + vec3f((b + 1u) * BRICK) * grid.cell, grid.max);
-    let inv = safe_inverse(dir);
-    let t_lo = (lo - o) * inv;
-    let t_hi = (hi - o) * inv;
-    let t_far = max(t_lo, t_hi);
+    let t_far = ray_slabs(o, safe_inverse(dir), lo, hi).far;
     return min(t_far.x, min(t_far.y, t_far.z));
 }
 
@@ -516,7 +490,7 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
     hit.t = 3.4e38;
     for (var i = 0u; i < params.surface_count; i++) {
         let s = surfaces[i];
-        if s.kind == 1u {
+        if s.kind == SURFACE_GROUND {
             if dir.y < 0.0 && o.y > s.min.y {
                 let t = (s.min.y - o.y) / dir.y;
                 if t < hit.t {
@@ -528,11 +502,9 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
                 }
             }
         } else {
-            let inv = safe_inverse(dir);
-            let ta = (s.min - o) * inv;
-            let tb = (s.max - o) * inv;
-            let tn = min(ta, tb);
-            let tf = max(ta, tb);
+            let slabs = ray_slabs(o, safe_inverse(dir), s.min, s.max);
+            let tn = slabs.near;
+            let tf = slabs.far;
             let t_in = max(tn.x, max(tn.y, tn.z));
             let t_out = min(tf.x, min(tf.y, tf.z));
             if t_in > 0.0 && t_in <= t_out && t_in < hit.t {
@@ -564,15 +536,14 @@ fn shadowed(x: vec3f, n: vec3f, u: vec3f, t_max: f32) -> bool {
     let inv = safe_inverse(u);
     for (var i = 0u; i < params.surface_count; i++) {
         let s = surfaces[i];
-        if s.kind == 1u {
+        if s.kind == SURFACE_GROUND {
             if u.y < 0.0 && o.y > s.min.y && (s.min.y - o.y) / u.y < reach {
                 return true;
             }
         } else {
-            let ta = (s.min - o) * inv;
-            let tb = (s.max - o) * inv;
-            let tn = min(ta, tb);
-            let tf = max(ta, tb);
+            let slabs = ray_slabs(o, inv, s.min, s.max);
+            let tn = slabs.near;
+            let tf = slabs.far;
             let t_in = max(tn.x, max(tn.y, tn.z));
             let t_out = min(tf.x, min(tf.y, tf.z));
             if t_out > 0.0 && t_in <= t_out && t_in < reach {
@@ -644,7 +615,7 @@ fn tonemap(c: vec3f) -> vec3f {
     return select(hi, lo, l <= vec3f(0.0031308));
 }
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let id = gid + vec3u(0u, params.row_offset, 0u);
     if any(id.xy >= params.size) {
@@ -662,11 +633,9 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     skipped = 0u;
 
     let hit = first_surface(o, dir);
-    let inv = safe_inverse(dir);
-    let ta = (grid.min - o) * inv;
-    let tb = (grid.max - o) * inv;
-    let t_enter = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), max(min(ta.z, tb.z), 0.0));
-    let t_exit = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
+    let slabs = ray_slabs(o, safe_inverse(dir), grid.min, grid.max);
+    let t_enter = max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0));
+    let t_exit = min(min(slabs.far.x, slabs.far.y), slabs.far.z);
     let in_box = t_exit > t_enter;
     let fog = grid.base_extinction > 0.0;
 

@@ -10,12 +10,10 @@
 // refined sweep (propagate_sweep.wgsl) integrates exactly the segments that cross such bricks
 // where its error bound asks for it.
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read_write> brick_max: array<f32>;
 
-
-@compute @workgroup_size(4, 4, 4)
+@compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
 fn main(@builtin(global_invocation_id) b: vec3u) {
     let bdims = (grid.dims + BRICK - 1u) / BRICK;
     if any(b >= bdims) {

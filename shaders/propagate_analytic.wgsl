@@ -22,8 +22,6 @@ struct AnalyticParams {
     _pad1: u32,
 }
 
-
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> params: AnalyticParams;
 // binding 4: `opv`, declared with its helpers by src/gpu/opv_store.rs.
@@ -60,7 +58,7 @@ fn brick_depth(b: u32, x: vec3f, dir: vec3f, t0: f32, t1: f32) -> f32 {
 }
 
 // Rows of 64 cells along x: neighbouring lanes cross the same bricks.
-@compute @workgroup_size(64, 1, 1)
+@compute @workgroup_size(WORKGROUP_ROW, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let id = gid + vec3u(0u, 0u, params.z_offset);
     if any(id >= grid.dims) {

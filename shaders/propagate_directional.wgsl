@@ -22,7 +22,6 @@ struct PlaneParams {
     previous: u32,
 }
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> plane: PlaneParams;
@@ -36,7 +35,7 @@ fn mean_extinction(c: vec3u, towards: vec3f, light: u32) -> f32 {
     return max(opv_load(light, c) - b, 0.0) / max(e, 1e-30);
 }
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let a = plane.axis;
     let a1 = (a + 1u) % 3u;

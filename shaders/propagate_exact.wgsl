@@ -10,13 +10,12 @@ struct ExactParams {
     _pad: u32,
 }
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> exact: ExactParams;
 // binding 4: `opv`, declared with its helpers by src/gpu/opv_store.rs.
 
-@compute @workgroup_size(4, 4, 4)
+@compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let id = gid + vec3u(0u, 0u, exact.z_offset);
     if any(id >= grid.dims) {

@@ -9,7 +9,6 @@
 // towards the light's slab makes the dependencies acyclic: the iteration is exact after
 // (largest Manhattan distance to the light's slabs + 1) sweeps, which the host computes.
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<storage, read> active_lights: array<u32>;
@@ -22,11 +21,11 @@ fn sigma_at(c: vec3i) -> f32 {
     return textureLoad(ev, c, 0).r;
 }
 
-@compute @workgroup_size(4, 4, 4)
+@compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
 fn main(@builtin(global_invocation_id) gid: vec3u, @builtin(workgroup_id) wg: vec3u) {
-    let zgroups = (grid.dims.z + 3u) / 4u;
+    let zgroups = (grid.dims.z + WORKGROUP_3D - 1u) / WORKGROUP_3D;
     let slot = wg.z / zgroups;
-    let id = vec3u(gid.xy, gid.z - slot * zgroups * 4u);
+    let id = vec3u(gid.xy, gid.z - slot * zgroups * WORKGROUP_3D);
     if any(id >= grid.dims) || slot >= arrayLength(&active_lights) {
         return;
     }

@@ -83,7 +83,6 @@ struct SweepBox {
     _pad: u32,
 }
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> step: SweepStep;
@@ -367,14 +366,14 @@ fn solve(c: vec3i, light: u32) {
     store(light, c, t_in + base_fog_depth(x + dir * inside, dir, len - inside), select(sigma_cell(c), t_in / inside, inside > 1e-6 * h));
 }
 
-// Threads per workgroup: SWEEP_WORKGROUP in src/gpu/propagate.rs. Each thread solves
-// SWEEP_CELLS cells of its box (`const SWEEP_CELLS`, prepended by src/gpu/propagate.rs:
+// Threads per workgroup: SWEEP_WORKGROUP (src/gpu/layout.rs). Each thread solves
+// SWEEP_CELLS cells of its box (`const SWEEP_CELLS`, prepended by src/gpu/shaders.rs:
 // several on a CPU adapter, which pays a fixed cost per invocation). Consecutive threads take
 // consecutive cells, SWEEP_CHUNK threads at a time, so that neighbouring lanes follow nearby
 // paths and branch alike.
 const SWEEP_CHUNK: u32 = 32u;
 
-@compute @workgroup_size(256, 1, 1)
+@compute @workgroup_size(SWEEP_WORKGROUP, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let t = gid.x + gid.y * step.row + step.offset;
     // The last box starting at or before thread t.

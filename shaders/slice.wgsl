@@ -10,13 +10,12 @@ struct SliceParams {
     source: u32,
 }
 
-@group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var ev: texture_3d<f32>;
 // binding 2: `opv`, declared with its helper opv_load by src/gpu/opv_store.rs.
 @group(0) @binding(3) var<uniform> slice: SliceParams;
 @group(0) @binding(4) var<storage, read_write> plane: array<f32>;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
 fn main(@builtin(global_invocation_id) id: vec3u) {
     var c: vec3u;
     var dims: vec2u;

@@ -5,8 +5,7 @@
 // The including shader declares the table, 64·64 f32 with u fastest:
 //     var<storage, read> sun_table: array<f32>;
 
-const SUN_PI: f32 = 3.14159265358979;
-const SUN_HALF_PI: f32 = 1.57079632679490;
+const SUN_HALF_PI: f32 = 0.5 * PI;
 
 // Bilinear sample at fractional table coordinates x (u axis) and y (k axis) in [0, 1].
 fn sun_sample(x: f32, y: f32) -> f32 {
@@ -69,13 +68,13 @@ fn sun_la(gamma: f32, d_sv: f32, d_vp: f32, beta: f32, i0: f32) -> f32 {
     if (beta <= 0.0 || d_vp <= 0.0 || d_sv <= 0.0) {
         return 0.0;
     }
-    let g = clamp(gamma, SUN_GAMMA_MIN, SUN_PI - SUN_GAMMA_MIN);
+    let g = clamp(gamma, SUN_GAMMA_MIN, PI - SUN_GAMMA_MIN);
     let t_sv = beta * d_sv;
     let t_vp = beta * d_vp;
     let a1 = t_sv * sin(g);
-    let a = 0.5 * (SUN_PI - g);
+    let a = 0.5 * (PI - g);
     let c = t_sv * cos(g);
-    let scale = beta * beta * i0 / (2.0 * SUN_PI * a1);
+    let scale = beta * beta * i0 / (2.0 * PI * a1);
     let sh = sin(0.5 * g);
     let k_a = 2.0 * t_sv * sh * sh;
     let near = exp(-t_sv) * sun_r(a1, a, k_a);

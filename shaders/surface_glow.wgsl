@@ -7,7 +7,7 @@
 fn glow_g(t: f32, theta_s: f32) -> f32 {
     let tc = clamp(t, 0.0, GLOW_T_MAX);
     let fx = sqrt(sqrt(tc / GLOW_T_MAX)) * f32(GLOW_NT - 1u);
-    let fy = clamp(theta_s / SUN_PI, 0.0, 1.0) * f32(GLOW_NTHETA - 1u);
+    let fy = clamp(theta_s / PI, 0.0, 1.0) * f32(GLOW_NTHETA - 1u);
     let i = min(u32(fx), GLOW_NT - 2u);
     let j = min(u32(fy), GLOW_NTHETA - 2u);
     let tx = fx - f32(i);
@@ -27,7 +27,7 @@ fn glow_radiance(beta: f32, d: f32, theta_s: f32) -> f32 {
     }
     let dd = max(d, 1e-12);
     let t = beta * dd;
-    return exp(-t) * beta * glow_g(t, theta_s) / (2.0 * SUN_PI * SUN_PI * dd);
+    return exp(-t) * beta * glow_g(t, theta_s) / (2.0 * PI * PI * dd);
 }
 
 // Sun et al.'s surface term for Phong-specular surfaces: the S_n table (SPEC_NT × SPEC_NTHETA ×
@@ -39,7 +39,7 @@ fn spec_width(n: f32) -> f32 {
 fn spec_node(k: u32, fx: f32, theta: f32) -> f32 {
     let n = pow(1.0 + SPEC_N_MAX, f32(k) / f32(SPEC_NN - 1u)) - 1.0;
     let w = spec_width(n);
-    let fy = clamp(asinh(theta / w) / asinh(SUN_PI / w), 0.0, 1.0) * f32(SPEC_NTHETA - 1u);
+    let fy = clamp(asinh(theta / w) / asinh(PI / w), 0.0, 1.0) * f32(SPEC_NTHETA - 1u);
     let i = min(u32(fx), SPEC_NT - 2u);
     let j = min(u32(fy), SPEC_NTHETA - 2u);
     let tx = fx - f32(i);
@@ -52,7 +52,7 @@ fn spec_node(k: u32, fx: f32, theta: f32) -> f32 {
 // S_n(T, θ_r), θ_r the angle between the view's mirror direction and the direction to the light.
 fn spec_s(t: f32, theta_r: f32, n: f32) -> f32 {
     let tc = clamp(t, 0.0, GLOW_T_MAX);
-    let theta = clamp(theta_r, 0.0, SUN_PI);
+    let theta = clamp(theta_r, 0.0, PI);
     let nc = clamp(n, 0.0, SPEC_N_MAX);
     let fx = sqrt(sqrt(tc / GLOW_T_MAX)) * f32(SPEC_NT - 1u);
     let fz = log(1.0 + nc) / log(1.0 + SPEC_N_MAX) * f32(SPEC_NN - 1u);
@@ -70,7 +70,7 @@ fn spec_radiance(beta: f32, d: f32, theta_r: f32, n: f32) -> f32 {
     }
     let dd = max(d, 1e-12);
     let t = beta * dd;
-    return exp(-t) * beta * spec_s(t, theta_r, n) / (2.0 * SUN_PI * dd);
+    return exp(-t) * beta * spec_s(t, theta_r, n) / (2.0 * PI * dd);
 }
 
 // The Phong lobe's direct reflection per unit specular coefficient: (n + 1)/(2π)·cos^n α for
@@ -80,5 +80,5 @@ fn phong_lobe(cos_alpha: f32, n: f32) -> f32 {
         return 0.0;
     }
     let c = select(pow(cos_alpha, n), 1.0, n == 0.0);
-    return (n + 1.0) / (2.0 * SUN_PI) * c;
+    return (n + 1.0) / (2.0 * PI) * c;
 }

@@ -1,4 +1,5 @@
-// Extinction lookups shared by the propagation schemes. Expects `grid` and `ev` bindings.
+// Extinction lookups shared by the propagation schemes. Expects the `ev` binding and
+// ev_trilinear.wgsl.
 
 fn in_grid(c: vec3i) -> bool {
     return all(c >= vec3i(0)) && all(c < vec3i(grid.dims));
@@ -22,19 +23,7 @@ fn sigma_at_point(x: vec3f) -> f32 {
     let i0 = vec3i(floor(u));
     let f = u - vec3f(i0);
     let i1 = min(i0 + 1, vec3i(grid.dims) - 1);
-    let c000 = textureLoad(ev, i0, 0).r;
-    let c100 = textureLoad(ev, vec3i(i1.x, i0.y, i0.z), 0).r;
-    let c010 = textureLoad(ev, vec3i(i0.x, i1.y, i0.z), 0).r;
-    let c110 = textureLoad(ev, vec3i(i1.x, i1.y, i0.z), 0).r;
-    let c001 = textureLoad(ev, vec3i(i0.x, i0.y, i1.z), 0).r;
-    let c101 = textureLoad(ev, vec3i(i1.x, i0.y, i1.z), 0).r;
-    let c011 = textureLoad(ev, vec3i(i0.x, i1.y, i1.z), 0).r;
-    let c111 = textureLoad(ev, i1, 0).r;
-    return mix(
-        mix(mix(c000, c100, f.x), mix(c010, c110, f.x), f.y),
-        mix(mix(c001, c101, f.x), mix(c011, c111, f.x), f.y),
-        f.z,
-    );
+    return lerp3(ev_corners(i0, i1), f);
 }
 
 // ∫σ_t over the segment [a, b] by composite Simpson with about `per_cell` intervals per cell

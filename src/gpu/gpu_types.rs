@@ -27,7 +27,7 @@ pub struct GridParams {
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct LightGpu {
     pub position: [f32; 3],
-    /// 0 point, 1 spot, 2 directional (`LIGHT_*` in `shaders/common.wgsl`).
+    /// `LIGHT_POINT`, `LIGHT_SPOT` or `LIGHT_DIRECTIONAL` (src/gpu/layout.rs).
     pub kind: u32,
     pub rgb: [f32; 3],
     /// Spot half-angle in radians.
@@ -170,12 +170,13 @@ pub struct PlaneParams {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::layout::{shader_source, VOLUME_LOOKUP};
+    use crate::gpu::opv_store::OpvLayout;
+    use crate::gpu::shaders;
     use wgpu::naga;
 
-    /// Size of WGSL struct `name` in the pipeline built from `sources`.
-    fn wgsl_size(sources: &[&str], name: &str) -> u32 {
-        let module = naga::front::wgsl::parse_str(&shader_source(sources)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    /// Size of WGSL struct `name` in the finished WGSL `code`.
+    fn wgsl_size(code: &str, name: &str) -> u32 {
+        let module = naga::front::wgsl::parse_str(code).unwrap_or_else(|e| panic!("{name}: {e}"));
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).expect("layout");
         let (handle, _) = module
@@ -188,56 +189,23 @@ mod tests {
 
     #[test]
     fn every_gpu_struct_has_the_size_of_its_wgsl_twin() {
-        use crate::gpu::opv_store::{OpvLayout, EXTRA_BINDING, EXTRA_BINDING_2};
-        use crate::gpu::propagate::INTEGRATE;
         let opv = OpvLayout { textures: 2, max_depth: 2048, lights_per_texture: u32::MAX, rows: true };
-        let (opv_read, opv_rw) = (opv.wgsl("opv", 4, EXTRA_BINDING, false), opv.wgsl("opv", 4, EXTRA_BINDING, true));
-        let opv_mean = opv_rw.clone() + &opv.wgsl("mean_in", 5, EXTRA_BINDING_2, true);
-        let inject = [
-            include_str!("../../shaders/noise.wgsl"),
-            include_str!("../../shaders/inject_finish.wgsl"),
-            include_str!("../../shaders/inject.wgsl"),
+        let (inject, march, sweep) = (shaders::inject(), shaders::march(&opv), shaders::propagate_sweep(&opv, 8, true));
+        let cases = [
+            (shaders::propagate_analytic(&opv), "AnalyticParams", std::mem::size_of::<ExactParams>()),
+            (shaders::propagate_directional(&opv), "PlaneParams", std::mem::size_of::<PlaneParams>()),
+            (sweep.clone(), "SweepBox", std::mem::size_of::<SweepBox>()),
+            (shaders::slice(&opv), "SliceParams", std::mem::size_of::<crate::gpu::slice::SliceParams>()),
+            (inject.clone(), "GridParams", std::mem::size_of::<GridParams>()),
+            (inject.clone(), "LightGpu", std::mem::size_of::<LightGpu>()),
+            (inject, "ParticleGpu", std::mem::size_of::<ParticleGpu>()),
+            (march.clone(), "MarchParams", std::mem::size_of::<MarchParams>()),
+            (march, "Surface", std::mem::size_of::<SurfaceGpu>()),
+            (sweep, "SweepStep", std::mem::size_of::<SweepStep>()),
+            (shaders::propagate_exact(&opv), "ExactParams", std::mem::size_of::<ExactParams>()),
         ];
-        let march = [
-            &opv_read,
-            include_str!("../../shaders/sun.wgsl"),
-            include_str!("../../shaders/surface_glow.wgsl"),
-            include_str!("../../shaders/march.wgsl"),
-        ];
-        let cells = crate::gpu::propagate::sweep_cells_wgsl(8);
-        let sweep = [
-            &cells,
-            &opv_mean,
-            VOLUME_LOOKUP,
-            include_str!("../../shaders/sweep_sigma_filtered.wgsl"),
-            INTEGRATE,
-            include_str!("../../shaders/propagate_sweep.wgsl"),
-        ];
-        let exact = [&opv_rw, VOLUME_LOOKUP, include_str!("../../shaders/propagate_exact.wgsl")];
-        let slice = [&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")];
-        let directional = [
-            &opv_rw,
-            VOLUME_LOOKUP,
-            include_str!("../../shaders/sweep_sigma_loads.wgsl"),
-            INTEGRATE,
-            include_str!("../../shaders/propagate_directional.wgsl"),
-        ];
-        let analytic = [&opv_rw, include_str!("../../shaders/propagate_analytic.wgsl")];
-        let cases: [(&[&str], &str, usize); 11] = [
-            (&analytic, "AnalyticParams", std::mem::size_of::<ExactParams>()),
-            (&directional, "PlaneParams", std::mem::size_of::<PlaneParams>()),
-            (&sweep, "SweepBox", std::mem::size_of::<SweepBox>()),
-            (&slice, "SliceParams", std::mem::size_of::<crate::gpu::slice::SliceParams>()),
-            (&inject, "GridParams", std::mem::size_of::<GridParams>()),
-            (&inject, "LightGpu", std::mem::size_of::<LightGpu>()),
-            (&inject, "ParticleGpu", std::mem::size_of::<ParticleGpu>()),
-            (&march, "MarchParams", std::mem::size_of::<MarchParams>()),
-            (&march, "Surface", std::mem::size_of::<SurfaceGpu>()),
-            (&sweep, "SweepStep", std::mem::size_of::<SweepStep>()),
-            (&exact, "ExactParams", std::mem::size_of::<ExactParams>()),
-        ];
-        for (sources, name, rust) in cases {
-            assert_eq!(wgsl_size(sources, name) as usize, rust, "{name}: WGSL and Rust sizes differ");
+        for (code, name, rust) in cases {
+            assert_eq!(wgsl_size(&code, name) as usize, rust, "{name}: WGSL and Rust sizes differ");
         }
     }
 }

@@ -15,7 +15,8 @@
 use super::binning::{self, BinCounts};
 use super::gpu_types::ParticleGpu;
 use super::host_sums;
-use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot};
+use super::layout::{bind_group, bind_group_layout, compute_pipeline, Slot, WORKGROUP_3D};
+use super::shaders;
 use super::{Counters, GpuContext};
 use crate::scene::GridSpec;
 use crate::scene::Particle;
@@ -120,20 +121,11 @@ impl Injector {
                 Slot::StorageRead,
             ],
         );
-        let finish = include_str!("../../shaders/inject_finish.wgsl");
-        let noise = include_str!("../../shaders/noise.wgsl");
-        let pipeline =
-            compute_pipeline(device, "inject", &[noise, finish, include_str!("../../shaders/inject.wgsl")], &layout);
-        let sums_pipeline = compute_pipeline(
-            device,
-            "inject sums",
-            &[noise, finish, include_str!("../../shaders/inject_sums.wgsl")],
-            &layout,
-        );
+        let pipeline = compute_pipeline(device, "inject", shaders::inject(), &layout);
+        let sums_pipeline = compute_pipeline(device, "inject sums", shaders::inject_sums(), &layout);
         let occupancy_layout =
             bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
-        let occupancy =
-            compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
+        let occupancy = compute_pipeline(device, "occupancy", shaders::occupancy(), &occupancy_layout);
         let empty = |label| super::pipeline::storage_buffer(device, label, &[]);
         Self {
             layout,
@@ -323,7 +315,11 @@ impl Injector {
             let b = inputs.grid.resolution.map(|n| n.div_ceil(binning::BRICK));
             pass.set_pipeline(&self.occupancy);
             pass.set_bind_group(0, &occ, &[]);
-            pass.dispatch_workgroups(b.x.div_ceil(4), b.y.div_ceil(4), b.z.div_ceil(4));
+            pass.dispatch_workgroups(
+                b.x.div_ceil(WORKGROUP_3D),
+                b.y.div_ceil(WORKGROUP_3D),
+                b.z.div_ceil(WORKGROUP_3D),
+            );
             counters.dispatches += 1;
             job.occupancy_done = true;
         }

@@ -99,9 +99,6 @@ pub fn bind_group_layout_with(
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
 }
 
-/// `shaders/volume_lookup.wgsl`, for shaders that sample σ_t between cells.
-pub const VOLUME_LOOKUP: &str = include_str!("../../shaders/volume_lookup.wgsl");
-
 /// `LightGpu::kind`.
 pub const LIGHT_POINT: u32 = 0;
 pub const LIGHT_SPOT: u32 = 1;
@@ -114,11 +111,37 @@ pub const POLICY_ADAPTIVE: u32 = 2;
 pub const SURFACE_BOX: u32 = 0;
 pub const SURFACE_GROUND: u32 = 1;
 
+/// Workgroup edge of the shaders over image pixels or a volume's planes (march, slice, the
+/// directional sweep): `WORKGROUP_2D`² threads.
+pub const WORKGROUP_2D: u32 = 8;
+/// Workgroup edge of the shaders over whole volumes (occupancy, Giroud, exact): `WORKGROUP_3D`³
+/// threads; the exact and analytic schemes dispatch slabs of this many layers.
+pub const WORKGROUP_3D: u32 = 4;
+/// Workgroup of the analytic scheme: a row of cells along x.
+pub const WORKGROUP_ROW: u32 = 64;
+/// Threads per workgroup of `propagate_sweep.wgsl`. llvmpipe pays a fixed cost per
+/// workgroup, so larger groups amortise it over more cells.
+pub const SWEEP_WORKGROUP: u32 = 256;
+
 /// Constants the Rust side and the shaders share, written once here for WGSL.
 pub fn shared_constants() -> String {
     use crate::sun_table as sun;
     format!(
         "// Generated from the Rust constants (src/gpu/layout.rs).\n\
+         const PI: f32 = {:?};\n\
+         const LIGHT_POINT: u32 = {}u;\n\
+         const LIGHT_SPOT: u32 = {}u;\n\
+         const LIGHT_DIRECTIONAL: u32 = {}u;\n\
+         const POLICY_FIXED: u32 = {}u;\n\
+         const POLICY_TWO_LEVEL: u32 = {}u;\n\
+         const POLICY_ADAPTIVE: u32 = {}u;\n\
+         const SURFACE_BOX: u32 = {}u;\n\
+         const SURFACE_GROUND: u32 = {}u;\n\
+         const WORKGROUP_2D: u32 = {}u;\n\
+         const WORKGROUP_3D: u32 = {}u;\n\
+         const WORKGROUP_ROW: u32 = {}u;\n\
+         const SWEEP_WORKGROUP: u32 = {}u;\n\
+         const MAX_HEIGHT_EXPONENT: f32 = {:?};\n\
          const BRICK: u32 = {}u;\n\
          const SUN_NU: u32 = {}u;\n\
          const SUN_NV: u32 = {}u;\n\
@@ -134,6 +157,20 @@ pub fn shared_constants() -> String {
          const SPEC_NTHETA: u32 = {}u;\n\
          const SPEC_NN: u32 = {}u;\n\
          const SPEC_N_MAX: f32 = {:?};\n",
+        std::f32::consts::PI,
+        LIGHT_POINT,
+        LIGHT_SPOT,
+        LIGHT_DIRECTIONAL,
+        POLICY_FIXED,
+        POLICY_TWO_LEVEL,
+        POLICY_ADAPTIVE,
+        SURFACE_BOX,
+        SURFACE_GROUND,
+        WORKGROUP_2D,
+        WORKGROUP_3D,
+        WORKGROUP_ROW,
+        SWEEP_WORKGROUP,
+        crate::scene::MAX_HEIGHT_EXPONENT as f32,
         super::binning::BRICK,
         sun::GPU_TABLE_SIZE,
         sun::GPU_TABLE_SIZE,
@@ -152,25 +189,13 @@ pub fn shared_constants() -> String {
     )
 }
 
-/// The WGSL of a pipeline: the shared constants, `shaders/common.wgsl`, then `sources`.
-pub fn shader_source(sources: &[&str]) -> String {
-    let mut code = shared_constants();
-    code.push_str(include_str!("../../shaders/common.wgsl"));
-    for s in sources {
-        code.push('\n');
-        code.push_str(s);
-    }
-    code
-}
-
-/// A compute pipeline from [`shader_source`], entry point `main`.
+/// A compute pipeline from finished WGSL (see `shaders`), entry point `main`.
 pub fn compute_pipeline(
     device: &wgpu::Device,
     label: &str,
-    sources: &[&str],
+    code: String,
     layout: &wgpu::BindGroupLayout,
 ) -> wgpu::ComputePipeline {
-    let code = shader_source(sources);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(code.into()),

@@ -5,14 +5,14 @@
 //! counters; the per-march inputs (grid, EV, lights, OPVs, occupancy) are passed explicitly.
 
 use super::gpu_types::{MarchParams, SurfaceGpu};
-use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
+use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, WORKGROUP_2D};
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
 use crate::sun_table::{FTable, GPU_TABLE_SIZE};
 
 /// Rows of one march workgroup: bands are multiples of it.
-pub const BAND_ROWS: u32 = 8;
+pub const BAND_ROWS: u32 = WORKGROUP_2D;
 
 /// Linear and tone-mapped radiance of one image size.
 pub struct ImageTarget {
@@ -119,18 +119,7 @@ impl Marcher {
             ],
             opv.layout_entries(EXTRA_BINDING, true),
         );
-        let opv_read = opv.wgsl("opv", 4, EXTRA_BINDING, false);
-        let pipeline = compute_pipeline(
-            device,
-            "march",
-            &[
-                &opv_read,
-                include_str!("../../shaders/sun.wgsl"),
-                include_str!("../../shaders/surface_glow.wgsl"),
-                include_str!("../../shaders/march.wgsl"),
-            ],
-            &layout,
-        );
+        let pipeline = compute_pipeline(device, "march", super::shaders::march(&opv), &layout);
         let mut tables = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE).data;
         tables.extend_from_slice(crate::surface_table::glow_table());
         tables.extend_from_slice(crate::surface_table::spec_table());
@@ -195,7 +184,7 @@ impl Marcher {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &job.bind_group, &[]);
-            pass.dispatch_workgroups(job.params.size[0].div_ceil(8), band.div_ceil(8), 1);
+            pass.dispatch_workgroups(job.params.size[0].div_ceil(WORKGROUP_2D), band.div_ceil(WORKGROUP_2D), 1);
         }
         job.next_row += band;
     }

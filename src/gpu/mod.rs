@@ -11,6 +11,9 @@
 //! 3. **Ray march** (`shaders/march.wgsl`): single scattering along camera rays with
 //!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
 //!
+//! Each pipeline's WGSL is assembled in `shaders` from the files in `shaders/`, after the
+//! constants Rust and WGSL share (`layout::shared_constants`).
+//!
 //! [`FogPipeline`] owns the long-lived pipelines and the scene's resources, tracks which
 //! inputs each stage last consumed, and reruns only what a change invalidates.
 
@@ -26,6 +29,7 @@ mod opv_store;
 mod pipeline;
 mod propagate;
 mod readback;
+mod shaders;
 mod slice;
 mod timer;
 

@@ -734,8 +734,9 @@ impl FogPipeline {
         }
         self.check_limits(project, request.width, request.height)?;
         if request.scheme == Scheme::Giroud {
-            // One dispatch covers every propagated light: z = ⌈nz/4⌉ workgroups per light.
-            let z = project.grid.resolution.z.div_ceil(4) as u64 * project.lights.len() as u64;
+            // One dispatch covers every propagated light: z = ⌈nz/WORKGROUP_3D⌉ workgroups per light.
+            let z =
+                project.grid.resolution.z.div_ceil(super::layout::WORKGROUP_3D) as u64 * project.lights.len() as u64;
             let limit = self.ctx.limits.max_compute_workgroups_per_dimension as u64;
             if z > limit {
                 return Err(GpuError::Limit {

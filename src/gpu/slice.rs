@@ -1,7 +1,7 @@
 //! Reading back one plane of a volume (`shaders/slice.wgsl`): what the slice view shows,
 //! without copying the whole EV or OPV to the CPU.
 
-use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot};
+use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, WORKGROUP_2D};
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{GpuContext, GpuError};
@@ -55,9 +55,7 @@ impl Slicer {
             &[Slot::Uniform, Slot::Texture3d, Slot::Opv { read_only: true }, Slot::Uniform, Slot::StorageWrite],
             opv.layout_entries(EXTRA_BINDING, true),
         );
-        let opv_read = opv.wgsl("opv", 2, EXTRA_BINDING, false);
-        let pipeline =
-            compute_pipeline(device, "slice", &[&opv_read, include_str!("../../shaders/slice.wgsl")], &layout);
+        let pipeline = compute_pipeline(device, "slice", super::shaders::slice(&opv), &layout);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("slice params"),
             size: std::mem::size_of::<SliceParams>() as u64,
@@ -112,7 +110,7 @@ impl Slicer {
                 .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("slice"), timestamp_writes: None });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(plane_dims[0].div_ceil(8), plane_dims[1].div_ceil(8), 1);
+            pass.dispatch_workgroups(plane_dims[0].div_ceil(WORKGROUP_2D), plane_dims[1].div_ceil(WORKGROUP_2D), 1);
         }
         ctx.queue.submit([encoder.finish()]);
         let values = read_buffer(ctx, &self.plane, 0, count as usize)?;
