@@ -443,6 +443,62 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
     assert!(differing == 0, "the converged preview equals a fresh bake: max difference {diff:e} of peak {peak:e}, {differing} values differ");
 }
 
+/// The preview image against a fresh bake of the session's project at the same size: the
+/// number of values that differ in their bits.
+fn differs_from_fresh_bake(h: &Harness<'_, EditorApp>) -> usize {
+    let shown = h.state().pipeline().unwrap().read_image().unwrap();
+    let p = h.state().session().project().clone();
+    let mut fresh = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("an adapter"));
+    let request = fogsmith::gpu::FrameRequest {
+        width: shown.width,
+        height: shown.height,
+        ..fogsmith::gpu::FrameRequest::for_project(&p)
+    };
+    fresh.update(&p, &request).unwrap();
+    let want = fresh.read_image().unwrap();
+    shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).filter(|(a, b)| a.to_bits() != b.to_bits()).count()
+}
+
+/// The Inspector's kind selector turns a point light into a sun and a spot: each is one undo
+/// step, the light takes that kind (a spot aimed at the grid's centre), and the preview
+/// renders it as that kind, equal to a fresh bake of the changed project.
+#[test]
+fn a_light_kind_changed_in_the_inspector_renders_as_that_kind() {
+    use fogsmith::scene::LightKind;
+    let mut h = harness(demo());
+    h.state_mut().session_mut().selection.lights.insert(0);
+    h.run_steps(3);
+    let point_image = h.state().pipeline().unwrap().read_image().unwrap();
+    let undo = h.state().session().undo_len();
+    h.get_by_label("sun").click();
+    h.run_steps(3);
+    let light = h.state().session().project().lights[0].clone();
+    assert!(matches!(light.kind, LightKind::Directional { .. }), "the light is a sun: {light:?}");
+    assert_eq!(h.state().session().undo_len(), undo + 1, "one undo step");
+    h.get_by_label("irradiance");
+    assert_eq!(h.state().gpu_error(), None);
+    let sun_image = h.state().pipeline().unwrap().read_image().unwrap();
+    assert_ne!(sun_image.rgba, point_image.rgba, "the sun lights the fog differently");
+    assert_eq!(differs_from_fresh_bake(&h), 0, "the preview renders the sun as a fresh bake does");
+
+    h.get_by_label("spot").click();
+    h.run_steps(3);
+    let p = h.state().session().project().clone();
+    let LightKind::Spot { direction, angle_deg, .. } = p.lights[0].kind else { panic!("a spot: {:?}", p.lights[0]) };
+    let centre = (p.grid.min + p.grid.max) * 0.5;
+    assert!(direction.dot((centre - p.lights[0].position).normalize()) > 0.999, "aimed at the centre");
+    assert!(angle_deg > 0.0 && angle_deg <= 90.0);
+    h.get_by_label("angle");
+    h.get_by_label("blend");
+    assert_eq!(differs_from_fresh_bake(&h), 0, "the preview renders the spot as a fresh bake does");
+
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(3);
+    assert!(matches!(h.state().session().project().lights[0].kind, LightKind::Point), "two undos: a point again");
+    assert_eq!(differs_from_fresh_bake(&h), 0);
+}
+
 fn screen_of(h: &Harness<'_, EditorApp>, p: glam::Vec3) -> Pos2 {
     let rect = h.state().viewport_rect().expect("viewport");
     ViewProjection::new(&h.state().session().project().camera, rect).project(p).expect("in view").0
@@ -546,6 +602,8 @@ fn alt_wheel_changes_density_only() {
 fn the_light_tool_drags_lights() {
     let mut h = harness(demo());
     h.state_mut().set_tool(Tool::Light);
+    // The toolbar shows the Light tool's options from the next frame.
+    h.run_steps(2);
     let n = h.state().session().project().lights.len();
     let from = screen_of(&h, h.state().session().project().lights[0].position);
     let to = from + Vec2::new(45.0, 30.0);

@@ -105,6 +105,7 @@ impl EditorApp {
                 outline_all: persisted.outline_all.unwrap_or(true),
                 fit_keep: crate::scene::FitKeep::default(),
                 show_slice_plane: false,
+                new_light: crate::scene::LightKindChoice::Point,
                 show_gizmo: persisted.show_gizmo.unwrap_or(true),
                 brush_point: None,
                 fog_ev: None,

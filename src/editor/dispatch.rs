@@ -186,7 +186,7 @@ impl EditorState {
                             .lights
                             .iter()
                             .filter_map(|&i| p.lights.get(i))
-                            .map(|l| (l.position - c).length() + 0.1),
+                            .map(|l| (p.light_anchor(l) - c).length() + 0.1),
                     )
                     .fold(0.1f32, f32::max);
                 (c, r)

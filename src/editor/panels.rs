@@ -3,7 +3,7 @@
 use super::session::NEW_STEP;
 use super::state::EditorState;
 use super::tools::Hit;
-use crate::scene::{Project, Scheme};
+use crate::scene::{LightKindChoice, Project, Scheme};
 use egui::{Color32, DragValue, Ui};
 use glam::Vec3;
 
@@ -428,6 +428,79 @@ fn noise_inspector(state: &mut EditorState, ui: &mut Ui) {
         .on_hover_text("Whether particles the Paint brush deposits take the medium's noise (each particle's own switch is in the Selection section)");
 }
 
+/// A light's kind (each change one undo step, keeping the grid's centre as brightly lit) and
+/// what places and aims that kind: a position, a spot's axis, cone and blend, a sun's
+/// direction.
+fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate::scene::Light) {
+    use crate::scene::LightKind;
+    let kind = LightKindChoice::of(&l.kind);
+    ui.horizontal(|ui| {
+        ui.label("kind");
+        for choice in LightKindChoice::ALL {
+            let tip = match choice {
+                LightKindChoice::Point => "Shines equally in every direction from its position",
+                LightKindChoice::Spot => "Shines within a cone around its axis",
+                LightKindChoice::Sun => {
+                    "Parallel light from far away, along its direction; its intensity is an irradiance"
+                }
+            };
+            if ui.selectable_label(kind == choice, choice.label()).on_hover_text(tip).clicked() && kind != choice {
+                if let Some(new) = state.session.project().light_as_kind(i, choice) {
+                    if let Some(q) = state.session.edit(NEW_STEP).lights.get_mut(i) {
+                        *q = new;
+                    }
+                }
+            }
+        }
+    });
+    if kind != LightKindChoice::Sun {
+        ui.label("position");
+        if let Some((v, t)) = drag_vec3(ui, l.position, 0.005, " m", "Position of the light") {
+            if let Some(q) = state.session.edit(t).lights.get_mut(i) {
+                q.position = v;
+            }
+        }
+    }
+    let direction = match l.kind {
+        LightKind::Spot { direction, .. } | LightKind::Directional { direction } => direction,
+        LightKind::Point => return,
+    };
+    ui.label(if kind == LightKindChoice::Sun { "direction (travel)" } else { "axis" });
+    let tip = "Direction the light travels (normalised when used); drag the light in the viewport to aim it";
+    if let Some((v, t)) = drag_vec3(ui, direction, 0.01, "", tip) {
+        if let Some(q) = state.session.edit(t).lights.get_mut(i) {
+            match &mut q.kind {
+                LightKind::Spot { direction, .. } | LightKind::Directional { direction } => *direction = v,
+                LightKind::Point => {}
+            }
+        }
+    }
+    if let LightKind::Spot { angle_deg, blend, .. } = l.kind {
+        egui::Grid::new("spot").num_columns(2).show(ui, |ui| {
+            ui.label("angle");
+            let tip = "Half-angle of the cone: no light beyond it";
+            if let Some((v, t)) = drag(ui, angle_deg, 0.2, 0.1..=90.0, "°", tip) {
+                if let Some(LightKind::Spot { angle_deg, .. }) =
+                    state.session.edit(t).lights.get_mut(i).map(|q| &mut q.kind)
+                {
+                    *angle_deg = v;
+                }
+            }
+            ui.end_row();
+            ui.label("blend");
+            let tip = "Fraction of the cone over which the light fades out towards its edge";
+            if let Some((v, t)) = drag(ui, blend, 0.005, 0.0..=1.0, "", tip) {
+                if let Some(LightKind::Spot { blend, .. }) =
+                    state.session.edit(t).lights.get_mut(i).map(|q| &mut q.kind)
+                {
+                    *blend = v;
+                }
+            }
+            ui.end_row();
+        });
+    }
+}
+
 fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
     let sel = state.session.selection.clone();
     if sel.is_empty() {
@@ -467,15 +540,15 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
         let i = *sel.lights.iter().next().unwrap_or(&0);
         let Some(l) = state.session.project().lights.get(i).cloned() else { return };
         ui.label(state.session.project().light_label(i));
-        ui.label("position");
-        if let Some((v, t)) = drag_vec3(ui, l.position, 0.005, " m", "Position of the point light") {
-            if let Some(q) = state.session.edit(t).lights.get_mut(i) {
-                q.position = v;
-            }
-        }
+        light_kind_and_aim(state, ui, i, &l);
+        let kind = LightKindChoice::of(&l.kind);
         egui::Grid::new("light").num_columns(2).show(ui, |ui| {
-            ui.label("intensity");
-            if let Some((v, t)) = drag(ui, l.intensity, 0.05, 0.0..=1e5, " W/sr", "Radiant intensity I") {
+            let (label, tip) = match kind {
+                LightKindChoice::Sun => ("irradiance", "Irradiance E on a plane facing the sun, before any fog"),
+                _ => ("intensity", "Radiant intensity I"),
+            };
+            ui.label(label);
+            if let Some((v, t)) = drag(ui, l.intensity, 0.05, 0.0..=1e5, kind.intensity_unit(), tip) {
                 if let Some(q) = state.session.edit(t).lights.get_mut(i) {
                     q.intensity = v;
                 }

@@ -319,9 +319,7 @@ impl Session {
             }
         }
         for &i in &sel.lights {
-            if let Some(l) = project.lights.get_mut(i) {
-                l.position += delta;
-            }
+            project.move_light(i, delta);
         }
     }
 
@@ -405,7 +403,7 @@ impl Session {
             .particles
             .iter()
             .filter_map(|&i| p.particles.get(i).map(|q| q.center))
-            .chain(self.selection.lights.iter().filter_map(|&i| p.lights.get(i).map(|l| l.position)))
+            .chain(self.selection.lights.iter().filter_map(|&i| p.lights.get(i).map(|l| p.light_anchor(l))))
             .collect();
         if points.is_empty() {
             None

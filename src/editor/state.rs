@@ -294,6 +294,8 @@ pub(crate) struct ViewState {
     pub fit_keep: crate::scene::FitKeep,
     /// Draw the Slices panel's plane in the viewport.
     pub show_slice_plane: bool,
+    /// The kind of light the Light tool adds.
+    pub new_light: crate::scene::LightKindChoice,
     /// Show the move gizmo at the selection's centre (Select tool).
     pub show_gizmo: bool,
     /// Where a Paint stroke would start under the pointer.

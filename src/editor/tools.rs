@@ -188,7 +188,7 @@ pub const LIGHT_PICK_RADIUS: f32 = 10.0;
 pub fn pick(project: &Project, view: &ViewProjection, pos: Pos2) -> Option<Hit> {
     let mut best: Option<(f32, Hit)> = None;
     for (i, l) in project.lights.iter().enumerate() {
-        if let Some((s, z)) = view.project(l.position) {
+        if let Some((s, z)) = view.project(project.light_anchor(l)) {
             if s.distance(pos) <= LIGHT_PICK_RADIUS && best.is_none_or(|(bz, _)| z < bz) {
                 best = Some((z, Hit::Light(i)));
             }
@@ -216,7 +216,8 @@ pub fn box_select(project: &Project, view: &ViewProjection, rect: Rect) -> (BTre
     let inside = |c: Vec3| view.project(c).is_some_and(|(s, _)| rect.contains(s));
     let particles =
         project.particles.iter().enumerate().filter(|(_, p)| !p.hidden && inside(p.center)).map(|(i, _)| i).collect();
-    let lights = project.lights.iter().enumerate().filter(|(_, l)| inside(l.position)).map(|(i, _)| i).collect();
+    let lights =
+        project.lights.iter().enumerate().filter(|(_, l)| inside(project.light_anchor(l))).map(|(i, _)| i).collect();
     (particles, lights)
 }
 

@@ -58,6 +58,52 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     gizmo_overlay(state, &painter, rect, response.hover_pos().or(ui.input(|i| i.pointer.latest_pos())));
 }
 
+/// A sun's direction as an arrow from its anchor outside the grid towards the grid, and a
+/// spot's axis as a line with its cone's edges, so both read as aimed lights.
+fn light_direction(
+    project: &crate::scene::Project,
+    vp: &ViewProjection,
+    painter: &egui::Painter,
+    l: &crate::scene::Light,
+    anchor: Vec3,
+    colour: Color32,
+    selected: bool,
+) {
+    use crate::scene::LightKind;
+    let width = if selected { 2.5 } else { 1.5 };
+    let colour = if selected { SELECTED } else { colour };
+    let (direction, length, cone) = match l.kind {
+        LightKind::Directional { direction } => (direction, project.sun_distance() * 0.45, None),
+        LightKind::Spot { direction, angle_deg, .. } => {
+            (direction, project.sun_distance() * 0.25, Some(angle_deg.to_radians()))
+        }
+        LightKind::Point => return,
+    };
+    let d = direction.normalize_or(Vec3::NEG_Y);
+    let tip = anchor + d * length;
+    let (Some((a, _)), Some((b, _))) = (vp.project(anchor), vp.project(tip)) else { return };
+    painter.line_segment([a, b], Line::new(width, colour));
+    let along = (b - a).normalized();
+    if cone.is_none() && along.length() > 0.5 {
+        let side = along.rot90();
+        painter.add(egui::Shape::convex_polygon(
+            vec![b + along * 4.0, b - along * 10.0 + side * 6.0, b - along * 10.0 - side * 6.0],
+            colour,
+            Line::NONE,
+        ));
+    }
+    if let Some(angle) = cone {
+        // Two edges of the cone, in a plane through the axis.
+        let side = d.any_orthonormal_vector();
+        for s in [-1.0f32, 1.0] {
+            let edge = (d * angle.cos() + side * s * angle.sin()) * length;
+            if let Some((e, _)) = vp.project(anchor + edge) {
+                painter.line_segment([a, e], Line::new(1.0, colour.gamma_multiply(0.6)));
+            }
+        }
+    }
+}
+
 /// A message over the lower part of the viewport, wrapped to its width on a dark backing, so
 /// it is read whole and the last good image above it stays in view.
 fn viewport_message(painter: &egui::Painter, rect: Rect, text: &str, colour: Color32) {
@@ -124,6 +170,15 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
             }
         }
         ui.separator();
+        // The Light tool's options take the brush's place, so the toolbar keeps its height.
+        if state.view.tool == Tool::Light {
+            ui.label("new light");
+            for kind in crate::scene::LightKindChoice::ALL {
+                ui.selectable_value(&mut state.view.new_light, kind, kind.label())
+                    .on_hover_text("The kind of light a click on empty space adds (change it later in the Inspector)");
+            }
+            return;
+        }
         let b = &mut state.view.brush;
         ui.add(egui::DragValue::new(&mut b.radius).speed(0.005).range(0.005..=10.0).prefix("radius ").suffix(" m"))
             .on_hover_text("Brush radius: the radius r of painted particles (σ = c·exp(−d²/r²)) and the brush footprint");
@@ -448,12 +503,23 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
             let tag = state.session.new_tag();
             let light = match hit {
                 Some(Hit::Light(i)) => Some(i),
-                _ => point
-                    .map(|point| state.session.add_light_tagged(tag, crate::scene::Light::new(point, 2.0, Vec3::ONE))),
+                _ => point.map(|point| {
+                    let i = state.session.add_light_tagged(tag, crate::scene::Light::new(point, 2.0, Vec3::ONE));
+                    // Another kind is made from the point light as the Inspector would make it.
+                    let kind = state.view.new_light;
+                    if let Some(light) = state.session.project().light_as_kind(i, kind) {
+                        if let Some(l) = state.session.edit(tag).lights.get_mut(i) {
+                            *l = light;
+                        }
+                    }
+                    i
+                }),
             };
             light.map(|i| {
-                let depth =
-                    state.session.project().lights.get(i).and_then(|l| vp.project(l.position)).map_or(1.0, |(_, z)| z);
+                let depth = {
+                    let p = state.session.project();
+                    p.lights.get(i).and_then(|l| vp.project(p.light_anchor(l))).map_or(1.0, |(_, z)| z)
+                };
                 state.session.selection.clear();
                 state.session.selection.lights.insert(i);
                 Gesture::MoveLight { tag, light: i, depth, start: pos, applied: Vec3::ZERO }
@@ -528,9 +594,7 @@ fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2
             *applied = total;
             let (tag, light) = (*tag, *light);
             if step != Vec3::ZERO {
-                if let Some(l) = state.session.edit(tag).lights.get_mut(light) {
-                    l.position += step;
-                }
+                state.session.edit(tag).move_light(light, step);
             }
         }
         Some(Gesture::Gizmo { tag, handle, center, grab, applied, snap }) => {
@@ -657,11 +721,13 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
         }
     }
     for (i, l) in project.lights.iter().enumerate() {
-        let Some((s, _)) = vp.project(l.position) else { continue };
+        let anchor = project.light_anchor(l);
+        let Some((s, _)) = vp.project(anchor) else { continue };
         let c = (l.color / l.color.max_element().max(1e-6) * 255.0).clamp(Vec3::ZERO, Vec3::splat(255.0));
         let fill = Color32::from_rgb(c.x as u8, c.y as u8, c.z as u8);
         let selected = state.session.selection.lights.contains(&i);
         let edge = if selected { SELECTED } else { Color32::from_gray(20) };
+        light_direction(project, &vp, painter, l, anchor, if l.hidden { Color32::GRAY } else { fill }, selected);
         for k in 0..8 {
             let a = k as f32 * std::f32::consts::TAU / 8.0;
             let d = egui::vec2(a.cos(), a.sin());

@@ -10,6 +10,7 @@
 mod fit;
 mod ids;
 pub mod io;
+mod light_edit;
 pub mod recovery;
 mod validate;
 mod volume;
@@ -17,6 +18,7 @@ mod volume;
 pub use fit::{FitKeep, SUPPORT_FRACTION};
 pub use ids::NextIds;
 pub use io::{load_project, parse_project, save_project, ProjectError};
+pub use light_edit::{LightKindChoice, DEFAULT_SPOT_ANGLE_DEG, DEFAULT_SPOT_BLEND};
 pub use validate::{
     ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_HEIGHT_FALLOFF, MAX_INTENSITY, MAX_NOISE_AMPLITUDE,
     MAX_RESOLUTION_DEFAULT,
