@@ -134,7 +134,7 @@ impl Injector {
             bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
         let occupancy =
             compute_pipeline(device, "occupancy", &[include_str!("../../shaders/occupancy.wgsl")], &occupancy_layout);
-        let empty = |label| super::pipeline::storage_buffer(device, label, &[]);
+        let empty = |label| super::buffers::storage_buffer(device, label, &[]);
         Self {
             layout,
             pipeline,

@@ -15,29 +15,38 @@
 //! inputs each stage last consumed, and reruns only what a change invalidates.
 
 mod binning;
+mod budget;
+mod buffers;
 mod context;
 mod error;
+mod frame_inputs;
 mod gpu_types;
 mod host_sums;
 mod inject;
+mod keys;
 mod layout;
+mod limits;
 mod march;
 mod opv_store;
+mod outputs;
 mod pipeline;
 mod propagate;
 mod readback;
+mod report;
+mod resources;
 mod slice;
 mod timer;
 
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};
 pub use error::GpuError;
+pub use frame_inputs::{light_has_opv, light_is_negligible, FrameRequest, CULL_RADIANCE};
 pub use gpu_types::{SweepBox, SweepStep};
 pub use layout::shared_constants;
+pub use limits::{analytic_unsupported, human_bytes};
 pub use opv_store::OpvLayout;
-pub use pipeline::{
-    analytic_unsupported, human_bytes, light_has_opv, light_is_negligible, Counters, FogPipeline, FrameReport,
-    FrameRequest, Image, InjectPath, Progress, Stage, StageTimings, CULL_RADIANCE, HOST_MIN_ENTRIES_PER_BRICK,
-};
+pub use outputs::Image;
+pub use pipeline::{FogPipeline, InjectPath, HOST_MIN_ENTRIES_PER_BRICK};
 pub use propagate::{giroud_iterations, sweep_steps, ShellFrame, SweepPlan, EXACT_STEPS_PER_CELL};
+pub use report::{Counters, FrameReport, Progress, Stage, StageTimings};
 pub use slice::{Plane, SliceSource};
