@@ -18,9 +18,10 @@ use super::binning;
 use super::budget::{ms, Clock, Rate, QUICK_SHARE};
 use super::buffers::storage_buffer;
 use super::error::ErrorScope;
-use super::frame_inputs::{particle_gpu, FrameInputs, FrameRequest, Settings};
-use super::gpu_types::{MarchParams, ParticleGpu};
+use super::frame_inputs::{FrameInputs, FrameRequest, Settings};
+use super::gpu_types::MarchParams;
 use super::inject::{InjectInputs, InjectJob, Injector};
+use super::inject_options::{InjectOptions, InjectPath};
 use super::keys::{Baked, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
@@ -34,28 +35,6 @@ use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
 use crate::scene::{GridSpec, Project, Scheme, Volume};
 use std::time::{Duration, Instant};
-
-/// Particle–brick overlaps per brick of the grid from which `InjectPath::Auto` sums on the
-/// host. Below it the host's fixed cost per brick (its sums written, uploaded and read) exceeds
-/// the gather's list walk: on llvmpipe at about 8 the two paths take the same time
-/// (`fogsmith bench --suite scale` measures both on its largest particle cases).
-pub const HOST_MIN_ENTRIES_PER_BRICK: u64 = 8;
-
-/// Where injection sums the particles' gaussians into each cell.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum InjectPath {
-    /// The host on a software adapter (which runs on the same cores, where native loops over
-    /// each particle's cells beat the shader's list walk many times over) for scenes dense
-    /// in particles ([`HOST_MIN_ENTRIES_PER_BRICK`]), the adapter otherwise. Brute-force
-    /// injection and a fixed bin edge measure the adapter's path, so they select it.
-    #[default]
-    Auto,
-    /// `host_sums`: the host scatters each particle over its cells; the adapter adds the
-    /// base fog, layer and noise.
-    Host,
-    /// `shaders/inject.wgsl`: each cell evaluates the particles binned around it.
-    Adapter,
-}
 
 /// Work in progress, dropped whenever its inputs change.
 #[derive(Default)]
@@ -86,11 +65,7 @@ pub struct FogPipeline {
     /// Imported density added under the particles, and a counter bumped when it changes.
     base_layer: Option<(Volume, wgpu::Buffer)>,
     base_layer_generation: u64,
-    brute_force_injection: bool,
-    inject_bin_edge: Option<u32>,
-    inject_path: InjectPath,
-    /// See [`FogPipeline::set_inject_chunk_bytes`].
-    inject_chunk_limit: Option<u64>,
+    inject: InjectOptions,
     opv_layout: OpvLayout,
     /// The OPV textures the stages' shaders were built for: only as many as the current
     /// scene's OPVs fill, since every extra texture adds a branch to each OPV read (the march
@@ -140,10 +115,7 @@ impl FogPipeline {
             last_report: FrameReport::default(),
             base_layer: None,
             base_layer_generation: 0,
-            brute_force_injection: false,
-            inject_bin_edge: None,
-            inject_path: InjectPath::Auto,
-            inject_chunk_limit: None,
+            inject: InjectOptions::default(),
             peak_memory: Default::default(),
             opv_layout,
             stage_layout,
@@ -296,7 +268,7 @@ impl FogPipeline {
         Settings {
             layer_on_grid: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == project.grid),
             layer_generation: self.base_layer_generation,
-            brute_force: self.brute_force_injection,
+            brute_force: self.inject.brute_force,
             bin_size: self.bin_size,
         }
     }
@@ -365,7 +337,7 @@ impl FogPipeline {
         progress.report.timings_ms.inject += ms(planning);
         while self.jobs.inject.is_some() {
             let t = Instant::now();
-            let units = self.inject_item(project, clock.left_ms(t), &mut progress.report.counters)?;
+            let units = self.inject_item(clock.left_ms(t), &mut progress.report.counters)?;
             progress.report.timings_ms.inject += self.item_ms(timer::INJECT, t, units)?;
             if let Some((_, region)) = self.jobs.inject.take_if(|(job, _)| job.done()) {
                 self.baked.record_injection(region);
@@ -530,57 +502,31 @@ impl FogPipeline {
             bricks.sort_unstable();
             bricks.dedup();
         }
-        let max_items = self.inject_chunk_bytes() / 4;
-        let particles: Vec<ParticleGpu> =
-            project.particles.iter().map(|p| particle_gpu(p, key.noise.is_some())).collect();
-        // The host path's per-brick counts are also what decides it, and its cost estimate.
-        let brick_counts = self
-            .host_possible()
-            .then(|| binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false))
-            .filter(|counts| self.host_pays(&project.grid, counts));
-        let job = if let Some(counts) = brick_counts {
-            // The host lists nothing.
-            let ordered = super::host_sums::order(&project.grid, particles, |p| p.cutoff2.sqrt());
-            Injector::begin(&project.grid, Vec::new(), Vec::new(), counts, bricks, max_items, Some(ordered))
-        } else {
-            let counts = binning::choose_bins(
-                &project.grid,
-                &project.particles,
-                max_items,
-                self.brute_force_injection,
-                self.inject_bin_edge,
-            );
-            if counts.bin_size != self.bin_size {
-                self.bin_size = counts.bin_size;
-                inputs.grid.bin_size = counts.bin_size;
-                self.write_scene_uniforms(inputs);
-            }
-            Injector::begin(&project.grid, project.particles.clone(), particles, counts, bricks, max_items, None)
-        };
+        let (job, bin_size) = self.inject.begin(&self.ctx, project, key.noise.is_some(), bricks);
+        if let Some(bin_size) = bin_size.filter(|&b| b != self.bin_size) {
+            self.bin_size = bin_size;
+            inputs.grid.bin_size = bin_size;
+            self.write_scene_uniforms(inputs);
+        }
         self.jobs.inject = Some((job, region));
         self.baked.ev = Some((inputs.ev.clone(), project.particles.clone()));
     }
 
     /// Runs one chunk of the injection sized to `left_ms`; returns its cost units.
-    fn inject_item(
-        &mut self,
-        project: &Project,
-        left_ms: Option<f64>,
-        counters: &mut Counters,
-    ) -> Result<u64, GpuError> {
+    fn inject_item(&mut self, left_ms: Option<f64>, counters: &mut Counters) -> Result<u64, GpuError> {
         let (Some(g), Some((job, _))) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
         let rate = self.rates[timer::INJECT as usize];
         let budget_units = rate.units_in(left_ms);
         let mut count = Injector::chunk_align(&self.ctx, job);
-        while job.next + count < job.bricks.len() && Injector::units(job, &project.grid, count * 2) <= budget_units {
+        while job.next + count < job.bricks.len() && Injector::units(job, &g.spec, count * 2) <= budget_units {
             count *= 2;
         }
         if left_ms.is_none() {
             count = job.bricks.len().max(1);
         }
-        let units = Injector::units(job, &project.grid, count);
+        let units = Injector::units(job, &g.spec, count);
         let layer = match &self.base_layer {
-            Some((v, buf)) if v.grid == project.grid => Some(buf),
+            Some((v, buf)) if v.grid == g.spec => Some(buf),
             _ => None,
         };
         let inputs =
@@ -782,19 +728,18 @@ impl FogPipeline {
     /// binding, the most a chunk can use). Smaller chunks bound memory more tightly at the
     /// cost of more passes; the EV is the same bit for bit.
     pub fn set_inject_chunk_bytes(&mut self, bytes: Option<u64>) {
-        self.inject_chunk_limit = bytes;
+        self.inject.chunk_limit = bytes;
     }
 
     /// The particle–bin list bytes one injection chunk may use.
     pub fn inject_chunk_bytes(&self) -> u64 {
-        let binding = self.ctx.max_binding_bytes();
-        self.inject_chunk_limit.map_or(binding, |b| b.clamp(4, binding))
+        self.inject.chunk_bytes(&self.ctx)
     }
 
     /// Makes every cell evaluate every particle instead of only those binned into its brick:
     /// the brute-force injection, for measuring what binning saves. Off by default.
     pub fn set_brute_force_injection(&mut self, on: bool) {
-        self.brute_force_injection = on;
+        self.inject.brute_force = on;
     }
 
     /// Makes each sweep thread solve `cells` cells (at least one) instead of the adapter's
@@ -813,42 +758,17 @@ impl FogPipeline {
 
     /// Where the injection sums the particles (see [`InjectPath`]).
     pub fn set_inject_path(&mut self, path: InjectPath) {
-        if path != self.inject_path {
-            self.inject_path = path;
+        if path != self.inject.path {
+            self.inject.path = path;
             self.baked.ev = None;
         }
     }
 
     /// Whether injecting `project` sums its particles on the host. `Auto` does on a CPU
     /// adapter (unless brute force or a fixed bin edge asks for the gather) when the
-    /// particles reach at least [`HOST_MIN_ENTRIES_PER_BRICK`] bricks per brick of the grid.
+    /// particles reach at least [`HOST_MIN_ENTRIES_PER_BRICK`](super::HOST_MIN_ENTRIES_PER_BRICK) bricks per brick of the grid.
     pub fn inject_on_host(&self, project: &Project) -> bool {
-        self.host_possible()
-            && self.host_pays(
-                &project.grid,
-                &binning::BinCounts::new(&project.grid, &project.particles, binning::BRICK, false),
-            )
-    }
-
-    /// Whether the injection may take the host path, for scenes dense enough under `Auto`.
-    fn host_possible(&self) -> bool {
-        match self.inject_path {
-            InjectPath::Host => true,
-            InjectPath::Adapter => false,
-            InjectPath::Auto => {
-                self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu
-                    && !self.brute_force_injection
-                    && self.inject_bin_edge.is_none()
-            }
-        }
-    }
-
-    /// Given [`host_possible`](Self::host_possible) and the scene's per-brick particle counts,
-    /// whether it takes the host path.
-    fn host_pays(&self, grid: &GridSpec, brick_counts: &binning::BinCounts) -> bool {
-        self.inject_path == InjectPath::Host
-            || brick_counts.entries()
-                >= HOST_MIN_ENTRIES_PER_BRICK * binning::brick_dims(grid).as_u64vec3().element_product()
+        self.inject.on_host(&self.ctx, project)
     }
 
     /// Bins the injection by this edge across (1, 2, 4 or 8 cells) instead of the one with
@@ -860,7 +780,7 @@ impl FogPipeline {
                 binning::BIN_EDGES
             )));
         }
-        self.inject_bin_edge = edge;
+        self.inject.bin_edge = edge;
         self.baked.ev = None;
         Ok(())
     }
