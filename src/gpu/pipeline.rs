@@ -765,8 +765,9 @@ impl FogPipeline {
     }
 
     /// Whether injecting `project` sums its particles on the host. `Auto` does on a CPU
-    /// adapter (unless brute force or a fixed bin edge asks for the gather) when the
-    /// particles reach at least [`HOST_MIN_ENTRIES_PER_BRICK`](super::HOST_MIN_ENTRIES_PER_BRICK) bricks per brick of the grid.
+    /// adapter (unless brute force or a fixed bin edge asks for the gather) when the particles
+    /// reach at least [`HOST_MIN_ENTRIES_PER_BRICK`](super::HOST_MIN_ENTRIES_PER_BRICK) bricks
+    /// per brick of the grid.
     pub fn inject_on_host(&self, project: &Project) -> bool {
         self.inject.on_host(&self.ctx, project)
     }
