@@ -12,7 +12,11 @@
 //!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
 //!
 //! [`FogPipeline`] owns the long-lived pipelines and the scene's resources, tracks which
-//! inputs each stage last consumed, and reruns only what a change invalidates.
+//! inputs each stage last consumed, and reruns only what a change invalidates. It translates
+//! the project once per call (`frame_inputs`) and keeps its checks (`limits`), keys (`keys`),
+//! resources (`resources`), readbacks (`outputs`) and budgets (`budget`) in files of their
+//! own. The stages (`inject`, `propagate`, `march`, `slice`) depend on the shared context and
+//! helpers (`layout`, `buffers`, `report`), never on the scheduler.
 
 mod binning;
 mod budget;

@@ -130,3 +130,38 @@ impl Progress {
         self.stage == Stage::Done
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_later_slice_adds_work_and_keeps_the_first_slices_judgements() {
+        let mut total = Counters {
+            dispatches: 2,
+            lights_skipped: 1,
+            lights_culled: 1,
+            propagation_iterations: 5,
+            ..Default::default()
+        };
+        total += Counters {
+            dispatches: 3,
+            samples_marched: 7,
+            lights_skipped: 4,
+            lights_culled: 4,
+            propagation_iterations: 3,
+            ..Default::default()
+        };
+        assert_eq!(
+            total,
+            Counters {
+                dispatches: 5,
+                samples_marched: 7,
+                lights_skipped: 1,
+                lights_culled: 1,
+                propagation_iterations: 5,
+                ..Default::default()
+            }
+        );
+    }
+}
