@@ -27,3 +27,19 @@ pub enum GpuError {
     #[error("cancelled")]
     Cancelled,
 }
+
+/// Catches wgpu validation errors of one update as a typed error instead of a panic.
+pub(super) struct ErrorScope(wgpu::ErrorScopeGuard);
+
+impl ErrorScope {
+    pub(super) fn push(device: &wgpu::Device) -> Self {
+        Self(device.push_error_scope(wgpu::ErrorFilter::Validation))
+    }
+
+    pub(super) fn pop(self, stage: &'static str) -> Result<(), GpuError> {
+        match pollster::block_on(self.0.pop()) {
+            Some(e) => Err(GpuError::Validation { stage, message: e.to_string() }),
+            None => Ok(()),
+        }
+    }
+}

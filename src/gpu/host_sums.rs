@@ -132,7 +132,7 @@ impl Setup<'_> {
 
     /// Adds particle `p` to the cells within [lo, hi] of the bricks with slots in
     /// [first, first + count); returns the cells evaluated.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)] // the innermost loop: bounds, slots and tables as plain values, no struct per particle
     fn add(
         &self,
         p: &ParticleGpu,

@@ -126,7 +126,7 @@ impl Injector {
         let occupancy_layout =
             bind_group_layout(device, "occupancy", &[Slot::Uniform, Slot::Texture3d, Slot::StorageWrite]);
         let occupancy = compute_pipeline(device, "occupancy", shaders::occupancy(), &occupancy_layout);
-        let empty = |label| super::pipeline::storage_buffer(device, label, &[]);
+        let empty = |label| super::buffers::storage_buffer(device, label, &[]);
         Self {
             layout,
             pipeline,

@@ -123,9 +123,9 @@ impl Marcher {
         let mut tables = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE).data;
         tables.extend_from_slice(crate::surface_table::glow_table());
         tables.extend_from_slice(crate::surface_table::spec_table());
-        let sun_table = super::pipeline::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
-        let counters_buf = super::pipeline::storage_buffer(device, "counters", &[0u8; 16]);
-        let surfaces_buf = super::pipeline::storage_buffer(device, "surfaces", &[]);
+        let sun_table = super::buffers::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
+        let counters_buf = super::buffers::storage_buffer(device, "counters", &[0u8; 16]);
+        let surfaces_buf = super::buffers::storage_buffer(device, "surfaces", &[]);
         Self { layout, pipeline, sun_table, counters_buf, surfaces_buf }
     }
 
@@ -134,7 +134,7 @@ impl Marcher {
         let device = &ctx.device;
         let bytes: &[u8] = bytemuck::cast_slice(inputs.surfaces);
         if bytes.len() as u64 > self.surfaces_buf.size() {
-            self.surfaces_buf = super::pipeline::storage_buffer(device, "surfaces", bytes);
+            self.surfaces_buf = super::buffers::storage_buffer(device, "surfaces", bytes);
         } else if !bytes.is_empty() {
             ctx.queue.write_buffer(&self.surfaces_buf, 0, bytes);
         }

@@ -15,20 +15,33 @@
 //! constants Rust and WGSL share (`layout::shared_constants`).
 //!
 //! [`FogPipeline`] owns the long-lived pipelines and the scene's resources, tracks which
-//! inputs each stage last consumed, and reruns only what a change invalidates.
+//! inputs each stage last consumed, and reruns only what a change invalidates. It translates
+//! the project once per call (`frame_inputs`) and keeps its checks (`limits`), keys (`keys`),
+//! resources (`resources`), readbacks (`outputs`) and budgets (`budget`) in files of their
+//! own. The stages (`inject`, `propagate`, `march`, `slice`) depend on the shared context and
+//! helpers (`layout`, `buffers`, `report`), never on the scheduler.
 
 mod binning;
+mod budget;
+mod buffers;
 mod context;
 mod error;
+mod frame_inputs;
 mod gpu_types;
 mod host_sums;
 mod inject;
+mod inject_options;
+mod keys;
 mod layout;
+mod limits;
 mod march;
 mod opv_store;
+mod outputs;
 mod pipeline;
 mod propagate;
 mod readback;
+mod report;
+mod resources;
 mod shaders;
 mod slice;
 mod timer;
@@ -36,12 +49,14 @@ mod timer;
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};
 pub use error::GpuError;
+pub use frame_inputs::{light_has_opv, light_is_negligible, FrameRequest, CULL_RADIANCE};
 pub use gpu_types::{SweepBox, SweepStep};
+pub use inject_options::{InjectPath, HOST_MIN_ENTRIES_PER_BRICK};
 pub use layout::shared_constants;
+pub use limits::{analytic_unsupported, human_bytes};
 pub use opv_store::OpvLayout;
-pub use pipeline::{
-    analytic_unsupported, human_bytes, light_has_opv, light_is_negligible, Counters, FogPipeline, FrameReport,
-    FrameRequest, Image, InjectPath, Progress, Stage, StageTimings, CULL_RADIANCE, HOST_MIN_ENTRIES_PER_BRICK,
-};
+pub use outputs::Image;
+pub use pipeline::FogPipeline;
 pub use propagate::{giroud_iterations, sweep_steps, ShellFrame, SweepPlan, EXACT_STEPS_PER_CELL};
+pub use report::{Counters, FrameReport, Progress, Stage, StageTimings};
 pub use slice::{Plane, SliceSource};

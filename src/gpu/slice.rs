@@ -62,7 +62,7 @@ impl Slicer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let plane = super::pipeline::storage_buffer(device, "slice plane", &[]);
+        let plane = super::buffers::storage_buffer(device, "slice plane", &[]);
         Self { layout, pipeline, params, plane }
     }
 

@@ -255,7 +255,7 @@ impl Propagator {
                     .unwrap_or(1);
                 // An even count leaves the result in buffer A, where every other light's OPV is.
                 let iterations = iterations + iterations % 2;
-                let active_buf = super::pipeline::storage_buffer(device, "active lights", bytemuck::cast_slice(active));
+                let active_buf = super::buffers::storage_buffer(device, "active lights", bytemuck::cast_slice(active));
                 let make = |src: &OpvVolumes, dst: &OpvVolumes| {
                     bind_group_with(
                         device,
@@ -315,7 +315,7 @@ impl Propagator {
                     })
                     .collect();
                 let placeholder = [SweepBox::zeroed()];
-                let boxes = super::pipeline::storage_buffer(
+                let boxes = super::buffers::storage_buffer(
                     device,
                     "sweep boxes",
                     bytemuck::cast_slice(if plan.boxes.is_empty() { &placeholder[..] } else { &plan.boxes }),
@@ -365,7 +365,7 @@ impl Propagator {
                     let lists = inputs.analytic_lists.expect("FogPipeline builds the analytic lists before it plans");
                     let particles: Vec<AnalyticParticle> =
                         lists.particles.iter().map(|&i| AnalyticParticle::new(&inputs.particles[i as usize])).collect();
-                    let storage = |label: &str, bytes: &[u8]| super::pipeline::storage_buffer(device, label, bytes);
+                    let storage = |label: &str, bytes: &[u8]| super::buffers::storage_buffer(device, label, bytes);
                     let particles = storage("analytic particles", bytemuck::cast_slice(&particles));
                     let offsets = storage("analytic brick offsets", bytemuck::cast_slice(&lists.offsets));
                     let items = storage("analytic brick items", bytemuck::cast_slice(&lists.items));

@@ -1,0 +1,330 @@
+//! The project in GPU terms: [`FrameInputs`] is built once per call from the project, the
+//! request and the pipeline's settings, and holds what the stages upload (grid, lights,
+//! surfaces, march parameters) and every stage's key. The scheduler and the stages read it;
+//! nothing translates the project a second time.
+
+use super::binning;
+use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
+use super::keys::{EvKey, ImageKey, OpvKey};
+use super::layout::{
+    LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT, POLICY_ADAPTIVE, POLICY_FIXED, POLICY_TWO_LEVEL, SURFACE_BOX,
+    SURFACE_GROUND,
+};
+use crate::scene::{Light, LightKind, Noise, Particle, Project, Scheme, StepPolicy};
+
+/// What to render this frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameRequest {
+    pub width: u32,
+    pub height: u32,
+    pub scheme: Scheme,
+    /// Recompute every stage even if nothing changed.
+    pub force: bool,
+}
+
+impl FrameRequest {
+    /// The project's own render size and propagation scheme.
+    pub fn for_project(project: &Project) -> Self {
+        Self {
+            width: project.render.width,
+            height: project.render.height,
+            scheme: project.propagation.scheme,
+            force: false,
+        }
+    }
+}
+
+/// The pipeline's settings that enter the inputs (see `FogPipeline`'s setters).
+pub(super) struct Settings {
+    /// A base layer resampled for the project's grid is bound.
+    pub layer_on_grid: bool,
+    pub layer_generation: u64,
+    pub brute_force: bool,
+    /// Bin edge of the last injection's particle lists.
+    pub bin_size: u32,
+}
+
+/// One call's project and request in GPU terms.
+pub(super) struct FrameInputs {
+    pub request: FrameRequest,
+    pub grid: GridParams,
+    /// Per light, culled and hidden ones dark.
+    pub lights: Vec<LightGpu>,
+    pub surfaces: Vec<SurfaceGpu>,
+    pub march: MarchParams,
+    pub ev: EvKey,
+    /// Per light: the OPV key at EV generation 0, None when it gets no OPV.
+    opvs: Vec<Option<OpvKey>>,
+    /// Per light: negligible, or unable to reach the grid box.
+    pub culled: Vec<bool>,
+    pub positions: Vec<glam::Vec3>,
+    /// Per light: a directional light's unit direction of travel.
+    pub directions: Vec<Option<glam::Vec3>>,
+    pub sweep_stride: u32,
+    pub sweep_refine: Option<f32>,
+}
+
+impl FrameInputs {
+    pub fn new(project: &Project, request: &FrameRequest, settings: &Settings) -> Self {
+        let (min, max) = (project.grid.min, project.grid.max);
+        let mut lights = Vec::with_capacity(project.lights.len());
+        let mut opvs = Vec::with_capacity(project.lights.len());
+        let mut culled = Vec::with_capacity(project.lights.len());
+        for l in &project.lights {
+            let negligible = light_is_negligible(project, l);
+            let reaches = l.reaches_box(min, max);
+            lights.push(light_gpu(l, negligible));
+            opvs.push(has_opv(l, negligible, reaches).then(|| opv_key(project, l, request.scheme)));
+            culled.push(negligible || !reaches);
+        }
+        let surfaces = surfaces_gpu(project);
+        let noise = noise_of(project);
+        Self {
+            request: *request,
+            grid: grid_params(project, settings),
+            lights,
+            march: march_params(project, request.width, request.height, surfaces.len() as u32),
+            surfaces,
+            ev: EvKey {
+                grid: project.grid,
+                base_extinction: project.medium.base_extinction,
+                height: [project.medium.height_falloff, project.medium.height_origin],
+                layer_generation: settings.layer_generation,
+                brute_force: settings.brute_force,
+                noise,
+            },
+            opvs,
+            culled,
+            positions: project.lights.iter().map(|l| l.position).collect(),
+            directions: project.lights.iter().map(sun_direction).collect(),
+            sweep_stride: project.propagation.sweep_stride,
+            sweep_refine: project.propagation.refine_tolerance(),
+        }
+    }
+
+    pub fn light_count(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// The OPV inputs light `i` needs once the EV is at `ev_generation`, or None when it is
+    /// not propagated at all (hidden, dark or culled).
+    pub fn opv_key(&self, i: usize, ev_generation: u64) -> Option<OpvKey> {
+        self.opvs[i].map(|k| OpvKey { ev_generation, ..k })
+    }
+
+    /// What a march now would read, given the EV generation and OPVs on the GPU.
+    pub fn image_key(&self, ev_generation: u64, opvs: &[Option<OpvKey>]) -> ImageKey {
+        ImageKey {
+            params: self.march,
+            grid: self.grid,
+            lights: self.lights.clone(),
+            surfaces: self.surfaces.clone(),
+            ev_generation,
+            opvs: opvs.to_vec(),
+        }
+    }
+}
+
+/// The OPV key of a light that gets one, at EV generation 0.
+fn opv_key(project: &Project, l: &Light, scheme: Scheme) -> OpvKey {
+    // A sun's volume depends on its direction only, whatever the scheme.
+    if let Some(direction) = sun_direction(l) {
+        return OpvKey {
+            position: direction,
+            ev_generation: 0,
+            scheme: Scheme::Sweep,
+            stride: 0,
+            refine: None,
+            sun: true,
+        };
+    }
+    let (stride, refine) = match scheme {
+        Scheme::Sweep => (project.propagation.sweep_stride, project.propagation.refine_tolerance()),
+        _ => (0, None),
+    };
+    OpvKey { position: l.position, ev_generation: 0, scheme, stride, refine, sun: false }
+}
+
+/// Whether light `l` gets an optical-depth volume: it is shown, has intensity, can reach
+/// the grid box (a spot's cone, a point light's reach) and is not negligible. The others add
+/// nothing to the image, so their volumes are never read (their contents are unspecified).
+pub fn light_has_opv(project: &Project, l: &Light) -> bool {
+    has_opv(l, light_is_negligible(project, l), l.reaches_box(project.grid.min, project.grid.max))
+}
+
+fn has_opv(l: &Light, negligible: bool, reaches_box: bool) -> bool {
+    !(l.hidden || l.intensity <= 0.0 || negligible || !reaches_box)
+}
+
+/// Radiance below which a light's whole contribution is dropped: the tone-mapped display
+/// changes by less than exposure × this, far below one 8-bit step.
+pub const CULL_RADIANCE: f32 = 1e-6;
+
+/// Whether light `l` provably adds less than [`CULL_RADIANCE`] / exposure to every pixel.
+/// Only possible without base fog and surfaces: then light is scattered only inside the grid,
+/// and a pixel receives at most I·albedo·max(phase) / d² (d: the light's distance to the grid
+/// box), since ∫σ_t·exp(−τ) along a ray is below 1.
+pub fn light_is_negligible(project: &Project, l: &Light) -> bool {
+    if !l.reaches_box(project.grid.min, project.grid.max)
+        && project.medium.base_extinction <= 0.0
+        && project.surfaces.is_empty()
+    {
+        return true;
+    }
+    if matches!(l.kind, LightKind::Directional { .. })
+        || project.medium.base_extinction > 0.0
+        || !project.surfaces.is_empty()
+        || project.base_volume.is_some()
+    {
+        return false;
+    }
+    let g = project.grid;
+    let d2 = (l.position - l.position.clamp(g.min, g.max)).length_squared();
+    let gm = project.medium.anisotropy.abs();
+    let max_phase = (1.0 + gm) / (4.0 * std::f32::consts::PI * (1.0 - gm).powi(2));
+    let bound = l.radiance_rgb().max_element() * project.medium.albedo * max_phase / d2;
+    bound * project.render.exposure.max(1e-6) < CULL_RADIANCE
+}
+
+/// The medium's noise when it changes the EV (amplitude above 0), else None.
+pub(super) fn noise_of(project: &Project) -> Option<Noise> {
+    project.medium.noise.filter(|n| n.amplitude > 0.0)
+}
+
+/// The unit direction of travel of a directional light; None for other kinds.
+fn sun_direction(l: &Light) -> Option<glam::Vec3> {
+    match l.kind {
+        LightKind::Directional { direction } => Some(direction.normalize_or_zero()),
+        _ => None,
+    }
+}
+
+/// A particle in the injection's layout: its density counts as noisy when the medium has
+/// noise and the particle takes it.
+pub(super) fn particle_gpu(p: &Particle, noise: bool) -> ParticleGpu {
+    let r = binning::cutoff_radius(p);
+    let density = if p.hidden { 0.0 } else { p.density };
+    ParticleGpu {
+        center: p.center.to_array(),
+        inv_r2: 1.0 / (p.radius * p.radius),
+        density: if noise && p.noise { [0.0, density] } else { [density, 0.0] },
+        cutoff2: r * r,
+        _pad: 0.0,
+    }
+}
+
+fn grid_params(project: &Project, settings: &Settings) -> GridParams {
+    let spec = project.grid;
+    let noise = noise_of(project);
+    GridParams {
+        min: spec.min.to_array(),
+        base_extinction: project.medium.base_extinction,
+        max: spec.max.to_array(),
+        light_count: project.lights.len() as u32,
+        cell: spec.cell_size().to_array(),
+        has_base_layer: settings.layer_on_grid as u32,
+        dims: spec.resolution.to_array(),
+        bin_size: settings.bin_size,
+        height_falloff: project.medium.height_falloff,
+        height_origin: project.medium.height_origin,
+        _pad_h: [0; 2],
+        noise_amplitude: noise.map_or(0.0, |n| n.amplitude),
+        noise_frequency: noise.map_or(0.0, |n| n.frequency),
+        noise_octaves: noise.map_or(0, |n| n.effective_octaves(&spec)),
+        noise_seed: noise.map_or(0, |n| n.seed),
+    }
+}
+
+fn light_gpu(l: &Light, culled: bool) -> LightGpu {
+    let rgb = if l.hidden || culled { glam::Vec3::ZERO } else { l.radiance_rgb() };
+    let (kind, direction, angle, blend) = match l.kind {
+        LightKind::Point => (LIGHT_POINT, glam::Vec3::ZERO, 0.0, 0.0),
+        LightKind::Spot { direction, angle_deg, blend } => {
+            (LIGHT_SPOT, direction.normalize_or_zero(), angle_deg.to_radians(), blend)
+        }
+        LightKind::Directional { direction } => (LIGHT_DIRECTIONAL, direction.normalize_or_zero(), 0.0, 0.0),
+    };
+    LightGpu {
+        position: l.position.to_array(),
+        kind,
+        rgb: rgb.to_array(),
+        angle,
+        direction: direction.to_array(),
+        blend,
+    }
+}
+
+/// The project's surfaces in the layout of `shaders/march.wgsl`.
+fn surfaces_gpu(project: &Project) -> Vec<SurfaceGpu> {
+    let mut out: Vec<SurfaceGpu> = project
+        .surfaces
+        .boxes
+        .iter()
+        .map(|b| SurfaceGpu {
+            min: b.min.to_array(),
+            kind: SURFACE_BOX,
+            max: b.max.to_array(),
+            specular: b.specular,
+            albedo: b.albedo.to_array(),
+            phong_exponent: b.phong_exponent,
+        })
+        .collect();
+    if let Some(g) = &project.surfaces.ground {
+        out.push(SurfaceGpu {
+            min: [0.0, g.height, 0.0],
+            kind: SURFACE_GROUND,
+            max: [0.0; 3],
+            specular: g.specular,
+            albedo: g.albedo.to_array(),
+            phong_exponent: g.phong_exponent,
+        });
+    }
+    out
+}
+/// Camera basis scaled to the image plane, step policy and far distance for the march.
+fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) -> MarchParams {
+    let cam = &project.camera;
+    let r = &project.render;
+    let (right, up, forward) = cam.basis();
+    let tan_half = (cam.fov_y_deg.to_radians() * 0.5).tan();
+    let aspect = width as f32 / height as f32;
+    let step = r.step_factor * project.grid.cell_size().min_element();
+    let base = project.medium.base_extinction;
+    // Beyond the grid only base fog remains; follow it until its transmittance is 1e-8.
+    // Height fog thins upwards, so no density bounds the distance: the cap alone applies.
+    let far_distance = if base > 0.0 {
+        let reach = if project.medium.height_falloff > 0.0 { f32::INFINITY } else { 18.42 / base };
+        reach.min(20.0 * project.grid.size().length())
+    } else {
+        0.0
+    };
+    MarchParams {
+        origin: cam.position.to_array(),
+        step,
+        right: (right * tan_half * aspect).to_array(),
+        albedo: project.medium.albedo,
+        up: (up * tan_half).to_array(),
+        anisotropy: project.medium.anisotropy,
+        forward: forward.to_array(),
+        exposure: r.exposure,
+        size: [width, height],
+        tr_cutoff: r.transmittance_cutoff,
+        far_distance,
+        policy: match r.step_policy {
+            StepPolicy::Fixed => POLICY_FIXED,
+            StepPolicy::TwoLevel => POLICY_TWO_LEVEL,
+            StepPolicy::Adaptive => POLICY_ADAPTIVE,
+        },
+        near_steps: r.near_steps,
+        far_steps: r.far_steps,
+        skip_empty: r.skip_empty as u32,
+        tau_target: r.tau_target,
+        near_fraction: r.near_fraction,
+        min_step: 0.25 * step,
+        max_step: 4.0 * step,
+        surface_count,
+        row_offset: 0,
+        sun_count: project.lights.iter().filter(|l| matches!(l.kind, LightKind::Directional { .. })).count() as u32,
+        _pad: 0,
+    }
+}

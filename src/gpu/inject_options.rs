@@ -1,0 +1,105 @@
+//! How the injection runs: where it sums the particles (host or adapter), the bin edge of
+//! its particle lists, the size of its memory chunks, and brute force for measurements.
+
+use super::binning::{self, BinCounts};
+use super::frame_inputs::particle_gpu;
+use super::gpu_types::ParticleGpu;
+use super::host_sums;
+use super::inject::{InjectJob, Injector};
+use super::GpuContext;
+use crate::scene::{GridSpec, Project};
+
+/// Particle–brick overlaps per brick of the grid from which `InjectPath::Auto` sums on the
+/// host. Below it the host's fixed cost per brick (its sums written, uploaded and read) exceeds
+/// the gather's list walk: on llvmpipe at about 8 the two paths take the same time
+/// (`fogsmith bench --suite scale` measures both on its largest particle cases).
+pub const HOST_MIN_ENTRIES_PER_BRICK: u64 = 8;
+
+/// Where injection sums the particles' gaussians into each cell.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum InjectPath {
+    /// The host on a software adapter (which runs on the same cores, where native loops over
+    /// each particle's cells beat the shader's list walk many times over) for scenes dense
+    /// in particles ([`HOST_MIN_ENTRIES_PER_BRICK`]), the adapter otherwise. Brute-force
+    /// injection and a fixed bin edge measure the adapter's path, so they select it.
+    #[default]
+    Auto,
+    /// `host_sums`: the host scatters each particle over its cells; the adapter adds the
+    /// base fog, layer and noise.
+    Host,
+    /// `shaders/inject.wgsl`: each cell evaluates the particles binned around it.
+    Adapter,
+}
+
+/// The injection's settings (see `FogPipeline`'s setters).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct InjectOptions {
+    pub brute_force: bool,
+    pub bin_edge: Option<u32>,
+    pub path: InjectPath,
+    /// Cap on one chunk's particle–bin list bytes (None: one storage binding).
+    pub chunk_limit: Option<u64>,
+}
+
+impl InjectOptions {
+    /// The particle–bin list bytes one injection chunk may use.
+    pub fn chunk_bytes(&self, ctx: &GpuContext) -> u64 {
+        let binding = ctx.max_binding_bytes();
+        self.chunk_limit.map_or(binding, |b| b.clamp(4, binding))
+    }
+
+    /// Whether injecting `project` sums its particles on the host.
+    pub fn on_host(&self, ctx: &GpuContext, project: &Project) -> bool {
+        self.host_possible(ctx)
+            && self.host_pays(&project.grid, &BinCounts::new(&project.grid, &project.particles, binning::BRICK, false))
+    }
+
+    /// The injection of `bricks` of `project`, on the path these options choose, with the bin
+    /// edge of its particle lists when the adapter sums them. `noise`: the medium's noise
+    /// modulates the EV.
+    pub fn begin(
+        &self,
+        ctx: &GpuContext,
+        project: &Project,
+        noise: bool,
+        bricks: Vec<u32>,
+    ) -> (InjectJob, Option<u32>) {
+        let grid = &project.grid;
+        let max_items = self.chunk_bytes(ctx) / 4;
+        let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, noise)).collect();
+        // The host path's per-brick counts are also what decides it, and its cost estimate.
+        let brick_counts = self
+            .host_possible(ctx)
+            .then(|| BinCounts::new(grid, &project.particles, binning::BRICK, false))
+            .filter(|counts| self.host_pays(grid, counts));
+        if let Some(counts) = brick_counts {
+            // The host lists nothing.
+            let ordered = host_sums::order(grid, particles, |p| p.cutoff2.sqrt());
+            let job = Injector::begin(grid, Vec::new(), Vec::new(), counts, bricks, max_items, Some(ordered));
+            return (job, None);
+        }
+        let counts = binning::choose_bins(grid, &project.particles, max_items, self.brute_force, self.bin_edge);
+        let bin_size = counts.bin_size;
+        let job = Injector::begin(grid, project.particles.clone(), particles, counts, bricks, max_items, None);
+        (job, Some(bin_size))
+    }
+
+    /// Whether the injection may take the host path, for scenes dense enough under `Auto`.
+    fn host_possible(&self, ctx: &GpuContext) -> bool {
+        match self.path {
+            InjectPath::Host => true,
+            InjectPath::Adapter => false,
+            InjectPath::Auto => {
+                ctx.adapter_info.device_type == wgpu::DeviceType::Cpu && !self.brute_force && self.bin_edge.is_none()
+            }
+        }
+    }
+
+    /// Given [`host_possible`](Self::host_possible) and the scene's per-brick particle counts,
+    /// whether it takes the host path.
+    fn host_pays(&self, grid: &GridSpec, brick_counts: &BinCounts) -> bool {
+        self.path == InjectPath::Host
+            || brick_counts.entries()
+                >= HOST_MIN_ENTRIES_PER_BRICK * binning::brick_dims(grid).as_u64vec3().element_product()
+    }
+}
