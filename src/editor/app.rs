@@ -120,6 +120,7 @@ impl EditorApp {
             after_save: None,
             options,
             frames: 0,
+            last_input: std::time::Instant::now(),
             scripted: Scripted::default(),
             title: String::new(),
             quit_confirmed: false,

@@ -683,6 +683,22 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
     });
     ui.label(format!("Last update: {:.1} ms wall", gpu.update_ms))
         .on_hover_text("All work items and waits of the last frame's pipeline call");
+    if let Some((frame, rest)) = gpu.frame_ms {
+        let budget = match gpu.budget_ms {
+            Some((ms, true)) => format!("{ms:.0} ms budget (idle)"),
+            Some((ms, false)) => format!("{ms:.0} ms budget"),
+            None => "no budget (wait for full)".into(),
+        };
+        ui.label(format!(
+            "Frame: {frame:.1} ms = {:.1} ms pipeline + {rest:.1} ms UI and present; {budget}",
+            frame - rest
+        ))
+        .on_hover_text(
+            "Where the last frame's wall time went: the pipeline's work items (with the quick image), and \
+                 everything else (egui's layout and painting, presenting). While no input arrives the budget \
+                 grows with the rest of the frame, so most of the time goes to the work.",
+        );
+    }
     let p = gpu.progress;
     let stage = match p.stage {
         crate::gpu::Stage::Inject => "injecting".to_string(),

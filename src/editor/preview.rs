@@ -14,6 +14,30 @@ use std::time::{Duration, Instant};
 /// the pointer while the pipeline refines the preview over the following frames.
 pub const FRAME_BUDGET_MS: f64 = 30.0;
 
+/// While no input arrives, the pipeline may take this many times the rest of the last
+/// frame's cost (egui, the quick march, present), so that most of the wall time goes to the
+/// work and convergence approaches the work's own time...
+pub const IDLE_WORK_SHARE: f64 = 3.0;
+/// ...but no more than this, so input that arrives during an idle frame shows within about
+/// 200 ms.
+pub const IDLE_BUDGET_MAX_MS: f64 = 120.0;
+
+/// How long without input before a frame counts as idle: shorter than the gaps between
+/// the steps of a wheel turn or a slow drag, so those keep the frame budget.
+pub const IDLE_AFTER: Duration = Duration::from_millis(400);
+
+/// The pipeline's budget for a frame: [`FRAME_BUDGET_MS`] during input, and while idle
+/// [`IDLE_WORK_SHARE`] times the rest of the last frame, between the two bounds.
+pub fn frame_budget_ms(idle: bool, last_frame_ms: Option<f64>, last_update_ms: f64) -> f64 {
+    match (idle, last_frame_ms) {
+        (true, Some(frame)) => {
+            let rest = (frame - last_update_ms).max(0.0);
+            (IDLE_WORK_SHARE * rest).clamp(FRAME_BUDGET_MS, IDLE_BUDGET_MAX_MS)
+        }
+        _ => FRAME_BUDGET_MS,
+    }
+}
+
 /// What the preview shows, for scripted drivers of the editor (tests, `bench`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PreviewStatus {
@@ -42,6 +66,8 @@ impl GpuView {
             error: None,
             renders: 0,
             update_ms: 0.0,
+            budget_ms: None,
+            frame_ms: None,
             last_frame: u64::MAX,
             shown: None,
         }
@@ -115,9 +141,23 @@ impl EditorState {
             return;
         }
         gpu.last_frame = self.frames;
+        let last_frame = self.view.clock.last_frame_ms();
+        gpu.frame_ms = last_frame.map(|f| (f, (f - gpu.update_ms).max(0.0)));
+        // Idle: no gesture, no button held, and no event (pointer moves, keys, wheel) for a while.
+        if self.ctx.input(|i| !i.events.is_empty() || i.pointer.any_down()) {
+            self.last_input = Instant::now();
+        }
+        let idle = self.view.gesture.is_none() && self.last_input.elapsed() >= IDLE_AFTER;
         let budget = match self.view.quality {
-            Quality::Balanced => Some(Duration::from_secs_f64(FRAME_BUDGET_MS * 1e-3)),
-            Quality::Full => None,
+            Quality::Balanced => {
+                let ms = frame_budget_ms(idle, last_frame, gpu.update_ms);
+                gpu.budget_ms = Some((ms, idle && ms > FRAME_BUDGET_MS));
+                Some(Duration::from_secs_f64(ms * 1e-3))
+            }
+            Quality::Full => {
+                gpu.budget_ms = None;
+                None
+            }
         };
         // The base volume, loaded through the project like every other path.
         let project = self.session.project();
@@ -182,5 +222,20 @@ impl EditorState {
             shown_size: gpu.progress.shown_size,
             renders: gpu.renders,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_budget_grows_only_while_idle_and_stays_within_its_bounds() {
+        assert_eq!(frame_budget_ms(false, Some(200.0), 30.0), FRAME_BUDGET_MS, "input keeps the frame budget");
+        assert_eq!(frame_budget_ms(true, None, 0.0), FRAME_BUDGET_MS, "no frame measured yet");
+        assert_eq!(frame_budget_ms(true, Some(60.0), 30.0), 90.0, "three times the 30 ms rest of the frame");
+        assert_eq!(frame_budget_ms(true, Some(35.0), 30.0), FRAME_BUDGET_MS, "never below the frame budget");
+        assert_eq!(frame_budget_ms(true, Some(500.0), 30.0), IDLE_BUDGET_MAX_MS, "never above the cap");
+        assert_eq!(frame_budget_ms(true, Some(10.0), 30.0), FRAME_BUDGET_MS, "a rest below zero counts as none");
     }
 }

@@ -130,6 +130,11 @@ pub(crate) struct GpuView {
     pub renders: u64,
     /// Wall time of the last pipeline call, all items and waits included.
     pub update_ms: f64,
+    /// The last frame's budget for the pipeline, ms (None: to convergence), and whether it
+    /// was an idle frame's larger one.
+    pub budget_ms: Option<(f64, bool)>,
+    /// Wall time of the last whole frame and the part of it not spent in the pipeline, ms.
+    pub frame_ms: Option<(f64, f64)>,
     /// Frame at which the pipeline last ran, so that it runs once per frame.
     pub(super) last_frame: u64,
     /// The project state the image on show was rendered from.
@@ -164,6 +169,11 @@ impl FrameClock {
         while self.times.len() > 2 && now.duration_since(self.times[0]).as_secs_f32() > 2.0 {
             self.times.pop_front();
         }
+    }
+    /// Wall time between the last two frames' starts, ms.
+    pub fn last_frame_ms(&self) -> Option<f64> {
+        let n = self.times.len();
+        (n >= 2).then(|| self.times[n - 1].duration_since(self.times[n - 2]).as_secs_f64() * 1e3)
     }
     /// Frames per second over the recent window, if the editor has been redrawing.
     pub fn fps(&self) -> Option<f32> {
@@ -247,6 +257,8 @@ pub struct EditorState {
     pub(super) after_save: Option<Action>,
     pub(super) options: EditorOptions,
     pub(super) frames: u64,
+    /// When the last input event (pointer, keys, wheel) arrived.
+    pub(super) last_input: std::time::Instant,
     pub(super) scripted: Scripted,
     pub(super) title: String,
     pub(super) quit_confirmed: bool,
