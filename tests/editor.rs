@@ -422,30 +422,14 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
     assert!(!status.shadows_stale);
     let shown = h.state().pipeline().unwrap().read_image().unwrap();
     assert_eq!([shown.width, shown.height], status.shown_size);
-    let p = h.state().session().project().clone();
-    let mut fresh = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("an adapter"));
-    let request = fogsmith::gpu::FrameRequest {
-        width: shown.width,
-        height: shown.height,
-        ..fogsmith::gpu::FrameRequest::for_project(&p)
-    };
-    fresh.update(&p, &request).unwrap();
-    let want = fresh.read_image().unwrap();
-    let (diff, peak) = shown
-        .rgba
-        .iter()
-        .flatten()
-        .zip(want.rgba.iter().flatten())
-        .fold((0f32, 0f32), |(d, m), (a, b)| (d.max((a - b).abs()), m.max(b.abs())));
-    let differing =
-        shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    let (differing, diff, peak) = compare_with_fresh_bake(&h);
     eprintln!("converged vs fresh: max difference {diff:e} of peak {peak:e}, {differing} values differ");
     assert!(differing == 0, "the converged preview equals a fresh bake: max difference {diff:e} of peak {peak:e}, {differing} values differ");
 }
 
-/// The preview image against a fresh bake of the session's project at the same size: the
-/// number of values that differ in their bits.
-fn differs_from_fresh_bake(h: &Harness<'_, EditorApp>) -> usize {
+/// The preview image against a fresh bake of the session's project at the same size: how
+/// many values differ in their bits, the largest difference and the fresh bake's peak.
+fn compare_with_fresh_bake(h: &Harness<'_, EditorApp>) -> (usize, f32, f32) {
     let shown = h.state().pipeline().unwrap().read_image().unwrap();
     let p = h.state().session().project().clone();
     let mut fresh = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("an adapter"));
@@ -456,7 +440,13 @@ fn differs_from_fresh_bake(h: &Harness<'_, EditorApp>) -> usize {
     };
     fresh.update(&p, &request).unwrap();
     let want = fresh.read_image().unwrap();
-    shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).filter(|(a, b)| a.to_bits() != b.to_bits()).count()
+    let pairs = || shown.rgba.iter().flatten().zip(want.rgba.iter().flatten());
+    let (diff, peak) = pairs().fold((0f32, 0f32), |(d, m), (a, b)| (d.max((a - b).abs()), m.max(b.abs())));
+    (pairs().filter(|(a, b)| a.to_bits() != b.to_bits()).count(), diff, peak)
+}
+
+fn differs_from_fresh_bake(h: &Harness<'_, EditorApp>) -> usize {
+    compare_with_fresh_bake(h).0
 }
 
 /// The Inspector's kind selector turns a point light into a sun and a spot: each is one undo

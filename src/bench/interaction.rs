@@ -1,6 +1,6 @@
 //! `bench --suite interaction`: the editor as an artist meets it. Drives the real editor
 //! (egui_kittest on the real pipeline and device, every frame painted) with scripted input on
-//! the cloud demo, timed by the wall clock:
+//! every demo (or those `--scene` names), timed by the wall clock:
 //! - a 40-dab paint stroke over 2 s;
 //! - a 1 s drag of a light (Select tool);
 //! - 5 wheel steps of the Scale tool on a selection;
@@ -8,7 +8,9 @@
 //!
 //! For each it records every frame's wall time (p50, p95, p99, max), the time from each input
 //! to the end of the first frame whose preview shows it, and the time from the end of the
-//! interaction to the converged image (full resolution, fresh optical depths).
+//! interaction to the converged image (full resolution, fresh optical depths), and where the
+//! frames' time went: the pipeline's call (budgeted work and the quick image) against the
+//! rest (egui's layout and painting), during the interaction and while converging.
 
 use super::BenchError;
 use crate::editor::app::{Quality, StartProject};
@@ -31,6 +33,12 @@ struct Driver {
     inputs: Vec<(Instant, u64)>,
     /// Per frame: when it ended and the generation on show.
     shown: Vec<(Instant, Option<u64>)>,
+    /// Per frame: the pipeline call's wall time, ms (its share of the frame's).
+    pipeline: Vec<f64>,
+    /// The same two for the frames after the interaction, until convergence.
+    settle_frames: Vec<f64>,
+    settle_pipeline: Vec<f64>,
+    scene: String,
 }
 
 impl Driver {
@@ -45,6 +53,7 @@ impl Driver {
         self.h.render().map_err(|message| BenchError::Editor(format!("painting a frame failed: {message}")))?;
         let end = Instant::now();
         self.frames.push((end - queued).as_secs_f64() * 1e3);
+        self.pipeline.push(self.h.state().pipeline_ms().unwrap_or(0.0));
         let status = self
             .h
             .state()
@@ -65,8 +74,10 @@ impl Driver {
         self.h.state().preview_status().is_some_and(|s| s.converged)
     }
 
-    /// Frames until the preview converges; returns the time it took.
+    /// Frames until the preview converges; returns the time it took. Their frame and
+    /// pipeline times go to `settle_frames` and `settle_pipeline`.
     fn settle(&mut self) -> Result<f64, BenchError> {
+        let (frames, pipeline) = (self.frames.len(), self.pipeline.len());
         let start = Instant::now();
         while !self.converged() {
             if start.elapsed() > CONVERGE_LIMIT {
@@ -77,6 +88,8 @@ impl Driver {
             }
             self.frame(None)?;
         }
+        self.settle_frames = self.frames.split_off(frames);
+        self.settle_pipeline = self.pipeline.split_off(pipeline);
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 
@@ -84,6 +97,7 @@ impl Driver {
         self.frames.clear();
         self.inputs.clear();
         self.shown.clear();
+        self.pipeline.clear();
     }
 
     /// Runs frames for `duration`, feeding the pointer along `path(t)` (t in [0, 1]) at the
@@ -117,7 +131,10 @@ impl Driver {
     /// The figures of the interaction just run, after waiting for convergence.
     fn record(&mut self, name: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Value, BenchError> {
         let frames = self.frames.clone();
+        let pipeline = self.pipeline.clone();
         let converge_ms = self.settle()?;
+        let during = Breakdown::of(&frames, &pipeline);
+        let converging = Breakdown::of(&self.settle_frames, &self.settle_pipeline);
         let mut latencies = Vec::new();
         for (i, &(t, _)) in self.inputs.iter().enumerate() {
             let later: Vec<u64> = self.inputs[i..].iter().map(|&(_, g)| g).collect();
@@ -132,7 +149,7 @@ impl Driver {
         let l = percentiles(&latencies);
         let record = json!({
             "suite": "interaction",
-            "scene": "cloud",
+            "scene": self.scene,
             "case": name,
             "quality": format!("{quality:?}"),
             "frames": frames.len(),
@@ -141,13 +158,59 @@ impl Driver {
             "inputs_never_shown": unseen,
             "input_to_preview_ms": {"p50": l[0], "p95": l[1], "p99": l[2], "max": l[3]},
             "end_to_converged_ms": converge_ms,
+            "breakdown_during": during.json(),
+            "breakdown_converging": converging.json(),
             "frame_times_ms": frames,
         });
         log(&format!(
-            "interaction {name:<12} {:?}: {} frames, frame ms p50 {:.0} p95 {:.0} p99 {:.0} max {:.0}; input→preview ms p50 {:.0} max {:.0} ({} inputs, {} never shown); end→converged {:.0} ms",
-            quality, frames.len(), f[0], f[1], f[2], f[3], l[0], l[3], self.inputs.len(), unseen, converge_ms
+            "interaction {:<8} {name:<12} {:?}: {} frames, frame ms p50 {:.0} p95 {:.0} p99 {:.0} max {:.0}; input→preview ms p50 {:.0} max {:.0} ({} inputs, {} never shown); end→converged {:.0} ms",
+            self.scene, quality, frames.len(), f[0], f[1], f[2], f[3], l[0], l[3], self.inputs.len(), unseen, converge_ms
+        ));
+        log(&format!(
+            "    frame time during: {}; while converging ({} frames): {}",
+            during.text(),
+            self.settle_frames.len(),
+            converging.text()
         ));
         Ok(record)
+    }
+}
+
+/// Where a run of frames' wall time went: the pipeline's call against the rest.
+struct Breakdown {
+    frames: usize,
+    total_ms: f64,
+    pipeline_ms: f64,
+}
+
+impl Breakdown {
+    fn of(frames: &[f64], pipeline: &[f64]) -> Self {
+        Self { frames: frames.len(), total_ms: frames.iter().sum(), pipeline_ms: pipeline.iter().sum() }
+    }
+    fn rest_ms(&self) -> f64 {
+        (self.total_ms - self.pipeline_ms).max(0.0)
+    }
+    fn json(&self) -> Value {
+        let n = self.frames.max(1) as f64;
+        json!({
+            "frames": self.frames,
+            "mean_frame_ms": self.total_ms / n,
+            "mean_pipeline_ms": self.pipeline_ms / n,
+            "mean_rest_ms": self.rest_ms() / n,
+        })
+    }
+    fn text(&self) -> String {
+        if self.frames == 0 {
+            return "no frames".into();
+        }
+        let n = self.frames as f64;
+        format!(
+            "mean {:.0} ms = pipeline {:.0} ms ({:.0} %) + UI and painting {:.0} ms",
+            self.total_ms / n,
+            self.pipeline_ms / n,
+            100.0 * self.pipeline_ms / self.total_ms.max(1e-9),
+            self.rest_ms() / n
+        )
     }
 }
 
@@ -162,10 +225,10 @@ fn percentiles(v: &[f64]) -> [f64; 4] {
     [at(0.5), at(0.95), at(0.99), s[s.len() - 1]]
 }
 
-/// Runs the script on the cloud demo with the preview in `quality`.
-pub fn run(quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
-    let project = crate::demos::demo("cloud")?;
-    let start = StartProject { project, path: None, name: "cloud.ron".into(), error: None };
+/// Runs the script on demo `scene` with the preview in `quality`.
+pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
+    let project = crate::demos::demo(scene)?;
+    let start = StartProject { project, path: None, name: format!("{scene}.ron"), error: None };
     let h = Harness::builder()
         // The window size whose viewport is about 840×455 points in the default layout.
         .with_size(Vec2::new(1384.0, 869.0))
@@ -175,12 +238,21 @@ pub fn run(quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, Be
             app.set_quality(quality);
             app
         });
-    let mut d = Driver { h, frames: Vec::new(), inputs: Vec::new(), shown: Vec::new() };
+    let mut d = Driver {
+        h,
+        frames: Vec::new(),
+        inputs: Vec::new(),
+        shown: Vec::new(),
+        pipeline: Vec::new(),
+        settle_frames: Vec::new(),
+        settle_pipeline: Vec::new(),
+        scene: scene.to_owned(),
+    };
     d.frame(None)?;
     d.settle()?;
     let rect = d.h.state().viewport_rect().ok_or_else(|| BenchError::Editor("the viewport is not shown".into()))?;
     log(&format!(
-        "interaction: viewport {:.0}×{:.0} points, adapter {}",
+        "interaction: {scene}, viewport {:.0}×{:.0} points, adapter {}",
         rect.width(),
         rect.height(),
         d.h.state().pipeline().map(|p| p.context().adapter_summary()).unwrap_or_default()
@@ -204,18 +276,22 @@ pub fn run(quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, Be
     let light = project
         .lights
         .iter()
-        .filter_map(|l| view.project(l.position).map(|(p, _)| p))
+        .filter_map(|l| view.project(project.light_anchor(l)).map(|(p, _)| p))
         .filter(|p| rect.shrink(20.0).contains(*p))
-        .min_by(|a, b| a.distance(centre).total_cmp(&b.distance(centre)))
-        .ok_or_else(|| BenchError::Editor("no light of the scene is in view".into()))?;
-    d.h.state_mut().set_tool(Tool::Select);
-    d.begin();
-    d.frame(Some(Event::PointerMoved(light)))?;
-    d.press(light, true)?;
-    let drag = |t: f32| light + Vec2::new(t * rect.width() * 0.15, -t * rect.height() * 0.1);
-    d.pointer_path(Duration::from_secs(1), 30, drag)?;
-    d.press(drag(1.0), false)?;
-    records.push(d.record("light_drag", quality, log)?);
+        .min_by(|a, b| a.distance(centre).total_cmp(&b.distance(centre)));
+    match light {
+        Some(light) => {
+            d.h.state_mut().set_tool(Tool::Select);
+            d.begin();
+            d.frame(Some(Event::PointerMoved(light)))?;
+            d.press(light, true)?;
+            let drag = |t: f32| light + Vec2::new(t * rect.width() * 0.15, -t * rect.height() * 0.1);
+            d.pointer_path(Duration::from_secs(1), 30, drag)?;
+            d.press(drag(1.0), false)?;
+            records.push(d.record("light_drag", quality, log)?);
+        }
+        None => log(&format!("interaction {scene:<8} light_drag: skipped, no light of the scene is in view")),
+    }
 
     // Five wheel steps of Scale on a selection of particles.
     {

@@ -139,8 +139,15 @@ fn run_suite(
             use crate::editor::app::Quality;
             // Blocking (every frame renders to convergence) is the editor before the frame budget.
             let modes = if ctx.quick { vec![Quality::Balanced] } else { vec![Quality::Balanced, Quality::Full] };
-            for quality in modes {
-                out.extend(interaction::run(quality, log)?);
+            let scenes: Vec<String> = if ctx.scenes.is_empty() {
+                crate::demos::DEMOS.iter().map(|(name, _)| name.to_string()).collect()
+            } else {
+                ctx.scenes.clone()
+            };
+            for scene in &scenes {
+                for &quality in &modes {
+                    out.extend(interaction::run(scene, quality, log)?);
+                }
             }
             Ok(())
         }

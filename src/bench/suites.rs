@@ -35,7 +35,7 @@ pub struct Context {
     pub(super) gpu: FogPipeline,
     pub(super) quick: bool,
     resolutions: Vec<u32>,
-    scenes: Vec<String>,
+    pub(super) scenes: Vec<String>,
     schemes: Vec<String>,
 }
 

@@ -101,8 +101,8 @@ enum Command {
         /// suite's own list).
         #[arg(long, value_delimiter = ',')]
         resolution: Vec<u32>,
-        /// Demo scenes of the propagation suite, e.g. cornell,street (default: cornell, cloud
-        /// and street).
+        /// Demo scenes of the propagation and interaction suites, e.g. cornell,street (default:
+        /// cornell, cloud and street for propagation, every demo for interaction).
         #[arg(long, value_delimiter = ',')]
         scene: Vec<String>,
         /// Schemes of the propagation suite by their record label, e.g. sweep8,sweep8r,exact

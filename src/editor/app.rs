@@ -197,6 +197,12 @@ impl EditorApp {
         self.state.preview_status()
     }
 
+    /// Wall time of the last frame's pipeline call (its budgeted work and the quick image),
+    /// ms; 0 when that frame made none.
+    pub fn pipeline_ms(&self) -> Option<f64> {
+        self.state.gpu.as_ref().map(|g| g.frame_update_ms)
+    }
+
     pub fn gpu_error(&self) -> Option<String> {
         self.state.gpu.as_ref().and_then(|g| g.error.clone()).or_else(|| self.state.gpu_missing.clone())
     }

@@ -66,6 +66,7 @@ impl GpuView {
             error: None,
             renders: 0,
             update_ms: 0.0,
+            frame_update_ms: 0.0,
             budget_ms: None,
             frame_ms: None,
             last_frame: u64::MAX,
@@ -92,6 +93,7 @@ impl GpuView {
         let started = Instant::now();
         let result = self.pipeline.advance(project, &request, budget);
         self.update_ms = started.elapsed().as_secs_f64() * 1e3;
+        self.frame_update_ms = self.update_ms;
         let progress = match result {
             Ok(p) => p,
             Err(e) => {
@@ -142,7 +144,8 @@ impl EditorState {
         }
         gpu.last_frame = self.frames;
         let last_frame = self.view.clock.last_frame_ms();
-        gpu.frame_ms = last_frame.map(|f| (f, (f - gpu.update_ms).max(0.0)));
+        gpu.frame_ms = last_frame.map(|f| (f, (f - gpu.frame_update_ms).max(0.0)));
+        let last_update_ms = std::mem::take(&mut gpu.frame_update_ms);
         // Idle: no gesture, no button held, and no event (pointer moves, keys, wheel) for a while.
         if self.ctx.input(|i| !i.events.is_empty() || i.pointer.any_down()) {
             self.last_input = Instant::now();
@@ -150,7 +153,7 @@ impl EditorState {
         let idle = self.view.gesture.is_none() && self.last_input.elapsed() >= IDLE_AFTER;
         let budget = match self.view.quality {
             Quality::Balanced => {
-                let ms = frame_budget_ms(idle, last_frame, gpu.update_ms);
+                let ms = frame_budget_ms(idle, last_frame, last_update_ms);
                 gpu.budget_ms = Some((ms, idle && ms > FRAME_BUDGET_MS));
                 Some(Duration::from_secs_f64(ms * 1e-3))
             }

@@ -130,6 +130,8 @@ pub(crate) struct GpuView {
     pub renders: u64,
     /// Wall time of the last pipeline call, all items and waits included.
     pub update_ms: f64,
+    /// Wall time of this frame's pipeline call, ms: 0 when the frame made none (converged).
+    pub frame_update_ms: f64,
     /// The last frame's budget for the pipeline, ms (None: to convergence), and whether it
     /// was an idle frame's larger one.
     pub budget_ms: Option<(f64, bool)>,
