@@ -98,6 +98,44 @@ fn an_edit_is_on_show_after_one_call_and_shadows_catch_up() {
     assert_same_as_fresh(&gpu, &p, &request);
 }
 
+/// Progressive resolution: after an edit, under budgets that change from call to call (input
+/// frames and idle ones), the image on show never steps down until the full image replaces
+/// it. (How far it steps up depends on the machine's speed: `bench --suite interaction`.)
+#[test]
+fn the_preview_resolution_never_steps_down_under_changing_budgets() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(32, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-0.9, 0.6, -0.3)]);
+    p.render.width = 320;
+    p.render.height = 240;
+    let request = FrameRequest::for_project(&p);
+    gpu.update(&p, &request).unwrap();
+    p.lights[0].position = Vec3::new(-0.9, 0.8, 0.9);
+    p.particles.push(Particle::new(Vec3::new(0.2, 0.1, 0.0), 0.3, 3.0));
+    let budgets_ms = [0u64, 30, 2, 120, 0, 60, 5, 120];
+    let mut sizes = Vec::new();
+    for k in 0..100_000 {
+        let progress =
+            gpu.advance(&p, &request, Some(Duration::from_millis(budgets_ms[k % budgets_ms.len()]))).unwrap();
+        // From the first image of the edited scene on.
+        if progress.new_image || !sizes.is_empty() {
+            sizes.push(progress.shown_size);
+        }
+        if progress.converged() {
+            break;
+        }
+    }
+    assert_eq!(sizes.last(), Some(&[request.width, request.height]), "it converges to the full image");
+    for pair in sizes.windows(2) {
+        assert!(
+            pair[1][0] >= pair[0][0] && pair[1][1] >= pair[0][1],
+            "the preview stepped down from {:?} to {:?}: {sizes:?}",
+            pair[0],
+            pair[1]
+        );
+    }
+    assert_same_as_fresh(&gpu, &p, &request);
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
 

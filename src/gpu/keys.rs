@@ -42,6 +42,17 @@ pub(super) struct ImageKey {
     pub opvs: Vec<Option<OpvKey>>,
 }
 
+impl ImageKey {
+    /// Whether `other` shows the same scene, optical depths aside (a propagation in progress).
+    pub fn same_scene(&self, other: &ImageKey) -> bool {
+        self.params == other.params
+            && self.grid == other.grid
+            && self.lights == other.lights
+            && self.surfaces == other.surfaces
+            && self.ev_generation == other.ev_generation
+    }
+}
+
 /// Which of the two image targets holds an image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Level {

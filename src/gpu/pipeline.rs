@@ -350,7 +350,10 @@ impl FogPipeline {
     }
 
     /// A quick look at the change, with the optical depths the GPU has, when lights are to
-    /// be propagated or the full march does not fit the time left.
+    /// be propagated or the full march does not fit the time left. Its resolution never
+    /// steps down while the scene stays the same (only optical depths progressing), and
+    /// steps up, to at least twice the pixels, when a call has the time for it, until the
+    /// full image is half marched.
     fn preview_stage(
         &mut self,
         inputs: &FrameInputs,
@@ -359,16 +362,32 @@ impl FogPipeline {
         progress: &mut Progress,
     ) -> Result<(), GpuError> {
         let key = inputs.image_key(self.baked.ev_generation, &self.baked.opvs);
+        let (width, height) = (inputs.request.width, inputs.request.height);
+        let shown_quick = match &self.baked.shown {
+            Some((k, Level::Quick)) if k.same_scene(&key) => self.quick.as_ref().map(|t| (t.width, t.height)),
+            _ => None,
+        };
         if self.baked.shown.as_ref().is_some_and(|(k, _)| *k == key) {
+            // Not once the full image is more than half marched: it is close to replacing it.
+            let nearly_full = self.jobs.march.as_ref().is_some_and(|(job, k)| *k == key && job.fraction() > 0.5);
+            let Some((w0, h0)) = shown_quick.filter(|_| !nearly_full) else { return Ok(()) };
+            let t = Instant::now();
+            let budget = clock.left_ms(t).map(|ms| ms * QUICK_SHARE);
+            let (w, h) = self.rates[timer::MARCH as usize].quick_size(width, height, budget);
+            if (w as u64 * h as u64) < 2 * (w0 as u64 * h0 as u64) {
+                return Ok(());
+            }
+            self.quick_march(width, height, key, budget, shown_quick, &mut progress.report.counters)?;
+            progress.report.timings_ms.march += ms(t);
+            progress.new_image = true;
             return Ok(());
         }
-        let (width, height) = (inputs.request.width, inputs.request.height);
         let full_ms = self.rates[timer::MARCH as usize].ms_for(width as u64 * height as u64);
         let fits = clock.left_ms(Instant::now()).is_some_and(|ms| full_ms <= ms);
         if propagating || !fits {
             let t = Instant::now();
             let budget = clock.left_ms(t).map(|ms| ms * QUICK_SHARE);
-            self.quick_march(width, height, key, budget, &mut progress.report.counters)?;
+            self.quick_march(width, height, key, budget, shown_quick, &mut progress.report.counters)?;
             progress.report.timings_ms.march += ms(t);
             progress.new_image = true;
         }
@@ -642,16 +661,18 @@ impl FogPipeline {
     }
 
     /// Marches the whole image at the largest size whose cost fits `budget_ms` (at most
-    /// half the requested size per axis) and shows it.
+    /// half the requested size per axis), and no smaller than `floor`, and shows it.
     fn quick_march(
         &mut self,
         width: u32,
         height: u32,
         key: ImageKey,
         budget_ms: Option<f64>,
+        floor: Option<(u32, u32)>,
         counters: &mut Counters,
     ) -> Result<(), GpuError> {
         let (w, h) = self.rates[timer::MARCH as usize].quick_size(width, height, budget_ms);
+        let (w, h) = floor.map_or((w, h), |(fw, fh)| (w.max(fw), h.max(fh)));
         let target = match self.quick.take() {
             Some(t) if t.width == w && t.height == h => t,
             _ => ImageTarget::new(&self.ctx.device, w, h),
