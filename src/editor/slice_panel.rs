@@ -20,7 +20,7 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
             }
         })
         .response
-        .on_hover_text("EV: extinction σt; OPV: optical depth T towards a light; exp(−T): transmittance; error: |T − T_exact| against the CPU reference on this slice");
+        .on_hover_text("EV: extinction σt; OPV: optical depth τ towards a light; exp(−τ): transmittance; error: |τ − τ_exact| against the CPU reference on this slice");
         if s.field.needs_light() {
             let project = state.session.project();
             let name = |i: usize| project.light_label(i);
