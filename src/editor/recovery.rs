@@ -77,12 +77,11 @@ impl EditorState {
         let original = self.session.path().map(Path::to_owned);
         let path = crate::scene::recovery::recovery_path(&dir, original.as_deref());
         // A file written under another name (before a Save As) is replaced by this one.
-        if let Some(old) = self.recovery.written.take().filter(|w| w.path != path) {
-            self.recovery.written = Some(old);
+        if self.recovery.written.as_ref().is_some_and(|w| w.path != path) {
             self.drop_recovery();
         }
         let Some(writer) = &self.recovery.writer else { return };
-        match writer.write(&dir, original.as_deref(), self.session.project().clone()) {
+        match writer.write(&path, original.as_deref(), self.session.project().clone()) {
             Ok(()) => self.recovery.written = Some(RecoveryWritten { path, version, at: now }),
             Err(e) => self.error(format!("Could not write the recovery file: {e}")),
         }

@@ -47,17 +47,18 @@ pub fn recovery_path(dir: &Path, original: Option<&Path>) -> PathBuf {
     dir.join(format!("{:016x}.recovery.ron", h.finish()))
 }
 
-/// Writes `project` as the recovery file of `original` in `dir`, atomically.
-pub fn write_recovery(dir: &Path, original: Option<&Path>, project: &Project) -> Result<PathBuf, ProjectError> {
-    let path = recovery_path(dir, original);
-    let io_err = |source| ProjectError::Io { path: path.clone(), source };
-    std::fs::create_dir_all(dir).map_err(io_err)?;
+/// Writes `project` as the recovery file of `original` at `path` (from [`recovery_path`]),
+/// creating its folder, atomically.
+pub fn write_recovery(path: &Path, original: Option<&Path>, project: &Project) -> Result<(), ProjectError> {
+    let io_err = |source| ProjectError::Io { path: path.to_owned(), source };
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(io_err)?;
+    }
     let saved_unix = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let rec = Recovery { original: original.map(Path::to_path_buf), saved_unix, project: project.clone() };
     let text = ron::ser::to_string_pretty(&rec, ron::ser::PrettyConfig::new())
         .map_err(|e| ProjectError::Serialize(e.to_string()))?;
-    write_atomic(&path, text.as_bytes(), false).map_err(io_err)?;
-    Ok(path)
+    write_atomic(path, text.as_bytes(), false).map_err(io_err)
 }
 
 /// Every readable recovery file in `dir` with its path, newest first. Unreadable ones are
@@ -96,15 +97,14 @@ pub fn remove_recovery(path: &Path) -> Result<(), ProjectError> {
 
 /// A request to the writer thread.
 enum Request {
-    Write { dir: PathBuf, original: Option<PathBuf>, project: Box<Project> },
+    Write { path: PathBuf, original: Option<PathBuf>, project: Box<Project> },
     Remove(PathBuf),
 }
 
 impl Request {
-    fn path(&self) -> PathBuf {
+    fn path(&self) -> &Path {
         match self {
-            Request::Write { dir, original, .. } => recovery_path(dir, original.as_deref()),
-            Request::Remove(path) => path.clone(),
+            Request::Write { path, .. } | Request::Remove(path) => path,
         }
     }
 }
@@ -135,14 +135,14 @@ impl RecoveryWriter {
                 while let Ok(first) = rx.recv() {
                     let mut batch = vec![first];
                     batch.extend(rx.try_iter());
-                    let paths: Vec<PathBuf> = batch.iter().map(Request::path).collect();
+                    let paths: Vec<PathBuf> = batch.iter().map(|r| r.path().to_owned()).collect();
                     for (i, request) in batch.into_iter().enumerate() {
                         if paths[i + 1..].contains(&paths[i]) {
                             continue;
                         }
                         let result = match request {
-                            Request::Write { dir, original, project } => {
-                                write_recovery(&dir, original.as_deref(), &project).map(drop)
+                            Request::Write { path, original, project } => {
+                                write_recovery(&path, original.as_deref(), &project)
                             }
                             Request::Remove(path) => remove_recovery(&path),
                         };
@@ -158,10 +158,11 @@ impl RecoveryWriter {
         Self { requests: thread.as_ref().map(|_| requests), errors, thread }
     }
 
-    /// Queues writing `project` as the recovery file of `original` in `dir`.
-    pub fn write(&self, dir: &Path, original: Option<&Path>, project: Project) -> Result<(), ProjectError> {
+    /// Queues writing `project` as the recovery file of `original` at `path` (from
+    /// [`recovery_path`]).
+    pub fn write(&self, path: &Path, original: Option<&Path>, project: Project) -> Result<(), ProjectError> {
         self.send(Request::Write {
-            dir: dir.to_owned(),
+            path: path.to_owned(),
             original: original.map(Path::to_owned),
             project: Box::new(project),
         })
@@ -173,7 +174,7 @@ impl RecoveryWriter {
     }
 
     fn send(&self, request: Request) -> Result<(), ProjectError> {
-        let path = request.path();
+        let path = request.path().to_owned();
         let stopped = || ProjectError::Io {
             path: path.clone(),
             source: std::io::Error::other("the recovery writer thread could not be started or has stopped"),
@@ -213,7 +214,8 @@ mod tests {
         let mut p = Project::default();
         p.particles.push(Particle::new(Vec3::ONE, 0.5, 2.0));
         let original = dir.path().join("fog.ron");
-        let path = write_recovery(dir.path(), Some(&original), &p).unwrap();
+        let path = recovery_path(dir.path(), Some(&original));
+        write_recovery(&path, Some(&original), &p).unwrap();
         let found = find_recoveries(dir.path());
         assert_eq!(found.len(), 1);
         let (fp, rec) = found[0].as_ref().unwrap();
@@ -236,7 +238,7 @@ mod tests {
         let mut p = Project::default();
         for i in 0..20 {
             p.particles.push(Particle::new(Vec3::splat(i as f32), 0.5, 2.0));
-            writer.write(dir.path(), Some(&original), p.clone()).unwrap();
+            writer.write(&recovery_path(dir.path(), Some(&original)), Some(&original), p.clone()).unwrap();
         }
         writer.finish();
         let found = find_recoveries(dir.path());
@@ -245,7 +247,7 @@ mod tests {
         let path = found[0].as_ref().unwrap().0.clone();
 
         let mut writer = RecoveryWriter::new();
-        writer.write(dir.path(), Some(&original), Project::default()).unwrap();
+        writer.write(&recovery_path(dir.path(), Some(&original)), Some(&original), Project::default()).unwrap();
         writer.remove(&path).unwrap();
         writer.finish();
         assert!(find_recoveries(dir.path()).is_empty(), "a removal after a write leaves no file");
@@ -253,7 +255,7 @@ mod tests {
         let blocked = dir.path().join("a-file");
         std::fs::write(&blocked, "").unwrap();
         let mut writer = RecoveryWriter::new();
-        writer.write(&blocked, Some(&original), p).unwrap();
+        writer.write(&recovery_path(&blocked, Some(&original)), Some(&original), p).unwrap();
         writer.finish();
         let errors = writer.errors();
         assert_eq!(errors.len(), 1, "a failed write is reported: {errors:?}");
