@@ -367,27 +367,22 @@ impl FogPipeline {
             Some((k, Level::Quick)) if k.same_scene(&key) => self.quick.as_ref().map(|t| (t.width, t.height)),
             _ => None,
         };
-        if self.baked.shown.as_ref().is_some_and(|(k, _)| *k == key) {
-            // Not once the full image is more than half marched: it is close to replacing it.
+        let t = Instant::now();
+        let budget = clock.left_ms(t).map(|ms| ms * QUICK_SHARE);
+        let (w, h) = self.rates[timer::MARCH as usize].quick_size(width, height, budget);
+        let march = if self.baked.shown.as_ref().is_some_and(|(k, _)| *k == key) {
+            // A step up, but not once the full image is more than half marched: it is close
+            // to replacing the quick one.
             let nearly_full = self.jobs.march.as_ref().is_some_and(|(job, k)| *k == key && job.fraction() > 0.5);
-            let Some((w0, h0)) = shown_quick.filter(|_| !nearly_full) else { return Ok(()) };
-            let t = Instant::now();
-            let budget = clock.left_ms(t).map(|ms| ms * QUICK_SHARE);
-            let (w, h) = self.rates[timer::MARCH as usize].quick_size(width, height, budget);
-            if (w as u64 * h as u64) < 2 * (w0 as u64 * h0 as u64) {
-                return Ok(());
-            }
-            self.quick_march(width, height, key, budget, shown_quick, &mut progress.report.counters)?;
-            progress.report.timings_ms.march += ms(t);
-            progress.new_image = true;
-            return Ok(());
-        }
-        let full_ms = self.rates[timer::MARCH as usize].ms_for(width as u64 * height as u64);
-        let fits = clock.left_ms(Instant::now()).is_some_and(|ms| full_ms <= ms);
-        if propagating || !fits {
-            let t = Instant::now();
-            let budget = clock.left_ms(t).map(|ms| ms * QUICK_SHARE);
-            self.quick_march(width, height, key, budget, shown_quick, &mut progress.report.counters)?;
+            shown_quick.is_some_and(|(w0, h0)| !nearly_full && w as u64 * h as u64 >= 2 * (w0 as u64 * h0 as u64))
+        } else {
+            let full_ms = self.rates[timer::MARCH as usize].ms_for(width as u64 * height as u64);
+            let fits = clock.left_ms(t).is_some_and(|ms| full_ms <= ms);
+            propagating || !fits
+        };
+        if march {
+            let (w, h) = shown_quick.map_or((w, h), |(fw, fh)| (w.max(fw), h.max(fh)));
+            self.quick_march(w, h, key, &mut progress.report.counters)?;
             progress.report.timings_ms.march += ms(t);
             progress.new_image = true;
         }
@@ -660,19 +655,8 @@ impl FogPipeline {
         Ok((job.next_row - before) as u64 * width as u64)
     }
 
-    /// Marches the whole image at the largest size whose cost fits `budget_ms` (at most
-    /// half the requested size per axis), and no smaller than `floor`, and shows it.
-    fn quick_march(
-        &mut self,
-        width: u32,
-        height: u32,
-        key: ImageKey,
-        budget_ms: Option<f64>,
-        floor: Option<(u32, u32)>,
-        counters: &mut Counters,
-    ) -> Result<(), GpuError> {
-        let (w, h) = self.rates[timer::MARCH as usize].quick_size(width, height, budget_ms);
-        let (w, h) = floor.map_or((w, h), |(fw, fh)| (w.max(fw), h.max(fh)));
+    /// Marches the whole image at `w`×`h`, a reduced size (see `preview_stage`), and shows it.
+    fn quick_march(&mut self, w: u32, h: u32, key: ImageKey, counters: &mut Counters) -> Result<(), GpuError> {
         let target = match self.quick.take() {
             Some(t) if t.width == w && t.height == h => t,
             _ => ImageTarget::new(&self.ctx.device, w, h),
