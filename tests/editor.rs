@@ -619,6 +619,35 @@ fn the_light_tool_drags_lights() {
     assert_eq!(lights.len(), n + 1, "a drag on empty space adds one light");
     assert!(screen_of(&h, lights[n].position).distance(b) < 1.0, "placed where the drag ended");
     assert_eq!(h.state().session().undo_len(), undo + 1, "adding and placing is one undo step");
+
+    // With "sun" chosen in the toolbar a click on empty space adds a sun, shining from where
+    // the click was towards the grid's centre, and dragging its icon re-aims it. (Nothing
+    // selected, so the only "sun" is the toolbar's, not the Inspector's.)
+    h.state_mut().session_mut().selection.clear();
+    h.run_steps(2);
+    h.get_by_label("sun").click();
+    h.run_steps(2);
+    let c = rect.center() + Vec2::new(-60.0, -40.0);
+    press(&mut h, c, PointerButton::Primary, true);
+    press(&mut h, c, PointerButton::Primary, false);
+    h.run_steps(2);
+    let p = h.state().session().project().clone();
+    assert_eq!(p.lights.len(), n + 2, "the click added a light");
+    let fogsmith::scene::LightKind::Directional { direction } = p.lights[n + 1].kind else {
+        panic!("the new light is a sun: {:?}", p.lights[n + 1])
+    };
+    let anchor = p.light_anchor(&p.lights[n + 1]);
+    let centre = (p.grid.min + p.grid.max) * 0.5;
+    assert!((anchor - (centre - direction.normalize() * p.sun_distance())).length() < 1e-4);
+    let from = screen_of(&h, anchor);
+    drag(&mut h, from, from + Vec2::new(50.0, 30.0), 4);
+    let fogsmith::scene::LightKind::Directional { direction: turned } =
+        h.state().session().project().lights[n + 1].kind
+    else {
+        panic!("still a sun")
+    };
+    assert!(turned.angle_between(direction) > 1e-3, "dragging the sun re-aims it: {direction} → {turned}");
+    assert_eq!(h.state().session().project().lights.len(), n + 2, "dragging the sun adds no light");
 }
 
 /// The EV slice shows the volume after an erase, without touching the slice controls.
