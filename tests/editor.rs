@@ -5,7 +5,7 @@
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
 use egui_kittest::{Harness, SnapshotOptions};
-use fogsmith::editor::app::{Action, Export, PreviewScale, Quality, StartProject};
+use fogsmith::editor::app::{Action, ExportChoices, PreviewScale, Quality, StartProject};
 use fogsmith::editor::slices::Axis;
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
@@ -223,7 +223,7 @@ fn save_and_reopen_round_trip() {
     assert_eq!(h.state().session().path(), Some(path.as_path()));
 
     let vdb = dir.path().join("scene.vdb");
-    h.state_mut().export(Export::Vdb, vdb.clone());
+    h.state_mut().export(ExportChoices::default(), vdb.clone());
     wait_idle(&mut h);
     let names: Vec<String> = fogsmith::export::vdb_read::list_vdb_grids(&vdb)
         .expect("the exported VDB reads back")
@@ -727,7 +727,11 @@ fn without_a_portal_save_as_and_export_use_the_built_in_dialog() {
     fogsmith::scene::save_project(&path, &fogsmith::editor::demo_project().expect("demo")).expect("save");
     let dialogs = FileDialogs::detect_with(|_| None);
     assert!(matches!(dialogs, FileDialogs::BuiltIn { .. }), "no portal, no zenity: {dialogs:?}");
-    let options = EditorOptions { file_dialogs: Some(dialogs), ..EditorOptions::default() };
+    let options = EditorOptions {
+        file_dialogs: Some(dialogs),
+        state_dir: Some(dir.path().join("state")),
+        ..EditorOptions::default()
+    };
     let mut h = harness_with(StartProject::resolve(Some(path.clone())).expect("start"), options);
 
     h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, egui::Key::S);
@@ -746,7 +750,9 @@ fn without_a_portal_save_as_and_export_use_the_built_in_dialog() {
     assert_eq!(load_project(&copy).expect("saved through the dialog"), *h.state().session().project());
     assert!(h.state().title().starts_with("copy.ron"), "{}", h.state().title());
 
-    h.state_mut().export_dialog(Export::Vdb);
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::E);
+    h.run_steps(2);
+    h.get_by_label("Export to…").click();
     h.run_steps(3);
     assert!(h.state().built_in_dialog_open(), "export opens the built-in dialog");
     h.key_press(egui::Key::Enter);
@@ -786,7 +792,7 @@ fn an_export_waits_for_the_bake_and_can_be_cancelled() {
     assert!(!h.state().preview_status().unwrap().converged, "the first frame starts the bake");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("fog.vdb");
-    h.state_mut().export(Export::Vdb, path.clone());
+    h.state_mut().export(ExportChoices::default(), path.clone());
     h.step();
     h.get_by_label("Cancel").click();
     h.step();
@@ -800,7 +806,7 @@ fn an_export_waits_for_the_bake_and_can_be_cancelled() {
     h.run_steps(3);
     assert!(!path.exists(), "a cancelled export writes nothing");
 
-    h.state_mut().export(Export::Vdb, path.clone());
+    h.state_mut().export(ExportChoices::default(), path.clone());
     wait_idle(&mut h);
     h.run_steps(2);
     assert!(path.exists(), "the export completes: {:?}", h.state().messages());

@@ -1,16 +1,13 @@
 //! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files.
 
-use super::progress::{check, Bar};
+use super::progress::{check, interrupted, Bar, Cancelled};
 use super::{bake, BakeArgs};
-use crate::export::exr::{write_atlas_exr_in_frame, write_render_exr, write_slices_exr};
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
-use crate::export::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format};
-use crate::export::light_infos;
-use crate::export::usd::{asset_path, write_usd, UsdField, UsdOptions};
-use crate::export::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions};
+use crate::export::ktx::Ktx2Format;
+use crate::export::plan::{write_plan, ExportInputs, ExportPlan, ExportProblem, ExportRunError, ExportSettings};
+use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(clap::Args)]
 pub struct ExportArgs {
@@ -94,77 +91,89 @@ impl ExportArgs {
         }
         f
     }
+
+    /// The files asked for and how to write them.
+    pub fn plan(&self) -> ExportPlan {
+        ExportPlan {
+            vdb: self.vdb.clone(),
+            usd: self.usd.clone(),
+            ktx2: self.ktx2.clone(),
+            exr_render: self.exr_render.clone(),
+            png_render: None,
+            exr_slices: self.exr_slices.clone(),
+            exr_atlas: self.exr_atlas.clone(),
+            settings: ExportSettings {
+                frame: self.frame(),
+                half: self.half,
+                threshold: self.threshold,
+                grids: self.grids,
+                compression: match self.compression {
+                    Compression::None => VdbCompression::None,
+                    Compression::Zip => VdbCompression::Zip,
+                },
+                ktx2_format: self.ktx2_format,
+                exr_half: self.exr_half,
+            },
+        }
+    }
+}
+
+/// A problem found before the bake, in the command line's terms.
+fn problem_message(problem: &ExportProblem) -> String {
+    match problem {
+        ExportProblem::UsdExtension(usd) => {
+            format!("--usd {}: Fogsmith writes text USD; name the file with the .usda extension", usd.display())
+        }
+        ExportProblem::UsdLeftHanded(frame) => format!(
+            "--usd: USD stages are right-handed, and the export frame is {frame}. Use --handedness right \
+             (for Unreal: --up z --units cm; its USD importer converts to its own axes)"
+        ),
+        ExportProblem::UsdNeedsDensity => "--usd needs the density grid in the VDB: add density to --grids".into(),
+        ExportProblem::Threshold(t) => format!("--threshold must be a finite number ≥ 0, got {t}"),
+    }
 }
 
 pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
-    if args.vdb.is_none()
-        && args.exr_render.is_none()
-        && args.exr_slices.is_none()
-        && args.exr_atlas.is_none()
-        && args.usd.is_none()
-        && args.ktx2.is_none()
-    {
+    let plan = args.plan();
+    if plan.is_empty() {
         return Err(
             "nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices and/or --exr-atlas".into()
         );
     }
-    let frame = args.frame();
     // Refuse what cannot be written before the (long) bake.
-    let vdb_path = args.vdb.clone().or_else(|| args.usd.as_ref().map(|u| u.with_extension("vdb")));
-    if let Some(usd) = &args.usd {
-        if usd.extension().and_then(|e| e.to_str()) != Some("usda") {
-            return Err(format!(
-                "--usd {}: Fogsmith writes text USD; name the file with the .usda extension",
-                usd.display()
-            )
-            .into());
-        }
-        if frame.handedness == Handedness::Left {
-            return Err(format!(
-                "--usd: USD stages are right-handed, and the export frame is {frame}. Use --handedness right \
-                 (for Unreal: --up z --units cm; its USD importer converts to its own axes)"
-            )
-            .into());
-        }
-        if !args.grids.density {
-            return Err("--usd needs the density grid in the VDB: add density to --grids".into());
-        }
+    if let Some(problem) = plan.problems().first() {
+        return Err(problem_message(problem).into());
     }
-    if !args.threshold.is_finite() || args.threshold < 0.0 {
-        return Err(format!("--threshold must be a finite number ≥ 0, got {}", args.threshold).into());
-    }
+    let frame = plan.settings.frame;
     let baked = bake(&args.bake)?;
     let project = &baked.project;
     // Every file goes beside its target first and replaces it only once all are written.
     let mut staged = Staged::default();
     let mut bar = Bar::new(args.bake.quiet);
-    let mut notes = Vec::new();
     let ev = baked.pipeline.read_ev()?;
     let opvs = (0..project.lights.len()).map(|l| baked.pipeline.read_opv(l)).collect::<Result<Vec<_>, _>>()?;
-    let infos = light_infos(project);
+    let image = if plan.needs_image() { Some(baked.pipeline.read_image()?) } else { None };
+    let inputs = ExportInputs {
+        project,
+        volumes: Some((&ev, &opvs)),
+        image: image.as_ref(),
+        render_size: [baked.request.width, baked.request.height],
+    };
+    let written =
+        match write_plan(&plan, &inputs, &mut staged, &mut |p| bar.stage(p.stage, p.fraction as f64), &interrupted) {
+            Ok(w) => w,
+            Err(ExportRunError::Cancelled) => return Err(Cancelled.into()),
+            Err(ExportRunError::Failed(e)) => return Err(e.into()),
+        };
+    check()?;
+    bar.finish();
+    staged.commit()?;
+
     let mut summary = serde_json::Map::new();
     summary.insert("project".into(), serde_json::json!(args.bake.project));
     summary.insert("timings_ms".into(), serde_json::json!(baked.report.timings_ms));
-
-    let mut fields = Vec::new();
-    if let Some(path) = &vdb_path {
-        let t = Instant::now();
-        let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, l.in_frame(&frame))).collect();
-        let grids = grids_from_volumes(&ev, &lights, args.grids);
-        let opts = VdbOptions {
-            compression: match args.compression {
-                Compression::None => VdbCompression::None,
-                Compression::Zip => VdbCompression::Zip,
-            },
-            half: args.half,
-            threshold: args.threshold,
-            frame,
-            ..VdbOptions::default()
-        };
-        check()?;
-        let stats = staged
-            .write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| bar.stage("write VDB", f as f64)))?;
-        fields = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
+    let mut notes = Vec::new();
+    if let Some((path, stats, ms)) = &written.vdb {
         let grids_json: Vec<_> = stats
             .grids
             .iter()
@@ -172,105 +181,57 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             .collect();
         summary.insert(
             "vdb".into(),
-            serde_json::json!({"path": path, "bytes": stats.bytes, "grids": grids_json, "ms": t.elapsed().as_secs_f64() * 1e3}),
+            serde_json::json!({"path": path, "bytes": stats.bytes, "grids": grids_json, "ms": ms}),
         );
-        if !args.json {
-            notes.push(format!(
-                "wrote {} ({} bytes, {} grids, {frame})",
-                path.display(),
-                stats.bytes,
-                stats.grids.len()
-            ));
-        }
+        notes.push(format!("wrote {} ({} bytes, {} grids, {frame})", path.display(), stats.bytes, stats.grids.len()));
     }
-    if let (Some(path), Some(vdb)) = (&args.usd, &vdb_path) {
-        let opts = UsdOptions {
-            vdb_asset: asset_path(path, vdb),
-            fields: fields.clone(),
-            frame,
-            width: baked.request.width,
-            height: baked.request.height,
-        };
-        check()?;
-        staged.write(path, |p| write_usd(p, project, &opts))?;
-        summary.insert("usd".into(), serde_json::json!({"path": path, "vdb": opts.vdb_asset, "fields": fields.len(), "frame": frame.to_string()}));
-        if !args.json {
-            notes.push(format!(
-                "wrote {} (volume from {}, {} lights, {frame})",
-                path.display(),
-                opts.vdb_asset,
-                project.lights.iter().filter(|l| !l.hidden).count()
-            ));
-        }
+    if let Some(usd) = &written.usd {
+        summary.insert(
+            "usd".into(),
+            serde_json::json!({"path": usd.path, "vdb": usd.vdb_asset, "fields": usd.fields, "frame": frame.to_string()}),
+        );
+        notes.push(format!(
+            "wrote {} (volume from {}, {} lights, {frame})",
+            usd.path.display(),
+            usd.vdb_asset,
+            usd.lights
+        ));
     }
-    if let Some(path) = &args.ktx2 {
-        check()?;
-        let info = staged.write(path, |p| write_ktx2(p, &ev, args.ktx2_format))?;
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let snippet_path = path.with_extension("fogvolume.ron");
-        staged.write(&snippet_path, |p| {
-            crate::export::write_text(p, &fog_volume_snippet(&ev, &project.medium, &info, &name))
-        })?;
+    if let Some((path, info, snippet_path)) = &written.ktx2 {
         summary.insert(
             "ktx2".into(),
             serde_json::json!({"path": path, "bytes": info.bytes, "scale": info.scale, "snippet": snippet_path}),
         );
-        if !args.json {
-            notes.push(format!(
-                "wrote {} ({} bytes, texel × {} = extinction 1/m) and {}",
-                path.display(),
-                info.bytes,
-                info.scale,
-                snippet_path.display()
-            ));
-        }
+        notes.push(format!(
+            "wrote {} ({} bytes, texel × {} = extinction 1/m) and {}",
+            path.display(),
+            info.bytes,
+            info.scale,
+            snippet_path.display()
+        ));
     }
-    if let Some(path) = &args.exr_render {
-        let image = baked.pipeline.read_image()?;
-        check()?;
-        staged.write(path, |p| {
-            write_render_exr(p, image.width as usize, image.height as usize, &image.rgba, args.exr_half)
-        })?;
-        summary.insert(
-            "exr_render".into(),
-            serde_json::json!({"path": path, "width": image.width, "height": image.height}),
-        );
-        if !args.json {
-            notes.push(format!("wrote {} ({}×{} linear RGBA)", path.display(), image.width, image.height));
-        }
+    if let Some((path, [width, height])) = &written.exr_render {
+        summary.insert("exr_render".into(), serde_json::json!({"path": path, "width": width, "height": height}));
+        notes.push(format!("wrote {} ({width}×{height} linear RGBA)", path.display()));
     }
-    if let Some(path) = &args.exr_slices {
-        let names: Vec<String> = (0..opvs.len()).map(|l| format!("optical_depth_{l}")).collect();
-        let mut layers: Vec<(&str, &crate::scene::Volume)> = vec![("density", &ev)];
-        layers.extend(names.iter().map(String::as_str).zip(opvs.iter()));
-        check()?;
-        staged.write(path, |p| write_slices_exr(p, &layers))?;
-        summary.insert("exr_slices".into(), serde_json::json!({"path": path, "quantities": layers.len()}));
-        if !args.json {
-            notes.push(format!(
-                "wrote {} ({} quantities × {} z-slices)",
-                path.display(),
-                layers.len(),
-                project.grid.resolution.z
-            ));
-        }
+    if let Some((path, quantities)) = &written.exr_slices {
+        summary.insert("exr_slices".into(), serde_json::json!({"path": path, "quantities": quantities}));
+        notes.push(format!(
+            "wrote {} ({quantities} quantities × {} z-slices)",
+            path.display(),
+            project.grid.resolution.z
+        ));
     }
-    if let Some(path) = &args.exr_atlas {
-        check()?;
-        let layout = staged.write(path, |p| write_atlas_exr_in_frame(p, &ev, &frame))?;
+    if let Some((path, layout)) = &written.exr_atlas {
         summary.insert("exr_atlas".into(), serde_json::json!({"path": path, "layout": layout.to_string()}));
-        if !args.json {
-            notes.push(format!("wrote {}: {layout}", path.display()));
-        }
-    }
-    check()?;
-    bar.finish();
-    staged.commit()?;
-    for note in notes {
-        eprintln!("{note}");
+        notes.push(format!("wrote {}: {layout}", path.display()));
     }
     if args.json {
         println!("{}", serde_json::Value::Object(summary));
+    } else {
+        for note in notes {
+            eprintln!("{note}");
+        }
     }
     Ok(())
 }

@@ -16,8 +16,9 @@ use egui_dock::{DockArea, DockState};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+pub use super::export::{ExportChoices, ExportFormat, ImageFormat};
 pub use super::preview::{PreviewStatus, FRAME_BUDGET_MS};
-pub use super::state::{Action, EditorState, Export, PreviewScale, Quality};
+pub use super::state::{Action, EditorState, PreviewScale, Quality};
 
 /// The project the editor starts on.
 pub struct StartProject {
@@ -79,6 +80,7 @@ impl EditorApp {
             None => (None, Some("no wgpu renderer: the preview needs eframe's wgpu backend".to_string())),
         };
         let file_dialogs = options.file_dialogs.clone().unwrap_or_else(FileDialogs::detect);
+        let state_dir = options.state_dir.clone().unwrap_or_else(crate::scene::recovery::state_dir);
         let dock = persisted.dock.filter(|d| d.iter_all_tabs().next().is_some()).unwrap_or_else(default_layout);
         let mut state = EditorState {
             session: Session::new(start.project, start.path, &start.name),
@@ -130,6 +132,7 @@ impl EditorApp {
             built_in_explained: false,
             base_loaded: None,
             import: None,
+            export: super::export::ExportUi::new(state_dir),
             last_command: None,
             dock_commands: Vec::new(),
         };
@@ -218,13 +221,14 @@ impl EditorApp {
     pub fn save_as(&mut self, path: PathBuf) {
         self.state.save_to(path);
     }
-    /// Exports the baked volumes to `path` in the background.
-    pub fn export(&mut self, kind: Export, path: PathBuf) {
-        self.state.export_to(kind, path);
+    /// Exports to `path` in the background, as the Export window does with `choices` once
+    /// `path` is chosen.
+    pub fn export(&mut self, choices: ExportChoices, path: PathBuf) {
+        self.state.export_to(choices, path);
     }
-    /// Asks where to export, as File → Export does.
-    pub fn export_dialog(&mut self, kind: Export) {
-        self.state.export_dialog(kind);
+    /// The Export window's choices while it is open.
+    pub fn export_window(&self) -> Option<ExportChoices> {
+        self.state.export.window
     }
     /// View → Particle outlines: every particle, or only the selection.
     pub fn set_outline_all(&mut self, all: bool) {

@@ -15,8 +15,8 @@ pub enum Command {
     Save,
     SaveAs,
     ImportVdb,
-    ExportVdb,
-    ExportExr,
+    /// File → Export…: the Export window.
+    Export,
     Revert,
     /// Drop the imported VDB grid (shown only while there is one).
     RemoveBaseVolume,
@@ -122,8 +122,7 @@ impl Command {
             Command::Save => ("Save", "Save (keeps the previous file as .bak)"),
             Command::SaveAs => ("Save As…", "Save under a new name"),
             Command::ImportVdb => ("Import VDB…", "Use a density grid from an OpenVDB file as the base of the fog"),
-            Command::ExportVdb => ("OpenVDB…", "Density and optical depth per light as an OpenVDB file"),
-            Command::ExportExr => ("EXR slices…", "Every z slice of density and optical depth per light in one OpenEXR"),
+            Command::Export => ("Export…", "Write the fog as OpenVDB, USD, KTX2 or EXR, or the rendered image: choose the format and its options, then where"),
             Command::Revert => ("Revert", "Reload the file, dropping unsaved changes"),
             Command::RemoveBaseVolume => ("Remove base volume", "Drop the imported VDB grid from the fog"),
             Command::Quit => ("Quit", "Close the editor (asks about unsaved changes)"),
@@ -132,7 +131,7 @@ impl Command {
             Command::SelectAll => ("Select all", "Select every particle and light"),
             Command::Duplicate => ("Duplicate", "Copy the selection, slightly offset, and select the copies"),
             Command::Delete => ("Delete", "Delete the selection"),
-            Command::Escape => ("Cancel / deselect", "Cancel grab or scale, or close the Shortcuts window; otherwise clear the selection"),
+            Command::Escape => ("Cancel / deselect", "Cancel grab or scale, or close the Export or Shortcuts window; otherwise clear the selection"),
             Command::Grab => ("Grab", "Move the selection with the mouse (pointer over the viewport); click confirms, Esc cancels"),
             Command::ScaleSelection => ("Scale", "Scale the selected particles with the mouse (pointer over the viewport)"),
             Command::FitGrid => ("Fit grid to particles", "Resize the grid box to hold every visible particle (keeps the cell size or the resolution, as chosen in the viewport's warning)"),
@@ -178,6 +177,7 @@ impl Command {
             Command::Open => vec![cmd(Key::O)],
             Command::Save => vec![cmd(Key::S)],
             Command::SaveAs => vec![cmd_shift(Key::S)],
+            Command::Export => vec![cmd(Key::E)],
             Command::Undo => vec![cmd(Key::Z)],
             Command::Redo => vec![cmd_shift(Key::Z), cmd(Key::Y)],
             Command::SelectAll => vec![cmd(Key::A)],
@@ -201,8 +201,6 @@ impl Command {
             Command::SlicePrevious => vec![key(Key::OpenBracket), key(Key::PageDown)],
             Command::Shortcuts => vec![key(Key::F1)],
             Command::ImportVdb
-            | Command::ExportVdb
-            | Command::ExportExr
             | Command::Revert
             | Command::RemoveBaseVolume
             | Command::Quit

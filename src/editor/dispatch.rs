@@ -3,7 +3,7 @@
 
 use super::commands::Command;
 use super::session::NEW_STEP;
-use super::state::{Action, EditorState, Export, Gesture, Modal};
+use super::state::{Action, EditorState, Gesture, Modal};
 use egui::{Context, Key};
 
 impl EditorState {
@@ -54,8 +54,7 @@ impl EditorState {
             Command::Save => self.save(),
             Command::SaveAs => self.save_as_dialog(),
             Command::ImportVdb => self.import_vdb_dialog(),
-            Command::ExportVdb => self.export_dialog(Export::Vdb),
-            Command::ExportExr => self.export_dialog(Export::ExrSlices),
+            Command::Export => self.open_export_window(),
             Command::Revert => self.request(Action::Revert),
             Command::RemoveBaseVolume => {
                 if self.session.project().base_volume.is_some() {
@@ -73,6 +72,8 @@ impl EditorState {
                     self.cancel_modal();
                 } else if matches!(self.view.gesture, Some(Gesture::Gizmo { .. })) {
                     self.cancel_gizmo();
+                } else if self.export.window.is_some() {
+                    self.export.window = None;
                 } else if self.view.show_shortcuts {
                     self.view.show_shortcuts = false;
                 } else {

@@ -192,7 +192,7 @@ impl EditorState {
         match purpose {
             Pick::Open => self.perform(Action::Open(path)),
             Pick::SaveAs => self.save_to(path),
-            Pick::Export(kind) => self.export_to(kind, path),
+            Pick::Export(choices) => self.export_to(choices, path),
             Pick::ImportVdb => match super::import::ImportVdb::open(path) {
                 Ok(import) => self.import = Some(import),
                 Err(e) => self.error(format!("Cannot import: {e}")),

@@ -1,9 +1,14 @@
 //! Work in background threads: spawning a job, acting on its result when it comes back,
-//! and the exports (read back from the pipeline, written beside the target, moved onto it
-//! unless cancelled) and exact optical depths for the slice views.
+//! and the exports (grids read back from the pipeline or an image rendered at the output
+//! size, written beside the target, moved onto it unless cancelled) and exact optical depths
+//! for the slice views.
 
-use super::files::{DialogSpec, FileDialogs};
-use super::state::{EditorState, ExactKey, Export, ExportJob, JobResult, Pick};
+use super::export::ExportChoices;
+use super::files::FileDialogs;
+use super::state::{EditorState, ExactKey, ExportJob, JobResult};
+use crate::export::plan::{write_plan, ExportInputs, ExportRunError, Written};
+use crate::gpu::{FogPipeline, FrameRequest, GpuContext, GpuError, Image, Stage};
+use crate::scene::Project;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Arc;
@@ -24,53 +29,49 @@ impl EditorState {
         });
     }
 
-    pub(crate) fn export_dialog(&mut self, kind: Export) {
-        let (filter, ext) = match kind {
-            Export::Vdb => ("OpenVDB", "vdb"),
-            Export::ExrSlices => ("OpenEXR", "exr"),
+    /// Exports to `path` with `choices` in a background thread. The grids are read back from
+    /// the preview's pipeline once its bake is complete (the export waits for it); the
+    /// rendered image comes from a pipeline of its own at the project's output size.
+    pub(crate) fn export_to(&mut self, choices: ExportChoices, path: PathBuf) {
+        let path = match choices.destination(path) {
+            Ok(p) => p,
+            Err(e) => return self.error(format!("Cannot export: {e}")),
         };
-        let stem =
-            Path::new(self.session.name()).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        let name = format!("{}.{ext}", stem.split(' ').next().unwrap_or("fog"));
-        let spec = DialogSpec {
-            title: "Export",
-            filter,
-            extension: ext,
-            file_name: Some(name),
-            directory: self.dialog_directory(),
-        };
-        self.choose_file(Pick::Export(kind), spec);
-    }
-
-    /// Reads the baked volumes back (brief) and writes them in a background thread.
-    pub(crate) fn export_to(&mut self, kind: Export, path: PathBuf) {
+        if let Some(problem) = choices.problems(self.session.project(), &path).into_iter().next() {
+            return self.error(format!("Cannot export to {}: {problem}", path.display()));
+        }
+        let plan = choices.plan(&path);
         let Some(gpu) = &self.gpu else {
-            self.error("Nothing to export: the pipeline is not running");
-            return;
+            let why = self.gpu_missing.clone().unwrap_or_else(|| "the pipeline is not running".into());
+            return self.error(format!("Cannot export to {}: {why}", path.display()));
         };
-        if gpu.refining() {
+        if plan.needs_volumes() && gpu.refining() {
             // The volumes are still being baked: export once they are complete.
             if self.jobs.pending_export.is_none() {
                 self.info(format!("Exporting {} once the bake completes…", path.display()));
             }
-            self.jobs.pending_export = Some((kind, path));
+            self.jobs.pending_export = Some((choices, path));
             self.ctx.request_repaint();
             return;
         }
-        let project = self.session.project();
-        let volumes = gpu.pipeline.read_ev().and_then(|ev| {
-            let opvs = (0..project.lights.len()).map(|i| gpu.pipeline.read_opv(i)).collect::<Result<Vec<_>, _>>()?;
-            Ok((ev, opvs))
-        });
-        let (ev, opvs) = match volumes {
-            Ok(v) => v,
-            Err(e) => {
-                self.error(format!("Export failed: {e}"));
-                return;
+        let project = self.session.project().clone();
+        let volumes = if plan.needs_volumes() {
+            let read = gpu.pipeline.read_ev().and_then(|ev| {
+                let opvs =
+                    (0..project.lights.len()).map(|i| gpu.pipeline.read_opv(i)).collect::<Result<Vec<_>, _>>()?;
+                Ok((ev, opvs))
+            });
+            match read {
+                Ok(v) => Some(v),
+                Err(e) => {
+                    return self.error(format!("Export to {} failed reading the volumes back: {e}", path.display()))
+                }
             }
+        } else {
+            None
         };
-        let infos = crate::export::light_infos(project);
-        let p = path.clone();
+        let render =
+            plan.needs_image().then(|| (gpu.pipeline.context().clone(), self.session.path().map(Path::to_owned)));
         let job = ExportJob {
             path: path.clone(),
             fraction: Arc::new(AtomicU32::new(0)),
@@ -79,36 +80,43 @@ impl EditorState {
         let (fraction, cancel) = (job.fraction.clone(), job.cancel.clone());
         self.jobs.export_job = Some(job);
         self.spawn(&format!("Exporting {}", path.display()), move || {
+            let set = |f: f32| fraction.store(f.to_bits(), Ordering::Relaxed);
+            let cancelled = || cancel.load(Ordering::Relaxed);
+            // Rendering takes this share of the bar, writing the rest.
+            let rendering = if render.is_some() { 0.9 } else { 0.0 };
+            let image = match render {
+                Some((ctx, project_path)) => {
+                    match render_output(ctx, &project, project_path.as_deref(), &mut |f| set(f * rendering), &cancelled)
+                    {
+                        Ok(image) => Some(image),
+                        Err(e) => return JobResult::Exported { path, result: Err(e) },
+                    }
+                }
+                None => None,
+            };
+            let inputs = ExportInputs {
+                project: &project,
+                volumes: volumes.as_ref().map(|(ev, opvs)| (ev, opvs.as_slice())),
+                image: image.as_ref(),
+                render_size: [project.render.width, project.render.height],
+            };
             // Written beside the target and moved onto it only if not cancelled meanwhile.
             let mut staged = crate::export::Staged::default();
-            let set = |f: f32| fraction.store(f.to_bits(), Ordering::Relaxed);
-            let result = match kind {
-                Export::Vdb => {
-                    use crate::export::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbOptions};
-                    let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, *l)).collect();
-                    let grids = grids_from_volumes(&ev, &lights, GridSelection::default());
-                    staged
-                        .write(&p, |temp| {
-                            write_vdb_with_progress(temp, &grids, &VdbOptions::default(), &mut |f| set(f))
-                        })
-                        .map(|stats| format!("{} grids, {} bytes", stats.grids.len(), stats.bytes))
-                }
-                Export::ExrSlices => {
-                    let names: Vec<String> = (0..opvs.len()).map(|i| format!("optical_depth_{i}")).collect();
-                    let mut channels: Vec<(&str, &crate::scene::Volume)> = vec![("density", &ev)];
-                    channels.extend(names.iter().map(String::as_str).zip(opvs.iter()));
-                    staged
-                        .write(&p, |temp| crate::export::exr::write_slices_exr(temp, &channels))
-                        .map(|_| format!("{} volumes", channels.len()))
-                }
-            };
+            let result = write_plan(
+                &plan,
+                &inputs,
+                &mut staged,
+                &mut |p| set(rendering + (1.0 - rendering) * p.overall),
+                &cancelled,
+            );
             let result = match result {
-                Ok(_) if cancel.load(Ordering::Relaxed) => Err(EXPORT_CANCELLED.to_string()),
-                Ok(summary) => staged.commit().map(|_| summary).map_err(|e| e.to_string()),
-                Err(e) => Err(e),
+                Ok(_) if cancelled() => Err(EXPORT_CANCELLED.to_string()),
+                Ok(written) => staged.commit().map(|_| summary(&written)).map_err(|e| e.to_string()),
+                Err(ExportRunError::Cancelled) => Err(EXPORT_CANCELLED.to_string()),
+                Err(ExportRunError::Failed(e)) => Err(e),
             };
             set(1.0);
-            JobResult::Exported { path: p, result }
+            JobResult::Exported { path, result }
         });
     }
 
@@ -187,6 +195,68 @@ impl EditorState {
                 .and_then(|layer| super::slices::exact_optical_depth(&project, layer.as_ref(), key.light, &cells)),
         });
     }
+}
+
+/// Renders `project` to convergence at its output size on a pipeline of its own (the preview's
+/// renders at the viewport's size), as `fogsmith render` does; `progress` hears the fraction
+/// done and `cancelled` stops it at the next work item.
+fn render_output(
+    ctx: GpuContext,
+    project: &Project,
+    project_path: Option<&Path>,
+    progress: &mut dyn FnMut(f32),
+    cancelled: &dyn Fn() -> bool,
+) -> Result<Image, String> {
+    let request = FrameRequest::for_project(project);
+    let mut pipeline = FogPipeline::new(ctx);
+    pipeline.check_limits(project, request.width, request.height).map_err(|e| format!("Cannot render: {e}"))?;
+    let layer = crate::export::load_base_layer(project, project_path)
+        .map_err(|e| format!("The base volume cannot be loaded for the render: {e}"))?;
+    pipeline.set_base_layer(layer);
+    let result = pipeline.update_with(project, &request, std::time::Duration::from_millis(50), &mut |p| {
+        let (start, share) = match p.stage {
+            Stage::Inject => (0.0, 0.15),
+            Stage::Propagate { .. } => (0.15, 0.55),
+            Stage::March => (0.7, 0.3),
+            Stage::Done => (1.0, 0.0),
+        };
+        progress(start + share * p.stage_fraction as f32);
+        !cancelled()
+    });
+    match result {
+        Err(GpuError::Cancelled) => Err(EXPORT_CANCELLED.to_string()),
+        Err(e) => Err(format!("The render failed: {e}")),
+        Ok(_) => pipeline.read_image().map_err(|e| format!("The render could not be read back: {e}")),
+    }
+}
+
+/// What an export wrote, for the message that says it is done.
+fn summary(w: &Written) -> String {
+    let mut parts = Vec::new();
+    if let Some((_, stats, _)) = &w.vdb {
+        parts.push(format!("{} grids, {} bytes", stats.grids.len(), stats.bytes));
+    }
+    if let Some(usd) = &w.usd {
+        parts.push(format!("a stage with the volume from {} and {} lights", usd.vdb_asset, usd.lights));
+    }
+    if let Some((_, info, snippet)) = &w.ktx2 {
+        parts.push(format!(
+            "{} bytes, texel × {} = extinction 1/m, and {}",
+            info.bytes,
+            info.scale,
+            snippet.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+        ));
+    }
+    for (_, [width, height]) in w.png_render.iter().chain(&w.exr_render) {
+        parts.push(format!("{width}×{height} pixels"));
+    }
+    if let Some((_, quantities)) = &w.exr_slices {
+        parts.push(format!("{quantities} volumes"));
+    }
+    if let Some((_, layout)) = &w.exr_atlas {
+        parts.push(layout.to_string());
+    }
+    parts.join("; ")
 }
 
 fn capitalized(s: &str) -> String {

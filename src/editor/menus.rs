@@ -80,14 +80,9 @@ impl EditorState {
             }
         });
         ui.separator();
-        for c in [Command::Save, Command::SaveAs] {
+        for c in [Command::Save, Command::SaveAs, Command::Export] {
             self.command_button(ui, c, true);
         }
-        ui.menu_button("Export", |ui| {
-            for c in [Command::ExportVdb, Command::ExportExr] {
-                self.command_button(ui, c, true);
-            }
-        });
         ui.separator();
         self.command_button(ui, Command::ImportVdb, true);
         if self.session.project().base_volume.is_some() {

@@ -9,7 +9,8 @@
 //! - [`app`]: the eframe application: the dock and the state it shows, persisted between runs.
 //! - `state`: what the panels share (the session, view state, jobs, recovery, the preview);
 //!   what acts on it is split by concern: `preview` (the pipeline driver), `jobs`
-//!   (background work and exports), `file_actions`, `recovery`, `dispatch` (commands and
+//!   (background work and exports), `export` (the Export window; `export_memory` keeps its
+//!   choices per project), `file_actions`, `recovery`, `dispatch` (commands and
 //!   keys), `menus`, `shell` (status bar, messages), `scripted` (`--screenshot`,
 //!   `--measure-fps`).
 //! - `viewport`, `slice_panel` and `panels` draw the dockable tabs, from the state alone.
@@ -20,6 +21,8 @@
 pub mod app;
 pub mod commands;
 mod dispatch;
+mod export;
+mod export_memory;
 mod file_actions;
 pub mod files;
 pub mod gizmo;
@@ -77,7 +80,8 @@ pub struct EditorOptions {
     /// Write crash recovery files while there are unsaved changes, and offer to restore
     /// those left by an earlier run (see [`crate::scene::recovery`]).
     pub recovery: bool,
-    /// Where recovery files go; `None` means [`crate::scene::recovery::state_dir`].
+    /// Where recovery files and the Export window's choices go; `None` means
+    /// [`crate::scene::recovery::state_dir`].
     pub state_dir: Option<PathBuf>,
     /// Paint this many particles as one stroke once the editor has opened.
     pub scripted_stroke: Option<usize>,

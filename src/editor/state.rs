@@ -5,6 +5,7 @@
 //! each an `impl EditorState` that imports this module and not the app.
 
 use super::commands::Command;
+use super::export::{ExportChoices, ExportUi};
 use super::files::{DialogSpec, FileDialogs};
 use super::session::{Session, Version};
 use super::slices::{Slice, SliceSettings};
@@ -80,21 +81,12 @@ pub(super) enum JobResult {
     Exact { key: ExactKey, result: Result<Vec<f64>, String> },
 }
 
-/// What File → Export writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Export {
-    /// OpenVDB: density plus optical depth per light.
-    Vdb,
-    /// Multi-channel OpenEXR with every z slice of density and optical depth per light.
-    ExrSlices,
-}
-
 /// What a file dialog was opened for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Pick {
     Open,
     SaveAs,
-    Export(Export),
+    Export(ExportChoices),
     ImportVdb,
 }
 
@@ -274,6 +266,8 @@ pub struct EditorState {
     pub(super) base_loaded: Option<BaseKey>,
     /// File → Import VDB… while its window is open.
     pub(super) import: Option<super::import::ImportVdb>,
+    /// File → Export…: its window and the choices remembered per project.
+    pub(super) export: ExportUi,
     /// The command run last, for scripted drivers.
     pub(super) last_command: Option<Command>,
     /// Layout commands (View → Panels, Reset layout) for the app to apply to the dock.
@@ -334,7 +328,7 @@ pub(crate) struct Jobs {
     /// What each running job is doing, for the status bar.
     pub busy: Vec<String>,
     /// An export waiting for the bake to complete.
-    pub(super) pending_export: Option<(Export, PathBuf)>,
+    pub(super) pending_export: Option<(ExportChoices, PathBuf)>,
     /// The export being written in the background.
     pub(super) export_job: Option<ExportJob>,
 }
@@ -462,6 +456,7 @@ impl EditorState {
         self.confirm_dialog(ctx);
         self.built_in_dialog(ctx);
         self.import_window(ctx);
+        self.export_window(ctx);
         self.shortcuts_window(ctx);
         self.show_toasts(ctx);
         let title = format!("{}{} — Fogsmith", self.session.name(), if self.session.is_dirty() { " ●" } else { "" });
@@ -476,8 +471,8 @@ impl EditorState {
         // frame being painted.
         self.render_preview();
         if self.gpu.as_ref().is_some_and(|g| !g.refining()) {
-            if let Some((kind, path)) = self.jobs.pending_export.take() {
-                self.export_to(kind, path);
+            if let Some((choices, path)) = self.jobs.pending_export.take() {
+                self.export_to(choices, path);
             }
         }
         self.run_scripted(ctx);

@@ -15,10 +15,11 @@
 //! USD stage's coordinates and metadata, EXR header attributes); voxel values are never
 //! resampled. Values keep their units: extinction stays in 1/m whatever the length unit.
 
+use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// Which world axis points up.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, Serialize, Deserialize)]
 pub enum UpAxis {
     #[default]
     Y,
@@ -26,7 +27,7 @@ pub enum UpAxis {
 }
 
 /// The length unit of the target's world coordinates.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, Serialize, Deserialize)]
 pub enum Units {
     /// Metres (scale 1).
     #[default]
@@ -36,7 +37,7 @@ pub enum Units {
 }
 
 /// Whether the target's axes form a right- or left-handed system.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, Serialize, Deserialize)]
 pub enum Handedness {
     #[default]
     Right,
@@ -44,7 +45,7 @@ pub enum Handedness {
 }
 
 /// The conventions of the tools Fogsmith's files are usually opened in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
 pub enum Preset {
     /// Z-up, metres, right-handed.
     Blender,
@@ -59,7 +60,7 @@ pub enum Preset {
 }
 
 /// An export frame: up axis, length unit and handedness. The default is Fogsmith's own frame.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct Frame {
     pub up: UpAxis,
     pub units: Units,

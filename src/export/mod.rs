@@ -12,21 +12,26 @@
 //!   [`vdb_read::resample_into`] turns such a grid into a project's dense grid.
 //! - [`exr`]: the linear HDR render, the grids as one multi-layer EXR (a layer per quantity
 //!   per z-slice) and the extinction as a 2D slice atlas for game engines.
+//! - [`plan`]: which of these files to write and with which settings, and the one function
+//!   that writes them; `fogsmith export` and the editor's Export window both call it.
 //!
 //! Every writer writes a temporary file beside the destination and renames it into place,
 //! so a failed export never leaves a partial file at the destination.
 //!
-//! Nothing here depends on the GPU: exporters take [`crate::scene::Volume`]s (the EV and the
-//! per-light optical depths read back by the pipeline) plus [`LightInfo`].
+//! Nothing here calls the GPU: exporters take [`crate::scene::Volume`]s (the EV and the
+//! per-light optical depths read back by the pipeline), the read-back [`crate::gpu::Image`]
+//! and [`LightInfo`].
 
 pub mod exr;
 pub mod frame;
 pub mod ktx;
+pub mod plan;
 pub mod staged;
 pub mod usd;
 pub mod vdb;
 pub mod vdb_read;
 
+pub use plan::{write_plan, ExportPlan, ExportSettings};
 pub use staged::Staged;
 
 use std::io::Write;

@@ -90,7 +90,7 @@ pub const COMPRESS_ACTIVE_MASK: u32 = 2;
 pub const COMPRESS_BLOSC: u32 = 4;
 
 /// How value blocks are compressed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum VdbCompression {
     /// Raw values (active values only). Fastest to read and write.
     None,
@@ -209,7 +209,7 @@ impl<'a> VdbGrid<'a> {
 }
 
 /// Which grids [`grids_from_volumes`] makes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct GridSelection {
     pub density: bool,
     pub optical_depth: bool,

@@ -1,0 +1,299 @@
+//! File → Export… driven through the real window with egui_kittest on a real wgpu device
+//! (lavapipe without a GPU): formats and options picked by clicking, the destination through
+//! Fogsmith's own file dialog, the files read back with the project's readers and compared
+//! with the pipeline's read-back; refused combinations; choices remembered per project.
+
+use egui::{Key, Modifiers, Vec2};
+use egui_kittest::kittest::{NodeT, Queryable};
+use egui_kittest::Harness;
+use fogsmith::editor::app::{ExportFormat, ImageFormat, PreviewScale, Quality, StartProject};
+use fogsmith::editor::files::FileDialogs;
+use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
+use fogsmith::export::ktx::{r8_texel, Ktx2Format};
+use fogsmith::export::vdb_read::{list_vdb_grids, read_vdb_grid};
+use fogsmith::scene::{save_project, Project, Volume};
+use std::path::{Path, PathBuf};
+
+/// The demo saved as `name` in `dir`, changed by `edit`.
+fn project_file(dir: &Path, name: &str, edit: impl FnOnce(&mut Project)) -> PathBuf {
+    let mut project = fogsmith::editor::demo_project().expect("the demo parses");
+    edit(&mut project);
+    let path = dir.join(name);
+    save_project(&path, &project).expect("save the project");
+    path
+}
+
+/// The editor on `project` with Fogsmith's own file dialog and `state_dir` for its choices.
+fn editor(project: &Path, state_dir: &Path) -> Harness<'static, EditorApp> {
+    let options = EditorOptions {
+        file_dialogs: Some(FileDialogs::detect_with(|_| None)),
+        state_dir: Some(state_dir.to_path_buf()),
+        ..EditorOptions::default()
+    };
+    let start = StartProject::resolve(Some(project.to_path_buf())).expect("start");
+    assert_eq!(start.error, None);
+    let mut h = Harness::builder()
+        .with_size(Vec2::new(1280.0, 800.0))
+        .wgpu_setup(fogsmith::editor::wgpu_setup())
+        .build_eframe(|cc| {
+            let mut app = EditorApp::new(cc, start, options);
+            app.set_quality(Quality::Full);
+            app.set_preview_scale(PreviewScale::Quarter);
+            app
+        });
+    h.run_steps(3);
+    assert_eq!(h.state().gpu_error(), None, "the preview must render");
+    h
+}
+
+fn open_with_ctrl_e(h: &mut Harness<'_, EditorApp>) {
+    h.key_press_modifiers(Modifiers::COMMAND, Key::E);
+    h.run_steps(2);
+    assert!(h.state().export_window().is_some(), "Ctrl+E opens the Export window");
+}
+
+fn click(h: &mut Harness<'_, EditorApp>, label: &str) {
+    h.get_by_label(label).click();
+    h.run_steps(2);
+}
+
+/// Export to… then Enter in the file dialog (its proposed name in the project's folder), and
+/// the background job to its end; returns the message that says what was written.
+fn export_through_the_dialog(h: &mut Harness<'_, EditorApp>) -> String {
+    click(h, "Export to…");
+    assert!(h.state().export_window().is_none(), "the window gives way to the file dialog");
+    assert!(h.state().built_in_dialog_open(), "Export to… asks where to write");
+    h.key_press(Key::Enter);
+    h.run_steps(2);
+    for _ in 0..20_000 {
+        let messages = h.state().messages();
+        if let Some((_, m)) = messages.iter().find(|(_, m)| m.starts_with("Exported")) {
+            assert!(!h.state().built_in_dialog_open());
+            return m.clone();
+        }
+        if let Some((_, m)) = messages.iter().find(|(e, _)| *e) {
+            panic!("the export failed: {m}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        h.step();
+    }
+    panic!("the export did not finish: {:?}", h.state().messages());
+}
+
+fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {
+    h.state().pipeline().expect("pipeline").read_ev().expect("EV readback")
+}
+
+fn meta_string(grid: &fogsmith::export::vdb_read::VdbFloatGrid, name: &str) -> String {
+    let m = grid.metadata.iter().find(|m| m.0 == name).unwrap_or_else(|| panic!("{} has no {name}", grid.name));
+    String::from_utf8_lossy(&m.2).into_owned()
+}
+
+/// VDB with the Houdini preset (picked after Blender, so the preset must reset the axes),
+/// transmittance added and no compression: the grids the CLI writes for these options, in
+/// Houdini's frame (Y-up, metres, right-handed: index → world lands on the project's cell
+/// centres), holding exactly the pipeline's read-back values.
+#[test]
+fn vdb_with_the_houdini_preset_holds_the_pipeline_volumes_in_houdinis_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = project_file(dir.path(), "room.ron", |_| {});
+    let mut h = editor(&project, &dir.path().join("state"));
+    click(&mut h, "File");
+    click(&mut h, "Export…");
+    let choices = h.state().export_window().expect("File → Export… opens the window");
+    assert_eq!(choices.format, ExportFormat::Vdb);
+    click(&mut h, "Blender");
+    let blender = h.state().export_window().unwrap();
+    assert_eq!((blender.preset, blender.settings.frame), (Some(Preset::Blender), Frame::preset(Preset::Blender)));
+    click(&mut h, "Houdini");
+    click(&mut h, "transmittance per light");
+    click(&mut h, "none");
+    let choices = h.state().export_window().unwrap();
+    assert_eq!(choices.preset, Some(Preset::Houdini));
+    let houdini = Frame { up: UpAxis::Y, units: Units::M, handedness: Handedness::Right };
+    assert_eq!(choices.settings.frame, houdini);
+    let summary = export_through_the_dialog(&mut h);
+    assert!(summary.contains("room.vdb") && summary.contains("5 grids"), "{summary}");
+
+    let vdb = dir.path().join("room.vdb");
+    let names: Vec<String> = list_vdb_grids(&vdb).expect("the VDB reads back").into_iter().map(|g| g.name).collect();
+    assert_eq!(names, ["density", "optical_depth_0", "transmittance_0", "optical_depth_1", "transmittance_1"]);
+    let ev = read_ev(&h);
+    let opv = h.state().pipeline().unwrap().read_opv(1).expect("OPV readback");
+    let r = ev.grid.resolution;
+    for (name, want) in
+        [("density", ev.data.clone()), ("transmittance_1", opv.data.iter().map(|t| (-t).exp()).collect())]
+    {
+        let grid = read_vdb_grid(&vdb, Some(name)).expect("grid");
+        assert_eq!(grid.frame, houdini, "{name}");
+        assert_eq!(
+            (meta_string(&grid, "up_axis"), meta_string(&grid, "handedness")),
+            ("Y".into(), "right".into()),
+            "{name}"
+        );
+        assert!(!grid.half, "{name}: full floats");
+        for (i, j, k) in [(0, 0, 0), (r.x - 1, r.y - 1, r.z - 1), (r.x / 2, 3, r.z - 2)] {
+            let centre = ev.grid.cell_center(i, j, k);
+            let w = grid.transform.index_to_world([i as f64, j as f64, k as f64]);
+            for a in 0..3 {
+                assert!((w[a] - centre[a] as f64).abs() < 1e-5, "{name} ({i}, {j}, {k}) → {w:?}, want {centre}");
+            }
+        }
+        for k in 0..r.z {
+            for j in 0..r.y {
+                for i in 0..r.x {
+                    let v = want[ev.grid.index(i, j, k)];
+                    let back = grid.value_at([i as i32, j as i32, k as i32]);
+                    assert_eq!(back.to_bits(), v.to_bits(), "{name} at ({i}, {j}, {k})");
+                }
+            }
+        }
+    }
+}
+
+/// The rendered image is written at the project's output size, not the viewport's, and as
+/// `fogsmith render` would write it; the EXR variant holds half floats when asked.
+#[test]
+fn the_rendered_image_has_the_projects_output_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = project_file(dir.path(), "shot.ron", |p| {
+        p.render.width = 96;
+        p.render.height = 54;
+    });
+    let mut h = editor(&project, &dir.path().join("state"));
+    assert_ne!(h.state().preview_size(), [96, 54], "the preview renders at another size");
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "Rendered image (.png / .exr)");
+    h.get_by_label_contains("96×54 px");
+    assert!(h.query_by_label("Y-up").is_none(), "axes do not apply to an image");
+    let summary = export_through_the_dialog(&mut h);
+    assert!(summary.contains("96×54"), "{summary}");
+    let png = image::open(dir.path().join("shot.png")).expect("a PNG").to_rgb8();
+    assert_eq!(png.dimensions(), (96, 54));
+
+    // The same image as `fogsmith render` writes it, from a pipeline of its own.
+    let p = fogsmith::scene::load_project(&project).unwrap();
+    let mut pipeline = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("adapter"));
+    pipeline.update(&p, &fogsmith::gpu::FrameRequest::for_project(&p)).expect("render");
+    let reference = dir.path().join("reference.png");
+    fogsmith::output::write_image(&reference, &pipeline.read_image().unwrap(), p.render.exposure).unwrap();
+    let reference = image::open(&reference).unwrap().to_rgb8();
+    let diffs: Vec<i32> =
+        png.as_raw().iter().zip(reference.as_raw()).map(|(a, b)| (*a as i32 - *b as i32).abs()).collect();
+    let lit = png.as_raw().iter().filter(|v| **v > 8).count();
+    assert!(lit > png.as_raw().len() / 20, "the image shows the fog ({lit} lit channels)");
+    assert!(
+        diffs.iter().all(|d| *d <= 3),
+        "the PNG matches `fogsmith render` (largest difference {:?})",
+        diffs.iter().max()
+    );
+
+    open_with_ctrl_e(&mut h);
+    assert_eq!(h.state().export_window().unwrap().format, ExportFormat::Image, "the last format is proposed");
+    click(&mut h, "EXR");
+    click(&mut h, "half floats");
+    let choices = h.state().export_window().unwrap();
+    assert_eq!((choices.image, choices.settings.exr_half), (ImageFormat::Exr, true));
+    export_through_the_dialog(&mut h);
+    let meta = exr::meta::MetaData::read_from_file(dir.path().join("shot.exr"), false).expect("an EXR");
+    let header = &meta.headers[0];
+    assert_eq!((header.layer_size.width(), header.layer_size.height()), (96, 54));
+    assert!(header.channels.list.iter().all(|c| c.sample_type == exr::meta::attribute::SampleType::F16));
+}
+
+/// USD with a left-handed frame cannot be written: the window says what to change and its
+/// Export to… button stays disabled; once right-handed it writes the stage and its VDB.
+#[test]
+fn usd_with_a_left_handed_frame_is_refused_until_it_is_right_handed() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = project_file(dir.path(), "hall.ron", |_| {});
+    let mut h = editor(&project, &dir.path().join("state"));
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "USD stage (.usda + .vdb)");
+    click(&mut h, "Unreal");
+    let message = h.get_by_label_contains("USD stages are right-handed");
+    let text = message.accesskit_node().label().unwrap_or_default().to_string();
+    assert!(text.contains("Z-up, cm, left-handed") && text.contains("choose right-handed"), "{text}");
+    assert!(h.get_by_label("Export to…").accesskit_node().is_disabled(), "Export to… is disabled");
+    click(&mut h, "Export to…");
+    assert!(!h.state().built_in_dialog_open(), "nothing is asked or written");
+    assert!(h.state().export_window().is_some());
+
+    click(&mut h, "density grid");
+    h.get_by_label_contains("tick “density grid”");
+    click(&mut h, "density grid");
+    click(&mut h, "right-handed");
+    assert!(h.query_by_label_contains("USD stages are right-handed").is_none(), "the message goes");
+    let choices = h.state().export_window().unwrap();
+    assert_eq!(choices.preset, None, "no preset is Z-up, cm, right-handed");
+    assert_eq!(choices.settings.frame, Frame { up: UpAxis::Z, units: Units::Cm, handedness: Handedness::Right });
+    export_through_the_dialog(&mut h);
+    let usda = std::fs::read_to_string(dir.path().join("hall.usda")).expect("the stage");
+    assert!(usda.contains("def Volume") && usda.contains("@./hall.vdb@"), "{usda}");
+    assert!(usda.contains("upAxis = \"Z\"") && usda.contains("metersPerUnit = 0.01"), "{usda}");
+    let grid = read_vdb_grid(&dir.path().join("hall.vdb"), Some("density")).expect("the VDB beside it");
+    assert_eq!(grid.frame, choices.settings.frame);
+}
+
+/// The window reopens on the choices last exported for the project, in this editor and the
+/// next one; another project starts from the defaults; a damaged file is ignored with a note.
+/// The KTX2 export on the way is read back texel by texel against the pipeline's EV.
+#[test]
+fn reopening_the_window_shows_the_last_choices_for_the_project() {
+    let dir = tempfile::tempdir().unwrap();
+    let state = dir.path().join("state");
+    let a = project_file(dir.path(), "a.ron", |_| {});
+    let b = project_file(dir.path(), "b.ron", |_| {});
+    let mut h = editor(&a, &state);
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "KTX2 texture (.ktx2 + .fogvolume.ron)");
+    assert!(h.query_by_label("Houdini").is_none(), "presets do not apply to KTX2");
+    click(&mut h, "r8");
+    export_through_the_dialog(&mut h);
+    let ev = read_ev(&h);
+    let ktx = ktx2::Reader::new(std::fs::read(dir.path().join("a.ktx2")).unwrap()).expect("a KTX2 file");
+    let header = ktx.header();
+    assert_eq!(header.format, Some(ktx2::Format::R8_UNORM));
+    let r = ev.grid.resolution;
+    assert_eq!((header.pixel_width, header.pixel_height, header.pixel_depth), (r.x, r.y, r.z));
+    let scale = ev.data.iter().fold(0.0f32, |m, v| m.max(*v));
+    let data = ktx.levels().next().unwrap().data;
+    for (n, v) in ev.data.iter().enumerate() {
+        assert_eq!(data[n], r8_texel(*v, scale), "texel {n}");
+    }
+    let snippet = std::fs::read_to_string(dir.path().join("a.fogvolume.ron")).expect("the snippet");
+    assert!(snippet.contains("density_texture: Some(asset_server.load(\"a.ktx2\"))"), "{snippet}");
+
+    open_with_ctrl_e(&mut h);
+    let again = h.state().export_window().unwrap();
+    assert_eq!((again.format, again.settings.ktx2_format), (ExportFormat::Ktx2, Ktx2Format::R8));
+    let r8 = h.get_by_label("r8").accesskit_node().toggled();
+    assert_eq!(r8, Some(egui::accesskit::Toggled::True), "the window shows r8 chosen");
+    h.key_press(Key::Escape);
+    h.run_steps(2);
+    assert!(h.state().export_window().is_none(), "Escape closes the window");
+    drop(h);
+
+    let mut h = editor(&a, &state);
+    open_with_ctrl_e(&mut h);
+    let next = h.state().export_window().unwrap();
+    assert_eq!((next.format, next.settings.ktx2_format), (ExportFormat::Ktx2, Ktx2Format::R8), "kept between runs");
+    drop(h);
+
+    let mut h = editor(&b, &state);
+    open_with_ctrl_e(&mut h);
+    assert_eq!(h.state().export_window().unwrap().format, ExportFormat::Vdb, "another project starts afresh");
+    drop(h);
+
+    let file = state.join("export-choices.ron");
+    assert!(std::fs::read_to_string(&file).unwrap().contains("a.ron"));
+    std::fs::write(&file, "ExportMemory(projects: [(\"a.ron\", (format: Mp4").unwrap();
+    let mut h = editor(&a, &state);
+    open_with_ctrl_e(&mut h);
+    assert_eq!(h.state().export_window().unwrap().format, ExportFormat::Vdb, "a damaged file is ignored");
+    let messages = h.state().messages();
+    let notes: Vec<_> = messages.iter().filter(|(_, m)| m.contains("export-choices.ron")).collect();
+    assert_eq!(notes.len(), 1, "{messages:?}");
+    assert!(!notes[0].0 && !notes[0].1.contains('\n') && notes[0].1.contains("Ignored"), "{notes:?}");
+}
