@@ -53,6 +53,7 @@ fn open_with_ctrl_e(h: &mut Harness<'_, EditorApp>) {
     assert!(h.state().export_window().is_some(), "Ctrl+E opens the Export window");
 }
 
+#[track_caller]
 fn click(h: &mut Harness<'_, EditorApp>, label: &str) {
     h.get_by_label(label).click();
     h.run_steps(2);
@@ -100,7 +101,7 @@ fn vdb_with_the_houdini_preset_holds_the_pipeline_volumes_in_houdinis_frame() {
     let project = project_file(dir.path(), "room.ron", |_| {});
     let mut h = editor(&project, &dir.path().join("state"));
     click(&mut h, "File");
-    click(&mut h, "Export…");
+    click(&mut h, "Export… Ctrl+E");
     let choices = h.state().export_window().expect("File → Export… opens the window");
     assert_eq!(choices.format, ExportFormat::Vdb);
     click(&mut h, "Blender");
@@ -213,7 +214,8 @@ fn usd_with_a_left_handed_frame_is_refused_until_it_is_right_handed() {
     click(&mut h, "USD stage (.usda + .vdb)");
     click(&mut h, "Unreal");
     let message = h.get_by_label_contains("USD stages are right-handed");
-    let text = message.accesskit_node().label().unwrap_or_default().to_string();
+    let node = message.accesskit_node();
+    let text = node.label().or_else(|| node.value()).unwrap_or_default();
     assert!(text.contains("Z-up, cm, left-handed") && text.contains("choose right-handed"), "{text}");
     assert!(h.get_by_label("Export to…").accesskit_node().is_disabled(), "Export to… is disabled");
     click(&mut h, "Export to…");
@@ -296,4 +298,41 @@ fn reopening_the_window_shows_the_last_choices_for_the_project() {
     let notes: Vec<_> = messages.iter().filter(|(_, m)| m.contains("export-choices.ron")).collect();
     assert_eq!(notes.len(), 1, "{messages:?}");
     assert!(!notes[0].0 && !notes[0].1.contains('\n') && notes[0].1.contains("Ignored"), "{notes:?}");
+}
+
+/// Cancel in the status bar stops the image's render at the next work item: nothing is
+/// written, and the message says so.
+#[test]
+fn an_image_export_is_cancelled_while_it_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    // Long enough to be mid-render when Cancel is clicked, even on a fast GPU: 8 Mpixels
+    // with fine ray-march steps.
+    let project = project_file(dir.path(), "big.ron", |p| {
+        p.render.width = 3840;
+        p.render.height = 2160;
+        p.render.step_factor = 0.02;
+    });
+    let mut h = editor(&project, &dir.path().join("state"));
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "Rendered image (.png / .exr)");
+    click(&mut h, "Export to…");
+    h.key_press(Key::Enter);
+    h.run_steps(2);
+    assert_eq!(h.state().busy(), 1, "the render runs: {:?}", h.state().messages());
+    click(&mut h, "Cancel");
+    for _ in 0..20_000 {
+        if h.state().busy() == 0 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        h.step();
+    }
+    h.run_steps(2);
+    let messages = h.state().messages();
+    assert!(
+        messages.iter().any(|(e, m)| !e && m.contains("Export cancelled") && m.contains("big.png")),
+        "{messages:?}"
+    );
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left.len(), 2, "the project and the state folder only: {left:?}");
 }

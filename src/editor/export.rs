@@ -71,7 +71,7 @@ impl ExportFormat {
             ExportFormat::Ktx2 => "The extinction as a 3D texture for game engines, and a matching Bevy FogVolume (always Y-up, metres)",
             ExportFormat::ExrAtlas => "The extinction's z-slices tiled in one 2D image; the tile layout is in the header",
             ExportFormat::ExrSlices => "Every z-slice of the extinction and of each light's optical depth, one layer each",
-            ExportFormat::Image => "The preview rendered to convergence at the project's output size (Inspector → Render), as `fogsmith render` does",
+            ExportFormat::Image => "The preview rendered to convergence at the project's output size (the Inspector's Render section), as `fogsmith render` does",
         }
     }
 
@@ -368,7 +368,10 @@ fn options(ui: &mut egui::Ui, c: &mut ExportChoices, size: [u32; 2], lights: usi
                 });
                 ui.end_row();
                 ui.label("size");
-                ui.label(format!("{}×{} px (the project's output size, Inspector → Render)", size[0], size[1]));
+                ui.label(format!(
+                    "{}×{} px (the project's output size, set in the Inspector's Render section)",
+                    size[0], size[1]
+                ));
                 ui.end_row();
             }
             _ => {}

@@ -45,6 +45,11 @@ impl EditorState {
             let why = self.gpu_missing.clone().unwrap_or_else(|| "the pipeline is not running".into());
             return self.error(format!("Cannot export to {}: {why}", path.display()));
         };
+        if let Some(e) = gpu.error.as_ref().filter(|_| plan.needs_volumes()) {
+            let text =
+                format!("Cannot export to {}: the preview's bake failed, so there are no volumes: {e}", path.display());
+            return self.error(text);
+        }
         if plan.needs_volumes() && gpu.refining() {
             // The volumes are still being baked: export once they are complete.
             if self.jobs.pending_export.is_none() {

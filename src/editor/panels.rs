@@ -285,10 +285,10 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 let (mut w, mut h) = (r.width, r.height);
                 let a = ui
                     .add(DragValue::new(&mut w).range(1..=16384).suffix(" px"))
-                    .on_hover_text("Width of `fogsmith render` images and of File → Export's rendered image");
+                    .on_hover_text("Width of `fogsmith render` images and of the image the Export window renders");
                 let b = ui
                     .add(DragValue::new(&mut h).range(1..=16384).suffix(" px"))
-                    .on_hover_text("Height of `fogsmith render` images and of File → Export's rendered image");
+                    .on_hover_text("Height of `fogsmith render` images and of the image the Export window renders");
                 if a.changed() || b.changed() {
                     let t = if a.changed() { a.id.value() } else { b.id.value() };
                     let p = state.session.edit(t);
