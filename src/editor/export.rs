@@ -250,7 +250,7 @@ impl EditorState {
             ui.separator();
             let names: Vec<String> =
                 files.iter().filter_map(|f| f.file_name()).map(|n| n.to_string_lossy().into_owned()).collect();
-            ui.label(format!("Writes {}", names.join(" and ")));
+            ui.label(format!("Writes {}; the folder and name are chosen next", names.join(" and ")));
             for p in &problems {
                 ui.add(egui::Label::new(egui::RichText::new(p).color(ui.visuals().error_fg_color)).wrap());
             }
