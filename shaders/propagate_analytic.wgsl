@@ -13,6 +13,9 @@
 // in closed form over the whole path, inside the box and beyond it. Noise and an imported base
 // volume exist only on the grid, so this scheme refuses them (src/gpu/pipeline.rs).
 //
+// A sun's path is the ray along its reversed direction of travel: particles up to the box's
+// exit, base and height fog to infinity.
+//
 // Cost: the list entries along the path, so it suits scenes whose bricks list few particles.
 
 struct AnalyticParams {
@@ -65,14 +68,22 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
         return;
     }
     let x = grid.min + (vec3f(id) + 0.5) * grid.cell;
-    let s = lights[params.light].position;
-    let len = length(s - x);
-    if len <= 0.0 {
+    let light = lights[params.light];
+    // A sun's rays are parallel: the path runs along the reversed direction of travel to
+    // infinity (len < 0 for base_fog_depth), its particles clipped to the box like a point
+    // light's.
+    let sun = light.kind == LIGHT_DIRECTIONAL;
+    let s = light.position;
+    var len = length(s - x);
+    var dir = (s - x) / len;
+    if sun {
+        dir = -light.direction;
+        len = -1.0;
+    } else if len <= 0.0 {
         opv_store(params.light, id, 0.0);
         return;
     }
-    let dir = (s - x) / len;
-    let inside = min(box_exit(x, dir), len);
+    let inside = select(min(box_exit(x, dir), len), box_exit(x, dir), sun);
     let size = grid.cell * f32(BRICK);
     let bdims = vec3i((grid.dims + BRICK - 1u) / BRICK);
     var b = min(vec3i(floor((x - grid.min) / size)), bdims - 1);

@@ -2,6 +2,11 @@
 // the path leaves the grid, through the trilinear EV with steps of a quarter of the smallest
 // cell edge (Simpson's rule per pair of steps), then adds the base fog beyond. O(N) work per
 // cell, O(N⁴) per light: a reference-quality scheme for measurement.
+//
+// A sun (directional light) is marched along its reversed direction of travel to where the
+// path leaves the box, integrating the trilinear medium exactly between the crossings of
+// cell-centre planes (integrate_pieces), and adds the base fog beyond in closed form: the
+// same G + B the directional sweep stores.
 
 struct ExactParams {
     light: u32,
@@ -22,7 +27,18 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
         return;
     }
     let x = cell_center(id);
-    let s = lights[exact.light].position;
+    let light = lights[exact.light];
+    if light.kind == LIGHT_DIRECTIONAL {
+        let towards = -light.direction;
+        let beyond = sun_beyond(x, towards);
+        if beyond >= OPAQUE {
+            opv_store(exact.light, id, OPAQUE);
+            return;
+        }
+        opv_store(exact.light, id, integrate_pieces(x, x + towards * box_exit(x, towards), true) + beyond);
+        return;
+    }
+    let s = light.position;
     let len = length(s - x);
     let dir = (s - x) / max(len, 1e-30);
     // Beyond the grid only base fog remains: march to where the segment leaves the grid and

@@ -165,6 +165,11 @@ pub struct PlaneParams {
     pub plane: u32,
     /// The upstream plane; equal to `plane` for the first.
     pub previous: u32,
+    /// 1: the interpolations are error-controlled (`propagation.sweep_refine`).
+    pub refine: u32,
+    /// Their largest accepted error in transmittance.
+    pub tolerance: f32,
+    pub _pad: [u32; 2],
 }
 
 #[cfg(test)]

@@ -75,12 +75,14 @@ pub fn propagate_sweep(opv: &OpvLayout, cells_per_thread: u32, filtered: bool) -
     ])
 }
 
-/// The brute-force march of the `exact` scheme.
+/// The brute-force march of the `exact` scheme (suns' paths integrated piecewise exactly).
 pub fn propagate_exact(opv: &OpvLayout) -> String {
     assemble(&[
         &opv.wgsl("opv", 4, EXTRA_BINDING, true),
         EV_TRILINEAR,
         VOLUME_LOOKUP,
+        SWEEP_SIGMA_LOADS,
+        INTEGRATE_EXACT,
         include_str!("../../shaders/propagate_exact.wgsl"),
     ])
 }

@@ -12,8 +12,15 @@ pub(super) const SUN_STRIDE: u32 = 16;
 /// The dispatches of one sun's sweep, upstream plane first. The planes are stacked along the
 /// axis the light travels most along; each plane interpolates in the plane `stride` planes
 /// upstream (fewer interpolations, less numerical diffusion), the first `stride` planes
-/// integrate straight to the box.
-pub(super) fn sun_planes(grid: &GridSpec, light: u32, direction: Vec3, stride: u32) -> Vec<PlaneParams> {
+/// integrate straight to the box. `refine`: the tolerance of the interpolations' error
+/// control, if on.
+pub(super) fn sun_planes(
+    grid: &GridSpec,
+    light: u32,
+    direction: Vec3,
+    stride: u32,
+    refine: Option<f32>,
+) -> Vec<PlaneParams> {
     let towards = -direction;
     let axis = towards.abs().max_position();
     let n = grid.resolution[axis];
@@ -29,7 +36,15 @@ pub(super) fn sun_planes(grid: &GridSpec, light: u32, direction: Vec3, stride: u
             } else {
                 plane - stride
             };
-            PlaneParams { light, axis: axis as u32, plane, previous }
+            PlaneParams {
+                light,
+                axis: axis as u32,
+                plane,
+                previous,
+                refine: refine.is_some() as u32,
+                tolerance: refine.unwrap_or(0.0),
+                _pad: [0; 2],
+            }
         })
         .collect()
 }

@@ -42,8 +42,8 @@ pub struct PropagationInputs<'a> {
     /// Light positions, indexed like the OPVs.
     pub positions: &'a [Vec3],
     /// The unit direction of travel of each directional light (None for point and spot
-    /// lights), indexed like the OPVs: those are swept by `propagate_directional.wgsl`
-    /// whatever the scheme.
+    /// lights), indexed like the OPVs: the `sweep` and `giroud` schemes sweep those with
+    /// `propagate_directional.wgsl`.
     pub directions: &'a [Option<Vec3>],
     /// Layers stepped back per interpolation by the `sweep` scheme (≥ 3).
     pub sweep_stride: u32,
@@ -182,8 +182,9 @@ impl Propagator {
     /// starts at the first batch of shells those cells can reach, since every cell depends
     /// only on cells closer to the light. The other schemes recompute everything.
     ///
-    /// Directional lights among `active` are swept plane by plane along their direction
-    /// (`propagate_directional.wgsl`), after the other lights' dispatches.
+    /// With the `sweep` and `giroud` schemes, directional lights among `active` are swept plane
+    /// by plane along their direction (`propagate_directional.wgsl`), after the other lights'
+    /// dispatches; `exact` and `analytic` integrate every light kind's paths themselves.
     pub fn plan(
         &self,
         device: &wgpu::Device,
@@ -194,8 +195,10 @@ impl Propagator {
     ) -> PropagationJob {
         let sun_of = |l: u32| inputs.directions.get(l as usize).copied().flatten();
         let (mut points, mut points_changed, mut suns) = (Vec::new(), Vec::new(), Vec::new());
+        // `exact` and `analytic` treat suns like the other lights (their shaders read the kind).
+        let swept = matches!(scheme, Scheme::Sweep | Scheme::Giroud);
         for (k, &l) in active.iter().enumerate() {
-            match sun_of(l) {
+            match sun_of(l).filter(|_| swept) {
                 Some(direction) => suns.push((l, direction)),
                 None => {
                     points.push(l);
@@ -220,7 +223,7 @@ impl Propagator {
         };
         if !suns.is_empty() {
             let params: Vec<PlaneParams> =
-                suns.iter().flat_map(|&(l, direction)| sun_planes(inputs.grid, l, direction, SUN_STRIDE)).collect();
+                suns.iter().flat_map(|&(l, direction)| sun_planes(inputs.grid, l, direction, SUN_STRIDE, inputs.sweep_refine)).collect();
             let r = inputs.grid.resolution.to_array();
             let start = job.groups.len();
             for p in &params {
