@@ -19,8 +19,10 @@
 // each interpolated axis (a 4 × 4 stencil around the bilinear one; their size is the order
 // of linear interpolation's error whether or not the data are smooth across a cell), times
 // the rest's length and the whole path's transmittance, estimate the interpolation's error
-// in the cell's transmittance. Above `plane.tolerance` the cell integrates its whole in-box
-// path exactly instead, so the cells downstream interpolate from exact values.
+// in the cell's transmittance. Above `plane.tolerance`, or where the point stepped back to
+// lies beyond the outermost cell centres (the stencil then extrapolates), the cell integrates
+// its whole in-box path exactly instead, so the cells downstream interpolate from exact
+// values.
 
 struct PlaneParams {
     light: u32,
@@ -92,7 +94,8 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     } else {
         let u = x + towards * s;
         // Bilinear weights in the previous plane, clamped to its cell centres.
-        let f = clamp((u - grid.min) / grid.cell - 0.5, vec3f(0.0), vec3f(grid.dims - 1u));
+        let raw = (u - grid.min) / grid.cell - 0.5;
+        let f = clamp(raw, vec3f(0.0), vec3f(grid.dims - 1u));
         let i1 = i32(floor(f[a1]));
         let i2 = i32(floor(f[a2]));
         let w1 = f[a1] - f32(i1);
@@ -131,7 +134,10 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
                 vec4f(rows[0].z, rows[1].z, rows[2].z, rows[3].z),
                 vec4f(rows[0].w, rows[1].w, rows[2].w, rows[3].w),
             );
-            var err = 0.0;
+            // Beyond the outermost cell centres the stencil's values are extrapolated as
+            // constants, whose error nothing here estimates: such cells integrate directly.
+            let outside = raw[a1] != f[a1] || raw[a2] != f[a2];
+            var err = select(0.0, 3.4e38, outside);
             if w1 > 1e-4 {
                 err += max(curvature(rows[1], i1, n1), curvature(rows[2], i1, n1));
             }

@@ -147,6 +147,9 @@ fn worst_by_class(scheme: Scheme, refine: bool, against: Against, seed: u64) -> 
                     }
                 };
                 assert!(!e.nan_or_inf, "{scheme} {res} sun {l}: NaN or infinity");
+                if std::env::var("SUN_DIAG").is_ok() && against == Against::Grid {
+                    diagnose(&p, l, &ev, &opv, &cells);
+                }
                 let LightKind::Directional { direction } = light.kind else { unreachable!() };
                 println!(
                     "{scheme} refine {refine:5} {:>3}×{:>3}×{:>3} {particles:2} particles fog {fog:5} {:18} towards {:>6.3?}: {:.2e}",
@@ -166,6 +169,25 @@ fn worst_by_class(scheme: Scheme, refine: bool, against: Against, seed: u64) -> 
         println!("  {class:18} {w:.2e}");
     }
     worst
+}
+
+/// The worst cell of sun `l`: the reference and computed optical depth.
+fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith::scene::Volume, cells: &[[u32; 3]]) {
+    use fogsmith::reference::{grid_light_depth_cells, GridMedium64};
+    let medium = GridMedium64::for_project(p, ev);
+    let exact = grid_light_depth_cells(p, &medium, l, cells);
+    let got = |c: &[u32; 3]| opv.get(c[0], c[1], c[2]) as f64;
+    let err = |c: &[u32; 3], t: f64| ((-got(c)).exp() - (-t).exp()).abs();
+    let errors: Vec<f64> = cells.iter().zip(&exact).map(|(c, t)| err(c, *t)).collect();
+    let bad = errors.iter().filter(|&&e| e > SCHEME_BOUND).count();
+    let Some(n) = (0..cells.len()).max_by(|&a, &b| errors[a].total_cmp(&errors[b])) else { return };
+    let c = cells[n];
+    println!(
+        "    worst cell {c:?} error {:.2e} reference {:.5} got {:.5}; {bad} cells beyond the bound",
+        errors[n],
+        exact[n],
+        got(&c)
+    );
 }
 
 fn seeds() -> Vec<u64> {
