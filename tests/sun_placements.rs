@@ -108,7 +108,10 @@ fn scene(rng: &mut Rng, resolution: UVec3, fog: bool) -> (Project, usize) {
     }
     p.lights = towards_by_class(rng, fog)
         .into_iter()
-        .map(|towards| Light { kind: LightKind::Directional { direction: -towards }, ..Light::new(Vec3::ZERO, 1.0, Vec3::ONE) })
+        .map(|towards| Light {
+            kind: LightKind::Directional { direction: -towards },
+            ..Light::new(Vec3::ZERO, 1.0, Vec3::ONE)
+        })
         .collect();
     p.camera = Camera { position: Vec3::new(0.0, 0.0, 5.0), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 45.0 };
     p.render.width = 8;

@@ -222,8 +222,10 @@ impl Propagator {
             self.plan_points(device, inputs, scheme, &points, &points_changed)
         };
         if !suns.is_empty() {
-            let params: Vec<PlaneParams> =
-                suns.iter().flat_map(|&(l, direction)| sun_planes(inputs.grid, l, direction, SUN_STRIDE, inputs.sweep_refine)).collect();
+            let params: Vec<PlaneParams> = suns
+                .iter()
+                .flat_map(|&(l, direction)| sun_planes(inputs.grid, l, direction, SUN_STRIDE, inputs.sweep_refine))
+                .collect();
             let r = inputs.grid.resolution.to_array();
             let start = job.groups.len();
             for p in &params {
