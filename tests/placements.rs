@@ -27,11 +27,11 @@ const SWEEP_SCHEME_BOUNDS: [f64; 8] = [2e-3; 8];
 /// the worst class measured 1.03e-3 (beyond a face, seed 7).
 const SWEEP_SCHEME_BOUNDS_RESOLVED: [f64; 8] = [1.5e-3; 8];
 
-/// With a tolerance of 1e-4 the first seed's scenes stay within 1e-3 (measured 6.5e-4,
-/// against 1.0e-3 at the default tolerance and 3.3e-2 without refine): the tolerance
-/// controls the error, though below about 5e-4 the error falls more slowly than it.
+/// A tolerance of 1e-4 against the default one, on the same scenes: the worst error over the
+/// classes must fall by at least this factor (below about 5e-4 the error falls more slowly
+/// than the tolerance, so the gain asked for is well short of the tolerances' ratio of 5).
 const TIGHT_TOLERANCE: f32 = 1e-4;
-const TIGHT_TOLERANCE_BOUNDS: [f64; 8] = [1e-3; 8];
+const TIGHT_TOLERANCE_GAIN: f64 = 0.8;
 
 /// Without `sweep_refine` (faster), per placement class in
 /// `CLASSES` order: the numerical diffusion of the interpolations, which cannot resolve the
@@ -262,9 +262,20 @@ fn refined_sweep_is_accurate_for_every_light_placement() {
     check_sweep(1.0, Some(DEFAULT_SWEEP_TOLERANCE), SWEEP_SCHEME_BOUNDS, &[SEED, 7, 99]);
 }
 
+/// The tolerance controls the error: the same scenes, at the default tolerance and a tighter
+/// one, must show a measurable gain, not merely both stay within a bound.
 #[test]
 fn a_tighter_tolerance_tightens_the_error() {
-    check_sweep(1.0, Some(TIGHT_TOLERANCE), TIGHT_TOLERANCE_BOUNDS, &[SEED]);
+    let seed = std::env::var("PLACEMENT_SEED").map_or(SEED, |s| s.parse().expect("PLACEMENT_SEED is a number"));
+    let worst = |tolerance: f32| {
+        worst_by_class(Scheme::Sweep, 8, Some(tolerance), 1.0, seed).iter().map(|&(s, _)| s).fold(0.0, f64::max)
+    };
+    let (default, tight) = (worst(DEFAULT_SWEEP_TOLERANCE), worst(TIGHT_TOLERANCE));
+    println!("seed {seed}: worst scheme error {default:.2e} at tolerance {DEFAULT_SWEEP_TOLERANCE:e}, {tight:.2e} at {TIGHT_TOLERANCE:e}");
+    assert!(
+        tight <= TIGHT_TOLERANCE_GAIN * default,
+        "seed {seed}: tolerance {TIGHT_TOLERANCE:e} gives {tight:.3e}, not below {TIGHT_TOLERANCE_GAIN} × {default:.3e} (tolerance {DEFAULT_SWEEP_TOLERANCE:e})"
+    );
 }
 
 #[test]
