@@ -127,16 +127,15 @@ impl FrameInputs {
 
 /// The OPV key of a light that gets one, at EV generation 0.
 fn opv_key(project: &Project, l: &Light, scheme: Scheme) -> OpvKey {
-    // A sun's volume depends on its direction only, whatever the scheme.
+    // A sun's volume depends on its direction, not its position: `sweep` and `giroud` sweep it
+    // plane by plane (with the sweep's error control, if on), `exact` and `analytic` integrate
+    // it themselves.
     if let Some(direction) = sun_direction(l) {
-        return OpvKey {
-            position: direction,
-            ev_generation: 0,
-            scheme: Scheme::Sweep,
-            stride: 0,
-            refine: None,
-            sun: true,
+        let (scheme, refine) = match scheme {
+            Scheme::Sweep | Scheme::Giroud => (Scheme::Sweep, project.propagation.refine_tolerance()),
+            other => (other, None),
         };
+        return OpvKey { position: direction, ev_generation: 0, scheme, stride: 0, refine, sun: true };
     }
     let (stride, refine) = match scheme {
         Scheme::Sweep => (project.propagation.sweep_stride, project.propagation.refine_tolerance()),
