@@ -650,6 +650,44 @@ fn the_light_tool_drags_lights() {
     assert_eq!(h.state().session().project().lights.len(), n + 2, "dragging the sun adds no light");
 }
 
+/// A selected spot shows an aim handle at the tip of its axis; dragging it points the spot
+/// at the pointer (one undo step), and a press beside the handle does not aim.
+#[test]
+fn dragging_a_spots_aim_handle_points_it() {
+    use fogsmith::scene::LightKind;
+    let mut h = harness(StartProject::resolve(Some(PathBuf::from("projects/room.ron"))).expect("room"));
+    let spot = h.state().session().project().lights.iter().position(|l| matches!(l.kind, LightKind::Spot { .. }));
+    let i = spot.expect("room.ron has a spot");
+    h.state_mut().session_mut().selection.lights.insert(i);
+    h.run_steps(2);
+    let before = h.state().session().project().clone();
+    let tip = before.spot_tip(&before.lights[i]).expect("a spot has a tip");
+    let from = screen_of(&h, tip);
+    let to = from + Vec2::new(40.0, -25.0);
+    let undo = h.state().session().undo_len();
+    drag(&mut h, from, to, 4);
+    let p = h.state().session().project().clone();
+    let LightKind::Spot { direction, .. } = p.lights[i].kind else { panic!("still a spot: {:?}", p.lights[i]) };
+    let LightKind::Spot { direction: old, .. } = before.lights[i].kind else { unreachable!() };
+    assert!(direction.angle_between(old) > 0.05, "the drag turned the spot: {old} → {direction}");
+    assert_eq!(p.lights[i].position, before.lights[i].position, "aiming does not move the spot");
+    let new_tip = p.spot_tip(&p.lights[i]).expect("tip");
+    let on_screen = screen_of(&h, new_tip);
+    // The axis passes under the pointer (the tip itself sits at a fixed distance along it).
+    let (a, b) = (screen_of(&h, p.lights[i].position), on_screen);
+    let (u, w) = (b - a, to - a);
+    let off_axis = (u.x * w.y - u.y * w.x).abs() / u.length();
+    assert!(off_axis < 1.5, "the axis points at the pointer: {off_axis} px off");
+    assert_eq!(h.state().session().undo_len(), undo + 1, "one undo step");
+    h.state_mut().session_mut().undo();
+    assert_eq!(h.state().session().project().lights[i], before.lights[i], "undo restores the aim");
+
+    // A press well beside the handle, on empty space, does not aim the spot.
+    let aside = from + Vec2::new(0.0, 60.0);
+    drag(&mut h, aside, aside + Vec2::new(30.0, 0.0), 3);
+    assert_eq!(h.state().session().project().lights[i].kind, before.lights[i].kind);
+}
+
 /// The EV slice shows the volume after an erase, without touching the slice controls.
 #[test]
 fn the_ev_slice_follows_an_erase() {

@@ -198,6 +198,15 @@ pub(crate) enum Gesture {
         start: egui::Pos2,
         applied: glam::Vec3,
     },
+    /// A drag on a selected spot's aim handle: the tip of its axis, `tip` when the drag
+    /// began, follows the pointer at the tip's `depth`, and the axis points at it.
+    AimSpot {
+        tag: u64,
+        light: usize,
+        depth: f32,
+        start: egui::Pos2,
+        tip: glam::Vec3,
+    },
     Paint(Stroke),
     SlicePaint(Stroke),
     Erase {

@@ -92,6 +92,10 @@ fn light_direction(
             Line::NONE,
         ));
     }
+    if cone.is_some() && selected {
+        // The aim handle: drag it to point the spot.
+        painter.circle(b, AIM_HANDLE_RADIUS, colour, egui::Stroke::new(1.0, Color32::BLACK));
+    }
     if let Some(angle) = cone {
         // Two edges of the cone, in a plane through the axis.
         let side = d.any_orthonormal_vector();
@@ -333,6 +337,7 @@ fn handle_input(state: &mut EditorState, ui: &Ui, response: &egui::Response, rec
                     | Gesture::Pan
                     | Gesture::Move { .. }
                     | Gesture::MoveLight { .. }
+                    | Gesture::AimSpot { .. }
                     | Gesture::Gizmo { .. }
             )
         );
@@ -440,7 +445,29 @@ fn shown_gizmo(state: &EditorState, vp: &ViewProjection) -> Option<Gizmo> {
     Gizmo::new(state.session.selection_center()?, vp)
 }
 
+/// Radius in points of a selected spot's aim handle, drawn and picked.
+const AIM_HANDLE_RADIUS: f32 = 5.0;
+
+/// The selected spot whose aim handle is under `pos` (Select and Light tools), with its tip
+/// and the tip's depth.
+fn aim_handle_at(state: &EditorState, vp: &ViewProjection, pos: Pos2) -> Option<(usize, Vec3, f32)> {
+    if !matches!(state.view.tool, Tool::Select | Tool::Light) {
+        return None;
+    }
+    let project = state.session.project();
+    state.session.selection.lights.iter().find_map(|&i| {
+        let tip = project.spot_tip(project.lights.get(i)?)?;
+        let (at, depth) = vp.project(tip)?;
+        (at.distance(pos) <= AIM_HANDLE_RADIUS + 3.0).then_some((i, tip, depth))
+    })
+}
+
 fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifiers: egui::Modifiers) {
+    if let Some((light, tip, depth)) = aim_handle_at(state, vp, pos) {
+        let tag = state.session.new_tag();
+        state.view.gesture = Some(Gesture::AimSpot { tag, light, depth, start: pos, tip });
+        return;
+    }
     // A press on a handle of the move gizmo drags the selection along its axis or plane.
     if let Some(g) = shown_gizmo(state, vp) {
         if let Some((handle, grab)) = g.pick(vp, pos).and_then(|h| Some((h, gizmo::drag_point(h, g.center, vp, pos)?)))
@@ -595,6 +622,13 @@ fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2
             let (tag, light) = (*tag, *light);
             if step != Vec3::ZERO {
                 state.session.edit(tag).move_light(light, step);
+            }
+        }
+        Some(Gesture::AimSpot { tag, light, depth, start, tip }) => {
+            let target = *tip + vp.drag_to_world(last - *start, *depth);
+            let (tag, light) = (*tag, *light);
+            if state.session.project().lights.get(light).is_some_and(|l| l.position != target) {
+                state.session.edit(tag).aim_spot(light, target);
             }
         }
         Some(Gesture::Gizmo { tag, handle, center, grab, applied, snap }) => {

@@ -81,6 +81,30 @@ impl Project {
         }
     }
 
+    /// Where a spot's aim handle sits: on its axis, a quarter of the sun distance out.
+    pub fn spot_tip(&self, l: &Light) -> Option<Vec3> {
+        match l.kind {
+            LightKind::Spot { direction, .. } => {
+                Some(l.position + direction.normalize_or(Vec3::NEG_Y) * self.sun_distance() * 0.25)
+            }
+            _ => None,
+        }
+    }
+
+    /// Points spot `i`'s axis at `target`; false (nothing changed) for another kind or a
+    /// target at the light itself.
+    pub fn aim_spot(&mut self, i: usize, target: Vec3) -> bool {
+        let Some(l) = self.lights.get_mut(i) else { return false };
+        let to = target - l.position;
+        match &mut l.kind {
+            LightKind::Spot { direction, .. } if to.length_squared() > 0.0 => {
+                *direction = to.normalize();
+                true
+            }
+            _ => false,
+        }
+    }
+
     /// Light `i` turned into `kind`, lighting the grid's centre as brightly as before (fog
     /// aside): a point or spot light of I W/sr at distance d gives E = I/d² W/m² there, which
     /// a sun takes as its irradiance, and a sun becomes a light at its anchor with I = E·d².
