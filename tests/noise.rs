@@ -143,7 +143,7 @@ fn ev_with_noise_matches_the_f64_reference_on_random_scenes() {
         let frequency = (0.1 + rng.f() * 10.0 / size.min_element()) * if scene_no % 5 == 4 { 8.0 / cell } else { 1.0 };
         let amplitude = [0.3, 0.9, 2.5, 20.0][scene_no % 4];
         let seed = if scene_no % 3 == 0 { u32::MAX - (rng.f() * 4.0) as u32 } else { (rng.f() * 1e6) as u32 };
-        let noise = Noise { amplitude, frequency, octaves: 1 + (rng.f() * 8.0) as u32, seed };
+        let noise = Noise::new(amplitude, frequency, 1 + (rng.f() * 8.0) as u32, seed);
         let p = scene(grid, if scene_no % 2 == 0 { 0.05 } else { 0.0 }, particles, Some(noise));
         let (ev, _) = bake(&mut gpu, &p);
         let (ratio, rel) = compare(&p, &ev);
@@ -173,7 +173,7 @@ fn gpu_hash_matches_the_cpu_at_lattice_points_and_noise_edits_reinject() {
     let mut p = scene(grid, 0.0, vec![blob], None);
     let (plain, _) = bake(&mut gpu, &p);
     for seed in [0u32, 12345, u32::MAX] {
-        p.medium.noise = Some(Noise { amplitude: 1.0, frequency: 1.0, octaves: 3, seed });
+        p.medium.noise = Some(Noise::new(1.0, 1.0, 3, seed));
         assert_eq!(p.medium.noise.unwrap().effective_octaves(&grid), 1);
         let (noisy, injected) = bake(&mut gpu, &p);
         assert_eq!(injected, grid.cell_count(), "a noise edit re-injects every cell");
@@ -211,9 +211,9 @@ fn gpu_hash_matches_the_cpu_at_lattice_points_and_noise_edits_reinject() {
 fn octaves_and_thin_grids_match_the_reference() {
     let mut gpu = pipeline();
     for (res, noise) in [
-        (UVec3::new(16, 16, 16), Noise { amplitude: 3.0, frequency: 0.25, octaves: 5, seed: u32::MAX }),
-        (UVec3::new(40, 1, 33), Noise { amplitude: 1.5, frequency: 0.7, octaves: 6, seed: 77 }),
-        (UVec3::new(2, 64, 3), Noise { amplitude: 0.5, frequency: 3.0, octaves: 4, seed: 1 << 31 }),
+        (UVec3::new(16, 16, 16), Noise::new(3.0, 0.25, 5, u32::MAX)),
+        (UVec3::new(40, 1, 33), Noise::new(1.5, 0.7, 6, 77)),
+        (UVec3::new(2, 64, 3), Noise::new(0.5, 3.0, 4, 1 << 31)),
     ] {
         let grid = GridSpec { min: Vec3::splat(-8.5), max: Vec3::splat(7.5), resolution: res };
         let particles = vec![
@@ -239,7 +239,7 @@ fn extreme_noise_stays_finite() {
     for (min, frequency) in [(Vec3::splat(-1.0), 1e6f32), (Vec3::new(1e5, -3e5, 7e5), 1e6), (Vec3::splat(-1.0), 1e-6)] {
         let grid = GridSpec { min, max: min + 2.0, resolution: UVec3::splat(12) };
         let centre = min + 1.0;
-        let noise = Noise { amplitude: 100.0, frequency, octaves: 16, seed: u32::MAX };
+        let noise = Noise::new(100.0, frequency, 16, u32::MAX);
         let p = scene(grid, 0.0, vec![Particle::new(centre, 0.7, 5.0)], Some(noise));
         let (ev, _) = bake(&mut gpu, &p);
         for (n, &v) in ev.data.iter().enumerate() {
@@ -303,7 +303,7 @@ fn opv_of_a_noisy_scene_matches_the_reference_with_noise() {
     let grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::splat(32) };
     let particles =
         vec![Particle::new(Vec3::new(0.1, 0.0, -0.1), 0.6, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.3), 0.35, 5.0)];
-    let mut p = scene(grid, 0.05, particles, Some(Noise { amplitude: 1.5, frequency: 2.0, octaves: 5, seed: 21 }));
+    let mut p = scene(grid, 0.05, particles, Some(Noise::new(1.5, 2.0, 5, 21)));
     p.lights = vec![Light::new(Vec3::new(0.8, 0.9, -0.7), 5.0, Vec3::ONE)];
     p.propagation.scheme = Scheme::Exact;
     let (ev, _) = bake(&mut gpu, &p);

@@ -367,7 +367,7 @@ fn noise_inspector(state: &mut EditorState, ui: &mut Ui) {
             ui.data_mut(|d| d.insert_temp(remembered, n));
         }
         let size = grid.size().min_element().max(1e-3);
-        let fresh = Noise { amplitude: 0.8, frequency: 4.0 / size, octaves: 4, seed: 1 };
+        let fresh = Noise::new(0.8, 4.0 / size, 4, 1);
         state.session.edit(NEW_STEP).medium.noise = on.then(|| last.unwrap_or(fresh));
     }
     if let Some(n) = noise {
