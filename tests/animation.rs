@@ -192,6 +192,12 @@ fn deleting_an_object_drops_its_tracks() {
     p.set_key(Channel(Object::Particle(p.particles[0].id), Prop::Radius), 1, KeyValue::Float(1.0), Interp::Linear)
         .unwrap();
     p.set_key(Channel(Object::Light(lid), Prop::Intensity), 1, KeyValue::Float(1.0), Interp::Linear).unwrap();
+    // A spot turned into a point light loses its cone's tracks, not the others.
+    p.set_key(Channel(Object::Light(lid), Prop::AngleDeg), 1, KeyValue::Float(10.0), Interp::Linear).unwrap();
+    p.lights[0].kind = LightKind::Point;
+    p.drop_inapplicable_tracks();
+    assert_eq!(p.tracks.len(), 3);
+    assert!(!p.is_animated(Channel(Object::Light(lid), Prop::AngleDeg)));
     p.remove_particles(&[1].into());
     p.remove_lights(&[0].into());
     assert_eq!(p.particles.len(), 1);

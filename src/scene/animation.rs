@@ -510,6 +510,15 @@ impl Project {
         self.track(channel).is_some_and(|t| !t.keys.is_empty())
     }
 
+    /// Drops every track whose channel no longer exists: an object deleted other than
+    /// through [`Self::remove_particles`] or [`Self::remove_lights`], a light whose kind
+    /// changed (a point light has no spot angle), or the medium's noise turned off. Edits
+    /// that do any of these call it, so that the project stays valid.
+    pub fn drop_inapplicable_tracks(&mut self) {
+        let tracks = std::mem::take(&mut self.tracks);
+        self.tracks = tracks.into_iter().filter(|t| self.value_of(t.on).is_some()).collect();
+    }
+
     /// Drops the tracks of `object` (a deleted particle or light).
     pub fn remove_tracks_of(&mut self, object: Object) {
         self.tracks.retain(|t| t.on.0 != object);
