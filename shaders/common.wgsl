@@ -22,6 +22,9 @@ struct GridParams {
     noise_frequency: f32,
     noise_octaves: u32,
     noise_seed: u32,
+    // The noise's drift (wind): n is evaluated at x − noise_offset.
+    noise_offset: vec3f,
+    _pad_n: u32,
 }
 
 // A light (kind LIGHT_POINT, LIGHT_SPOT or LIGHT_DIRECTIONAL): position, intensity per RGB

@@ -40,11 +40,13 @@ fn mix_exact(a: f32, b: f32, t: f32) -> f32 {
     return a + (b - a) * t;
 }
 
-// max(0, 1 + amplitude·n(x)) over the kept octaves; 1 without noise.
-fn noise_modulation(x: vec3f) -> f32 {
+// max(0, 1 + amplitude·n(x − offset)) over the kept octaves; 1 without noise. The drift
+// is subtracted in f32 once, as the CPU reference does (src/reference/noise.rs).
+fn noise_modulation(x_world: vec3f) -> f32 {
     if grid.noise_octaves == 0u {
         return 1.0;
     }
+    let x = x_world - grid.noise_offset;
     var sum = 0.0;
     var norm = 0.0;
     var weight = 1.0;

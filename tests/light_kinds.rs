@@ -45,13 +45,13 @@ fn new_fields_round_trip_in_the_documented_syntax() {
     // Noise parses in the documented syntax and round-trips; a particle's noise flag is
     // written only when it is off.
     let q = parse("Project(version: 1, medium: (noise: Some((0.8, 1.5, 4, 7))), particles: [(center: (0, 0, 0), radius: 1, density: 1), (center: (0, 0, 0), radius: 1, density: 1, noise: false)])").unwrap();
-    assert_eq!(q.medium.noise, Some(Noise { amplitude: 0.8, frequency: 1.5, octaves: 4, seed: 7 }));
+    assert_eq!(q.medium.noise, Some(Noise::new(0.8, 1.5, 4, 7)));
     assert!(q.particles[0].noise && !q.particles[1].noise);
     let text = to_ron_string(&q).unwrap();
     assert_eq!(text.matches("noise").count(), 2, "{text}");
     assert_eq!(parse(&text).unwrap(), q);
     let n: Noise = ron::from_str("(0.8, 1.5, 4, 7)").unwrap();
-    assert_eq!(n, Noise { amplitude: 0.8, frequency: 1.5, octaves: 4, seed: 7 });
+    assert_eq!(n, Noise::new(0.8, 1.5, 4, 7));
     assert_eq!(p.medium.height_falloff, 0.5);
     let again = parse(&to_ron_string(&p).unwrap()).unwrap();
     assert_eq!(again, p);

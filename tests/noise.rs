@@ -51,6 +51,8 @@ fn scene(grid: GridSpec, base: f32, particles: Vec<Particle>, noise: Option<Nois
 fn compare(p: &Project, ev: &Volume) -> (f64, f64) {
     let noise = p.medium.noise.filter(|n| n.amplitude > 0.0).map(|n| Noise64::new(&n, &p.grid));
     let m = p.grid.min.abs().max(p.grid.max.abs()).max_element() as f64;
+    // The drift x − offset, subtracted in f32 on the GPU, is off by an ulp of |x| + |offset|.
+    let m_noise = m + noise.map_or(0.0, |n| n.offset.abs().max_element() as f64);
     let dn = noise.map_or(0.0, |n| {
         let (mut wf, mut w, mut f, mut norm) = (0.0, 1.0, n.frequency, 0.0);
         for _ in 0..n.octaves {
@@ -59,7 +61,7 @@ fn compare(p: &Project, ev: &Volume) -> (f64, f64) {
             w *= 0.5;
             f *= 2.0;
         }
-        9.0 * 2f64.powi(-20) * m * wf / norm + 2e-6
+        9.0 * 2f64.powi(-20) * m_noise * wf / norm + 2e-6
     });
     let a = noise.map_or(0.0, |n| n.amplitude);
     // Largest offset of the GPU's f32 cell centre from the exact one, per axis times √3.
@@ -143,7 +145,7 @@ fn ev_with_noise_matches_the_f64_reference_on_random_scenes() {
         let frequency = (0.1 + rng.f() * 10.0 / size.min_element()) * if scene_no % 5 == 4 { 8.0 / cell } else { 1.0 };
         let amplitude = [0.3, 0.9, 2.5, 20.0][scene_no % 4];
         let seed = if scene_no % 3 == 0 { u32::MAX - (rng.f() * 4.0) as u32 } else { (rng.f() * 1e6) as u32 };
-        let noise = Noise { amplitude, frequency, octaves: 1 + (rng.f() * 8.0) as u32, seed };
+        let noise = Noise::new(amplitude, frequency, 1 + (rng.f() * 8.0) as u32, seed);
         let p = scene(grid, if scene_no % 2 == 0 { 0.05 } else { 0.0 }, particles, Some(noise));
         let (ev, _) = bake(&mut gpu, &p);
         let (ratio, rel) = compare(&p, &ev);
@@ -173,7 +175,7 @@ fn gpu_hash_matches_the_cpu_at_lattice_points_and_noise_edits_reinject() {
     let mut p = scene(grid, 0.0, vec![blob], None);
     let (plain, _) = bake(&mut gpu, &p);
     for seed in [0u32, 12345, u32::MAX] {
-        p.medium.noise = Some(Noise { amplitude: 1.0, frequency: 1.0, octaves: 3, seed });
+        p.medium.noise = Some(Noise::new(1.0, 1.0, 3, seed));
         assert_eq!(p.medium.noise.unwrap().effective_octaves(&grid), 1);
         let (noisy, injected) = bake(&mut gpu, &p);
         assert_eq!(injected, grid.cell_count(), "a noise edit re-injects every cell");
@@ -211,9 +213,9 @@ fn gpu_hash_matches_the_cpu_at_lattice_points_and_noise_edits_reinject() {
 fn octaves_and_thin_grids_match_the_reference() {
     let mut gpu = pipeline();
     for (res, noise) in [
-        (UVec3::new(16, 16, 16), Noise { amplitude: 3.0, frequency: 0.25, octaves: 5, seed: u32::MAX }),
-        (UVec3::new(40, 1, 33), Noise { amplitude: 1.5, frequency: 0.7, octaves: 6, seed: 77 }),
-        (UVec3::new(2, 64, 3), Noise { amplitude: 0.5, frequency: 3.0, octaves: 4, seed: 1 << 31 }),
+        (UVec3::new(16, 16, 16), Noise::new(3.0, 0.25, 5, u32::MAX)),
+        (UVec3::new(40, 1, 33), Noise::new(1.5, 0.7, 6, 77)),
+        (UVec3::new(2, 64, 3), Noise::new(0.5, 3.0, 4, 1 << 31)),
     ] {
         let grid = GridSpec { min: Vec3::splat(-8.5), max: Vec3::splat(7.5), resolution: res };
         let particles = vec![
@@ -239,7 +241,7 @@ fn extreme_noise_stays_finite() {
     for (min, frequency) in [(Vec3::splat(-1.0), 1e6f32), (Vec3::new(1e5, -3e5, 7e5), 1e6), (Vec3::splat(-1.0), 1e-6)] {
         let grid = GridSpec { min, max: min + 2.0, resolution: UVec3::splat(12) };
         let centre = min + 1.0;
-        let noise = Noise { amplitude: 100.0, frequency, octaves: 16, seed: u32::MAX };
+        let noise = Noise::new(100.0, frequency, 16, u32::MAX);
         let p = scene(grid, 0.0, vec![Particle::new(centre, 0.7, 5.0)], Some(noise));
         let (ev, _) = bake(&mut gpu, &p);
         for (n, &v) in ev.data.iter().enumerate() {
@@ -303,7 +305,7 @@ fn opv_of_a_noisy_scene_matches_the_reference_with_noise() {
     let grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::splat(32) };
     let particles =
         vec![Particle::new(Vec3::new(0.1, 0.0, -0.1), 0.6, 3.0), Particle::new(Vec3::new(-0.4, 0.3, 0.3), 0.35, 5.0)];
-    let mut p = scene(grid, 0.05, particles, Some(Noise { amplitude: 1.5, frequency: 2.0, octaves: 5, seed: 21 }));
+    let mut p = scene(grid, 0.05, particles, Some(Noise::new(1.5, 2.0, 5, 21)));
     p.lights = vec![Light::new(Vec3::new(0.8, 0.9, -0.7), 5.0, Vec3::ONE)];
     p.propagation.scheme = Scheme::Exact;
     let (ev, _) = bake(&mut gpu, &p);
@@ -322,4 +324,61 @@ fn opv_of_a_noisy_scene_matches_the_reference_with_noise() {
     assert!(!with.scheme.nan_or_inf);
     assert!(scheme <= 1e-3, "scheme error {scheme:e}");
     assert!(total * 4.0 < wrong, "the reference holds the noise: {total:e} vs {wrong:e} without it");
+}
+
+/// Wind: the noise drifts as x − offset, with the offset an animation's still carries
+/// (velocity·t from `Project::at_frame`). At integer offsets the drifted cell centres are
+/// still lattice points, so the EV ratio is 1 + h(i − ox, j − oy, k − oz) exactly: this pins
+/// the drift's sign and axes on the GPU to the CPU's. At general offsets (frames of an
+/// animation with wind) the EV matches the f64 reference within the f32 bound, and differs
+/// from the undrifted EV.
+#[test]
+fn drifting_noise_matches_the_reference_at_several_times() {
+    use fogsmith::scene::Animation;
+    let mut gpu = pipeline();
+    let grid = GridSpec { min: Vec3::splat(-8.5), max: Vec3::splat(7.5), resolution: UVec3::splat(16) };
+    let blob = Particle::new(Vec3::new(0.3, -0.2, 0.1), 1e3, 1.0);
+    let mut p = scene(grid, 0.0, vec![blob], None);
+    let (plain, _) = bake(&mut gpu, &p);
+    for offset in [Vec3::new(3.0, -2.0, 5.0), Vec3::new(-40.0, 17.0, 0.0)] {
+        p.medium.noise = Some(Noise { offset, ..Noise::new(1.0, 1.0, 1, 99) });
+        let (noisy, _) = bake(&mut gpu, &p);
+        for k in 0..16u32 {
+            for j in 0..16u32 {
+                for i in 0..16u32 {
+                    let x = cell_center64(&grid, i, j, k);
+                    let (li, lj, lk) =
+                        (x.x as i32 - offset.x as i32, x.y as i32 - offset.y as i32, x.z as i32 - offset.z as i32);
+                    let ratio = noisy.get(i, j, k) as f64 / plain.get(i, j, k) as f64;
+                    let want = 1.0 + lattice_value(li, lj, lk, 99);
+                    assert!(
+                        (ratio - want).abs() <= 4.0 * 2f64.powi(-23),
+                        "offset {offset}, lattice ({li},{lj},{lk}): GPU {ratio}, CPU {want}"
+                    );
+                }
+            }
+        }
+    }
+
+    let grid = GridSpec {
+        min: Vec3::new(-2.0, -1.0, -2.5),
+        max: Vec3::new(2.0, 2.0, 1.5),
+        resolution: UVec3::new(20, 14, 18),
+    };
+    let particles =
+        vec![Particle::new(Vec3::new(0.3, 0.4, -0.5), 1.4, 2.0), Particle::new(Vec3::new(-1.0, 1.0, 0.5), 0.5, 6.0)];
+    let mut p = scene(grid, 0.02, particles, None);
+    p.medium.noise = Some(Noise { velocity: Vec3::new(1.3, -0.4, 2.7), ..Noise::new(2.5, 1.7, 4, u32::MAX) });
+    p.animation = Some(Animation { fps: 24.0, start: 1, end: 2400 });
+    let (still_ev, _) = bake(&mut gpu, &p.at_frame(0));
+    for frame in [1, 7, 25, 240, 2400] {
+        let still = p.at_frame(frame);
+        let offset = still.medium.noise.unwrap().offset;
+        assert_eq!(offset, Vec3::new(1.3, -0.4, 2.7) * (frame as f64 / 24.0) as f32);
+        let (ev, _) = bake(&mut gpu, &still);
+        let (ratio, rel) = compare(&still, &ev);
+        println!("frame {frame}, offset {offset}: error/bound {ratio:.3}, max relative error {rel:.2e}");
+        let moved = ev.data.iter().zip(&still_ev.data).filter(|(a, b)| a != b).count();
+        assert!(moved * 2 > ev.data.len(), "frame {frame}: the wind moves the noise ({moved} cells changed)");
+    }
 }

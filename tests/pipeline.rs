@@ -588,7 +588,7 @@ fn host_particle_sums_equal_the_adapter_gather() {
         let cell = p.grid.cell_size().min_element();
         scatter(&mut p, 100 + seed as u64, 900, 0.1 * cell, 4.0 * cell);
         if seed == 1 {
-            p.medium.noise = Some(fogsmith::scene::Noise { amplitude: 0.6, frequency: 3.0, octaves: 3, seed: 7 });
+            p.medium.noise = Some(fogsmith::scene::Noise::new(0.6, 3.0, 3, 7));
             for q in p.particles.iter_mut().step_by(2) {
                 q.noise = true;
             }
@@ -630,7 +630,7 @@ fn host_particle_sums_equal_the_adapter_gather() {
 fn analytic_scheme_refuses_noise_and_names_the_fix() {
     let mut gpu = pipeline();
     let mut p = small_scene(16, &[Vec3::new(0.9, 0.9, 0.9)]);
-    p.medium.noise = Some(fogsmith::scene::Noise { amplitude: 0.5, frequency: 4.0, octaves: 2, seed: 1 });
+    p.medium.noise = Some(fogsmith::scene::Noise::new(0.5, 4.0, 2, 1));
     p.particles.iter_mut().for_each(|q| q.noise = true);
     let err = gpu.update(&p, &request(&p, Scheme::Analytic)).unwrap_err().to_string();
     assert!(err.contains("analytic") && err.contains("noise") && err.contains("sweep"), "{err}");

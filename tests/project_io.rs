@@ -157,10 +157,10 @@ fn version_1_files_get_ids_in_list_order() {
     assert_eq!(p.new_light_id(), 1);
 
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("v2.ron");
+    let path = dir.path().join("v3.ron");
     save_project(&path, &p).unwrap();
     let saved = std::fs::read_to_string(&path).unwrap();
-    assert!(saved.contains("version: 2") && saved.contains("id: 2"), "{saved}");
+    assert!(saved.contains("version: 3") && saved.contains("id: 2"), "{saved}");
     let back = load_project(&path).unwrap();
     assert_eq!(back, p);
 }
@@ -226,4 +226,61 @@ fn files_without_a_version_need_no_ids() {
     let p = parse(text).unwrap();
     assert_eq!(p.version, fogsmith::scene::PROJECT_VERSION);
     assert_eq!(p.particles.iter().map(|q| q.id).collect::<Vec<_>>(), [0, 1]);
+}
+
+/// A version-2 file (ids, no animation) loads as the same still, whatever it holds; saved,
+/// it is version 3 and otherwise the same text, with no animation fields written.
+#[test]
+fn version_2_files_load_unchanged_as_stills() {
+    let v2 = EXAMPLE
+        .replace("version: 1", "version: 2")
+        .replace("(center: (0.0, 1.5, 0.0)", "(id: 5, center: (0.0, 1.5, 0.0)")
+        .replace("(position: (1.2", "(id: 7, position: (1.2")
+        .replace(
+            "medium: (base_extinction: 0.0, albedo: 1.0, anisotropy: 0.0)",
+            "medium: (base_extinction: 0.1, albedo: 1.0, anisotropy: 0.0, noise: Some((0.8, 1.5, 4, 7)))",
+        );
+    let p = parse(&v2).unwrap();
+    assert_eq!(p.version, fogsmith::scene::PROJECT_VERSION);
+    assert_eq!((p.particles[0].id, p.lights[0].id), (5, 7));
+    assert_eq!(p.medium.noise, Some(fogsmith::scene::Noise::new(0.8, 1.5, 4, 7)));
+    assert_eq!(p.animation, None);
+    assert!(p.tracks.is_empty());
+    assert_eq!(p.at_frame(10), p, "a still is its own frame");
+    let text = to_ron_string(&p).unwrap();
+    assert!(text.contains("version: 3"), "{text}");
+    assert!(!text.contains("animation") && !text.contains("tracks") && !text.contains("velocity"), "{text}");
+    assert!(text.contains("noise: Some((0.8, 1.5, 4, 7))"), "the noise keeps its 4-tuple form: {text}");
+    let back = parse(&text).unwrap();
+    assert_eq!(back, p);
+    assert_eq!(to_ron_string(&back).unwrap(), text, "a still round-trips unchanged");
+}
+
+/// Wind and animation fields round-trip; the noise reads its 4-, 5- and 6-tuple forms.
+#[test]
+fn animated_projects_and_wind_round_trip() {
+    let text = EXAMPLE.replace("version: 1", "version: 3").replace(
+        "medium: (base_extinction: 0.0, albedo: 1.0, anisotropy: 0.0)",
+        "medium: (base_extinction: 0.1, noise: Some((0.8, 1.5, 4, 7, (1.0, 0.0, -0.5)))),
+    animation: Some((fps: 24.0, start: 1, end: 120)),
+    tracks: [
+        (on: (Light(0), Position), keys: [
+            (frame: 1, value: Vec3((0.0, 1.0, 0.0)), interp: Smooth),
+            (frame: 48, value: Vec3((2.0, 1.5, 0.0))),
+        ]),
+        (on: (Particle(0), Hidden), keys: [(frame: 90, value: Bool(true))]),
+        (on: (Camera, FovYDeg), keys: [(frame: 1, value: Float(40.0), interp: Hold), (frame: 120, value: Float(25.0))]),
+    ]",
+    );
+    let p = parse(&text).unwrap();
+    let noise = p.medium.noise.unwrap();
+    assert_eq!(noise.velocity, glam::Vec3::new(1.0, 0.0, -0.5));
+    assert_eq!(p.tracks.len(), 3);
+    let saved = to_ron_string(&p).unwrap();
+    assert_eq!(parse(&saved).unwrap(), p);
+    let still = p.at_frame(48);
+    assert_eq!(still.medium.noise.unwrap().offset, glam::Vec3::new(2.0, 0.0, -1.0));
+    let saved = to_ron_string(&still).unwrap();
+    assert!(saved.contains("(1.0, 0.0, -0.5), (2.0, 0.0, -1.0)"), "a still keeps its drift: {saved}");
+    assert_eq!(parse(&saved).unwrap(), still);
 }

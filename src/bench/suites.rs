@@ -624,7 +624,7 @@ fn kind_variants(res: u32) -> Vec<(&'static str, Project)> {
     out.push(("height fog", p));
     let mut p = base.clone();
     // Octaves coarse enough for every resolution of the suite, so one exact image serves all.
-    p.medium.noise = Some(Noise { amplitude: 1.5, frequency: 1.5, octaves: 2, seed: 1 });
+    p.medium.noise = Some(Noise::new(1.5, 1.5, 2, 1));
     out.push(("noise", p));
     let mut p = base;
     p.surfaces.ground = Some(Ground { height: -1.0, specular: 0.3, ..Default::default() });

@@ -367,8 +367,10 @@ fn noise_inspector(state: &mut EditorState, ui: &mut Ui) {
             ui.data_mut(|d| d.insert_temp(remembered, n));
         }
         let size = grid.size().min_element().max(1e-3);
-        let fresh = Noise { amplitude: 0.8, frequency: 4.0 / size, octaves: 4, seed: 1 };
-        state.session.edit(NEW_STEP).medium.noise = on.then(|| last.unwrap_or(fresh));
+        let fresh = Noise::new(0.8, 4.0 / size, 4, 1);
+        let project = state.session.edit(NEW_STEP);
+        project.medium.noise = on.then(|| last.unwrap_or(fresh));
+        project.drop_inapplicable_tracks();
     }
     if let Some(n) = noise {
         egui::Grid::new("noise").num_columns(2).show(ui, |ui| {
@@ -446,9 +448,11 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
             };
             if ui.selectable_label(kind == choice, choice.label()).on_hover_text(tip).clicked() && kind != choice {
                 if let Some(new) = state.session.project().light_as_kind(i, choice) {
-                    if let Some(q) = state.session.edit(NEW_STEP).lights.get_mut(i) {
+                    let project = state.session.edit(NEW_STEP);
+                    if let Some(q) = project.lights.get_mut(i) {
                         *q = new;
                     }
+                    project.drop_inapplicable_tracks();
                 }
             }
         }

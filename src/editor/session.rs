@@ -279,13 +279,7 @@ impl Session {
     }
 
     fn remove_particles(&mut self, tag: EditTag, removed: &BTreeSet<usize>) {
-        let project = self.edit(tag);
-        let mut index = 0;
-        project.particles.retain(|_| {
-            let keep = !removed.contains(&index);
-            index += 1;
-            keep
-        });
+        self.edit(tag).remove_particles(removed);
         self.selection.particles = remap_after_removal(&self.selection.particles, removed);
     }
 
@@ -332,18 +326,9 @@ impl Session {
         let particles = std::mem::take(&mut self.selection.particles);
         let lights = std::mem::take(&mut self.selection.lights);
         let project = self.edit(NEW_STEP);
-        let mut i = 0;
-        project.particles.retain(|_| {
-            let keep = !particles.contains(&i);
-            i += 1;
-            keep
-        });
-        let mut i = 0;
-        project.lights.retain(|_| {
-            let keep = !lights.contains(&i);
-            i += 1;
-            keep
-        });
+        // Through the project, so that the deleted objects' animation tracks go too.
+        project.remove_particles(&particles);
+        project.remove_lights(&lights);
         n
     }
 

@@ -535,9 +535,11 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
                     // Another kind is made from the point light as the Inspector would make it.
                     let kind = state.view.new_light;
                     if let Some(light) = state.session.project().light_as_kind(i, kind) {
-                        if let Some(l) = state.session.edit(tag).lights.get_mut(i) {
+                        let project = state.session.edit(tag);
+                        if let Some(l) = project.lights.get_mut(i) {
                             *l = light;
                         }
+                        project.drop_inapplicable_tracks();
                     }
                     i
                 }),

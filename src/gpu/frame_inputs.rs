@@ -231,6 +231,8 @@ fn grid_params(project: &Project, settings: &Settings) -> GridParams {
         noise_frequency: noise.map_or(0.0, |n| n.frequency),
         noise_octaves: noise.map_or(0, |n| n.effective_octaves(&spec)),
         noise_seed: noise.map_or(0, |n| n.seed),
+        noise_offset: noise.map_or([0.0; 3], |n| n.offset.to_array()),
+        _pad_n: 0,
     }
 }
 

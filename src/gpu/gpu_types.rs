@@ -21,6 +21,9 @@ pub struct GridParams {
     pub noise_frequency: f32,
     pub noise_octaves: u32,
     pub noise_seed: u32,
+    /// The noise's drift (wind): n is evaluated at x − noise_offset.
+    pub noise_offset: [f32; 3],
+    pub _pad_n: u32,
 }
 
 #[repr(C)]

@@ -241,10 +241,12 @@ impl Medium64 {
                 if dir[ax] == 0.0 {
                     continue;
                 }
-                let (u0, u1) = ((a[ax] + dir[ax] * lo) / spacing, (a[ax] + dir[ax] * hi) / spacing);
+                // The lattice planes drift with the noise's offset.
+                let a_ax = a[ax] - noise.offset[ax] as f64;
+                let (u0, u1) = ((a_ax + dir[ax] * lo) / spacing, (a_ax + dir[ax] * hi) / spacing);
                 let mut k = u0.min(u1).ceil();
                 while k <= u0.max(u1) {
-                    points.push((k * spacing - a[ax]) / dir[ax]);
+                    points.push((k * spacing - a_ax) / dir[ax]);
                     k += 1.0;
                 }
             }

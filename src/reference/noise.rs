@@ -13,6 +13,8 @@ pub struct Noise64 {
     /// Octaves evaluated: [`Noise::effective_octaves`] on the project's grid.
     pub octaves: u32,
     pub seed: u32,
+    /// The drift of the pattern ([`Noise::offset`]), in f32 as the project holds it.
+    pub offset: glam::Vec3,
 }
 
 impl Noise64 {
@@ -23,10 +25,11 @@ impl Noise64 {
             frequency: noise.frequency as f64,
             octaves: noise.effective_octaves(grid),
             seed: noise.seed,
+            offset: noise.offset,
         }
     }
 
-    /// n(x) in [−1, 1].
+    /// n(x) in [−1, 1], without the drift: the pattern at its own coordinates.
     pub fn value(&self, x: DVec3) -> f64 {
         let (mut sum, mut norm, mut weight, mut frequency) = (0.0, 0.0, 1.0, self.frequency);
         for o in 0..self.octaves {
@@ -42,9 +45,16 @@ impl Noise64 {
         }
     }
 
-    /// The factor on noisy particles' extinction: max(0, 1 + amplitude·n(x)).
+    /// The point of the pattern the medium shows at `x`: x − offset, with the project's f32
+    /// offset, as on the GPU (which subtracts in f32, within an ulp of the larger of |x| and
+    /// |offset|; the reference keeps f64 so that its quadrature sees a smooth integrand).
+    pub fn drifted(&self, x: DVec3) -> DVec3 {
+        x - self.offset.as_dvec3()
+    }
+
+    /// The factor on noisy particles' extinction: max(0, 1 + amplitude·n(x − offset)).
     pub fn modulation(&self, x: DVec3) -> f64 {
-        (1.0 + self.amplitude * self.value(x)).max(0.0)
+        (1.0 + self.amplitude * self.value(self.drifted(x))).max(0.0)
     }
 
     /// Lattice spacing of the finest octave evaluated, in metres.
@@ -87,7 +97,7 @@ mod tests {
 
     #[test]
     fn lattice_points_give_lattice_values_and_noise_is_continuous() {
-        let n = Noise64::new(&Noise { amplitude: 1.0, frequency: 1.0, octaves: 1, seed: 9 }, &grid(4));
+        let n = Noise64::new(&Noise::new(1.0, 1.0, 1, 9), &grid(4));
         for (i, j, k) in [(0, 0, 0), (3, -2, 7), (-5, 1, -1)] {
             assert_eq!(n.value(DVec3::new(i as f64, j as f64, k as f64)), lattice_value(i, j, k, 9));
         }
@@ -103,7 +113,7 @@ mod tests {
 
     #[test]
     fn octaves_are_weighted_and_normalised() {
-        let noise = Noise { amplitude: 2.0, frequency: 1.0, octaves: 3, seed: u32::MAX };
+        let noise = Noise::new(2.0, 1.0, 3, u32::MAX);
         let n = Noise64::new(&noise, &grid(64));
         assert_eq!(n.octaves, 3);
         let x = DVec3::new(0.3, -1.7, 2.2);
@@ -131,7 +141,7 @@ mod tests {
         p.particles[1].noise = false;
         p.medium.base_extinction = 0.1;
         for amplitude in [0.5f32, 4.0] {
-            p.medium.noise = Some(Noise { amplitude, frequency: 2.0, octaves: 4, seed: 5 });
+            p.medium.noise = Some(Noise::new(amplitude, 2.0, 4, 5));
             let m = Medium64::from_project(&p);
             for (a, b) in [
                 (DVec3::new(-1.0, -0.3, -0.9), DVec3::new(1.0, 0.2, 0.7)),
@@ -153,7 +163,7 @@ mod tests {
 
     #[test]
     fn extreme_inputs_stay_finite() {
-        let n = Noise64 { amplitude: 100.0, frequency: 1e6, octaves: 16, seed: u32::MAX };
+        let n = Noise64 { amplitude: 100.0, frequency: 1e6, octaves: 16, seed: u32::MAX, offset: glam::Vec3::ZERO };
         for x in [DVec3::splat(1e9), DVec3::splat(-1e9), DVec3::new(3.3e-7, 0.0, -2.0)] {
             let v = n.modulation(x);
             assert!(v.is_finite() && (0.0..=101.0).contains(&v), "{v}");

@@ -55,8 +55,12 @@ pub(crate) fn unversioned() -> u32 {
 ///
 /// - Version 1 had no ids: particles and lights get their list positions as ids, so what
 ///   the editor called "Particle 79" stays #79.
-/// - Version 2: ids must be unique per kind; the next-id counters are raised above every
-///   id in use.
+/// - Versions 2 and 3: ids must be unique per kind.
+/// - Version 3 added animation (`animation`, `tracks`, the noise's wind): older files are
+///   stills and read unchanged.
+///
+/// Every version then has its next-id counters raised above every id in use, and becomes
+/// the current version.
 fn migrate(mut project: Project) -> Result<Project, ValidationError> {
     let field = |f: &str, problem: String| ValidationError { field: f.into(), problem };
     match project.version {
@@ -68,9 +72,8 @@ fn migrate(mut project: Project) -> Result<Project, ValidationError> {
                 l.id = i as u32;
             }
             project.next_id = super::NextIds { particle: project.particles.len() as u32, light: project.lights.len() as u32 };
-            project.version = 2;
         }
-        PROJECT_VERSION => {
+        2 | PROJECT_VERSION => {
             if let Some((a, b)) = super::ids::first_duplicate(project.particles.iter().map(|p| p.id)) {
                 let msg = format!("id {} is already used by particles[{a}]; give every particle its own id", project.particles[b].id);
                 return Err(field(&format!("particles[{b}].id"), msg));
@@ -88,6 +91,7 @@ fn migrate(mut project: Project) -> Result<Project, ValidationError> {
         }
     }
     project.raise_next_ids();
+    project.version = PROJECT_VERSION;
     Ok(project)
 }
 

@@ -7,6 +7,7 @@
 //! Every optional field has a default documented on its type, so a project file only
 //! needs what differs from the defaults. [`io`] loads and saves projects as RON.
 
+pub mod animation;
 mod fit;
 mod ids;
 pub mod io;
@@ -15,6 +16,7 @@ pub mod recovery;
 mod validate;
 mod volume;
 
+pub use animation::{Animation, Channel, Interp, Key, KeyError, KeyValue, Object, Prop, Track, ValueKind};
 pub use fit::{FitKeep, SUPPORT_FRACTION};
 pub use ids::NextIds;
 pub use io::{load_project, parse_project, save_project, ProjectError};
@@ -29,8 +31,9 @@ use glam::{UVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// The project format version this build writes. Older versions are migrated on load
-/// (version 1 had no ids: its particles and lights get their list positions).
-pub const PROJECT_VERSION: u32 = 2;
+/// (version 1 had no ids: its particles and lights get their list positions; version 2 had
+/// no animation and loads as a still).
+pub const PROJECT_VERSION: u32 = 3;
 
 /// A whole fog scene, as saved in a `.ron` project file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -54,6 +57,13 @@ pub struct Project {
     pub base_volume: Option<BaseVolume>,
     /// The ids the next new particle and light get (see [`NextIds`]).
     pub next_id: NextIds,
+    /// The frame range and rate; None (the default): the project is a still. See
+    /// [`animation`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub animation: Option<Animation>,
+    /// Keyframe tracks, one per animated value (see [`animation`]). Default none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tracks: Vec<Track>,
 }
 
 /// A VDB density grid used as a base layer of the extinction volume.
@@ -101,6 +111,8 @@ impl Default for Project {
             surfaces: Surfaces::default(),
             base_volume: None,
             next_id: NextIds::default(),
+            animation: None,
+            tracks: Vec::new(),
         }
     }
 }
@@ -201,8 +213,10 @@ fn is_zero(v: &f32) -> bool {
 }
 
 /// Deterministic fractal noise that modulates the particles' extinction:
-/// σ_particles · max(0, 1 + amplitude · n(x)). Written in a project as
-/// `(amplitude, frequency, octaves, seed)`.
+/// σ_particles · max(0, 1 + amplitude · n(x − offset)). Written in a project as
+/// `(amplitude, frequency, octaves, seed)`, or with wind as
+/// `(amplitude, frequency, octaves, seed, (vx, vy, vz))`; a still of an animation also
+/// carries its drift: `(amplitude, frequency, octaves, seed, (vx, vy, vz), (ox, oy, oz))`.
 ///
 /// n(x) = Σ_{o < octaves} 0.5^o · v(2^o · frequency · x, seed + o) / Σ_{o < octaves} 0.5^o,
 /// where v is 3D value noise on the integer lattice: v(p, s) is the trilinear interpolation,
@@ -214,8 +228,12 @@ fn is_zero(v: &f32) -> bool {
 /// Only particles whose `noise` flag is set (the default) are modulated; the base fog and an
 /// imported base volume never are. The hash works on wrapping 32-bit integers (lattice
 /// indices are clamped to [−2³¹, 2³¹ − 128]), so huge seeds and coordinates stay finite.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(from = "(f32, f32, u32, u32)", into = "(f32, f32, u32, u32)")]
+///
+/// Wind: the noise pattern drifts with `velocity` (m/s), so at time t it is evaluated at
+/// x − velocity·t. The pipeline renders still projects, so [`Project::at_frame`] stores the
+/// drift of its frame as `offset` = velocity·t (computed in f32); the GPU and the CPU
+/// reference both evaluate n at the f32 difference x − offset.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Noise {
     /// Strength of the modulation; 0 leaves the particles unchanged.
     pub amplitude: f32,
@@ -224,17 +242,66 @@ pub struct Noise {
     /// Number of octaves, 1..=16.
     pub octaves: u32,
     pub seed: u32,
+    /// Wind: how fast the pattern drifts, in m/s. Default zero.
+    pub velocity: Vec3,
+    /// The drift of this still, in metres: n is evaluated at x − offset. Default zero; set
+    /// by [`Project::at_frame`] to velocity·t.
+    pub offset: Vec3,
 }
 
-impl From<(f32, f32, u32, u32)> for Noise {
-    fn from((amplitude, frequency, octaves, seed): (f32, f32, u32, u32)) -> Self {
-        Self { amplitude, frequency, octaves, seed }
+impl Noise {
+    /// Noise without wind or drift.
+    pub fn new(amplitude: f32, frequency: f32, octaves: u32, seed: u32) -> Self {
+        Self { amplitude, frequency, octaves, seed, velocity: Vec3::ZERO, offset: Vec3::ZERO }
     }
 }
 
-impl From<Noise> for (f32, f32, u32, u32) {
-    fn from(n: Noise) -> Self {
-        (n.amplitude, n.frequency, n.octaves, n.seed)
+impl Serialize for Noise {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple;
+        let len = if self.offset != Vec3::ZERO {
+            6
+        } else if self.velocity != Vec3::ZERO {
+            5
+        } else {
+            4
+        };
+        let mut t = s.serialize_tuple(len)?;
+        t.serialize_element(&self.amplitude)?;
+        t.serialize_element(&self.frequency)?;
+        t.serialize_element(&self.octaves)?;
+        t.serialize_element(&self.seed)?;
+        if len >= 5 {
+            t.serialize_element(&self.velocity)?;
+        }
+        if len == 6 {
+            t.serialize_element(&self.offset)?;
+        }
+        t.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for Noise {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Noise;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("(amplitude, frequency, octaves, seed) with an optional (vx, vy, vz) wind velocity")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Noise, A::Error> {
+                use serde::de::Error;
+                let missing = |i: usize| A::Error::invalid_length(i, &"4 to 6 elements");
+                let amplitude = seq.next_element()?.ok_or_else(|| missing(0))?;
+                let frequency = seq.next_element()?.ok_or_else(|| missing(1))?;
+                let octaves = seq.next_element()?.ok_or_else(|| missing(2))?;
+                let seed = seq.next_element()?.ok_or_else(|| missing(3))?;
+                let velocity = seq.next_element()?.unwrap_or(Vec3::ZERO);
+                let offset = seq.next_element()?.unwrap_or(Vec3::ZERO);
+                Ok(Noise { amplitude, frequency, octaves, seed, velocity, offset })
+            }
+        }
+        d.deserialize_tuple(6, V)
     }
 }
 

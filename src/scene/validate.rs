@@ -4,6 +4,7 @@
 //! so the editor and the CLI can both point at it; the RON loader adds file, line and
 //! column.
 
+use super::animation::{Channel, KeyValue, Object, Prop, ValueKind};
 use super::{GridSpec, LightKind, Project};
 use glam::Vec3;
 
@@ -211,6 +212,8 @@ impl Project {
                     format!("must be within 1..={}, got {}", super::MAX_NOISE_OCTAVES, n.octaves),
                 ));
             }
+            position("medium.noise.velocity", n.velocity)?;
+            position("medium.noise.offset", n.offset)?;
         }
         for (i, p) in self.particles.iter().enumerate() {
             position(&format!("particles[{i}].center"), p.center)?;
@@ -341,6 +344,155 @@ impl Project {
                 format!("must be within {:e}..={} (default {default:e}), got {tolerance}", range.start(), range.end()),
             ));
         }
+        self.validate_animation()
+    }
+
+    /// The frame range and the tracks: each on an existing object and a value it has, one
+    /// track per value, keys in frame order, one per frame, of the value's kind and range.
+    fn validate_animation(&self) -> Result<(), ValidationError> {
+        if let Some(a) = &self.animation {
+            if !(a.fps.is_finite() && a.fps > 0.0) {
+                return Err(err(
+                    "animation.fps",
+                    format!("frames per second must be a finite number > 0, got {}; e.g. 24.0", a.fps),
+                ));
+            }
+            if a.start > a.end {
+                return Err(err(
+                    "animation.end",
+                    format!("the last frame ({}) is before the first ({}); make end ≥ start", a.end, a.start),
+                ));
+            }
+        } else if !self.tracks.is_empty() {
+            return Err(err(
+                "tracks",
+                "keyframe tracks need a frame range: add `animation: Some((fps: 24.0, start: 1, end: 120))` or remove the tracks",
+            ));
+        }
+        for (i, t) in self.tracks.iter().enumerate() {
+            let name = format!("track {i} ({})", t.on);
+            if let Some(j) = self.tracks[..i].iter().position(|u| u.on == t.on) {
+                return Err(err(
+                    format!("tracks[{i}].on"),
+                    format!("{name}: track {j} already animates this value; merge their keys into one track"),
+                ));
+            }
+            self.check_channel(t.on).map_err(|problem| err(format!("tracks[{i}].on"), format!("{name}: {problem}")))?;
+            if t.keys.is_empty() {
+                return Err(err(
+                    format!("tracks[{i}].keys"),
+                    format!("{name} has no keys; add a key or remove the track"),
+                ));
+            }
+            for (k, key) in t.keys.iter().enumerate() {
+                let at = format!("tracks[{i}].keys[{k}]");
+                let key_name = format!("{name}, key {k} (frame {})", key.frame);
+                if let Some(prev) = t.keys[..k].iter().position(|p| p.frame == key.frame) {
+                    return Err(err(
+                        format!("{at}.frame"),
+                        format!("{key_name}: key {prev} is on the same frame; keep one key per frame"),
+                    ));
+                }
+                if k > 0 && t.keys[k - 1].frame > key.frame {
+                    return Err(err(
+                        format!("{at}.frame"),
+                        format!(
+                            "{key_name}: comes after key {} (frame {}); list the keys in frame order",
+                            k - 1,
+                            t.keys[k - 1].frame
+                        ),
+                    ));
+                }
+                let field = format!("{at}.value");
+                key_value(&field, t.on.1, &key.value)
+                    .map_err(|e| err(field.clone(), format!("{key_name}: {}", e.problem)))?;
+            }
+        }
         Ok(())
+    }
+
+    /// Why `channel` names nothing in this project, if it does not.
+    fn check_channel(&self, channel: Channel) -> Result<(), String> {
+        let Channel(object, prop) = channel;
+        let exists = match object {
+            Object::Particle(id) if self.particle_index(id).is_none() => {
+                return Err(format!("there is no particle with id {id}; key an existing particle or remove the track"))
+            }
+            Object::Light(id) if self.light_index(id).is_none() => {
+                return Err(format!("there is no light with id {id}; key an existing light or remove the track"))
+            }
+            Object::Medium if prop == Prop::NoiseAmplitude && self.medium.noise.is_none() => {
+                return Err("the medium has no noise; add `medium.noise` or remove the track".into())
+            }
+            _ => self.value_of(channel).is_some(),
+        };
+        if exists {
+            Ok(())
+        } else {
+            let what = match object {
+                Object::Particle(_) => "a particle".to_string(),
+                Object::Light(id) => match self.light_index(id).map(|i| self.lights[i].kind) {
+                    Some(LightKind::Point) => "a point light".into(),
+                    Some(LightKind::Spot { .. }) => "a spot light".into(),
+                    _ => "a directional light".into(),
+                },
+                Object::Camera => "the camera".into(),
+                Object::Medium => "the medium".into(),
+            };
+            let valid: Vec<String> = self.animatable(object).iter().map(|c| format!("{:?}", c.1)).collect();
+            Err(format!("{what} has no {prop:?} value; animatable: {}", valid.join(", ")))
+        }
+    }
+}
+
+/// A key's value for `prop`: its kind, finite, and within the range of the still field.
+fn key_value(field: &str, prop: Prop, value: &KeyValue) -> Result<(), ValidationError> {
+    let range = |v: f32, ok: bool, range: &str| {
+        if ok {
+            Ok(())
+        } else {
+            Err(err(field, format!("must be within {range}, got {v}")))
+        }
+    };
+    match (prop.kind(), *value) {
+        (ValueKind::Bool, KeyValue::Bool(_)) => Ok(()),
+        (ValueKind::Vec3, KeyValue::Vec3(v)) => match prop {
+            Prop::SpotDirection | Prop::SunDirection => direction(field, v),
+            Prop::Color => {
+                finite3(field, v)?;
+                if v.min_element() < 0.0 {
+                    return Err(err(field, "colour components must be ≥ 0"));
+                }
+                Ok(())
+            }
+            _ => position(field, v),
+        },
+        (ValueKind::Float, KeyValue::Float(v)) => {
+            finite(field, v)?;
+            match prop {
+                Prop::Radius => range(v, v > 0.0 && v <= MAX_COORDINATE, &format!("(0, {MAX_COORDINATE:e}] m")),
+                Prop::Density | Prop::BaseExtinction => extinction(field, v),
+                Prop::Intensity => at_least(field, v, 0.0),
+                Prop::AngleDeg => range(v, v > 0.0 && v <= 90.0, "(0, 90] degrees"),
+                Prop::Blend => range(v, (0.0..=1.0).contains(&v), "[0, 1]"),
+                Prop::FovYDeg => range(v, v > 0.0 && v < 180.0, "(0, 180) degrees"),
+                Prop::HeightFalloff => {
+                    range(v, (0.0..=MAX_HEIGHT_FALLOFF).contains(&v), &format!("[0, {MAX_HEIGHT_FALLOFF:e}] /m"))
+                }
+                Prop::HeightOrigin => range(v, v.abs() <= MAX_COORDINATE, &format!("±{MAX_COORDINATE:e} m")),
+                Prop::NoiseAmplitude => {
+                    range(v, (0.0..=MAX_NOISE_AMPLITUDE).contains(&v), &format!("[0, {MAX_NOISE_AMPLITUDE}]"))
+                }
+                _ => Ok(()),
+            }
+        }
+        (kind, _) => {
+            let example = match kind {
+                ValueKind::Float => "Float(1.0)",
+                ValueKind::Vec3 => "Vec3((0.0, 1.0, 0.0))",
+                ValueKind::Bool => "Bool(true)",
+            };
+            Err(err(field, format!("{prop:?} takes a {kind:?} value, e.g. {example}, got {value:?}")))
+        }
     }
 }
