@@ -209,8 +209,7 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         // Every file goes beside its target first and replaces it only once all of the frame's are written.
         let mut staged = Staged::default();
         let ev = session.pipeline.read_ev()?;
-        let opvs =
-            (0..project.lights.len()).map(|l| session.pipeline.read_opv(l)).collect::<Result<Vec<_>, _>>()?;
+        let opvs = (0..project.lights.len()).map(|l| session.pipeline.read_opv(l)).collect::<Result<Vec<_>, _>>()?;
         let image = if plan.needs_image() { Some(session.pipeline.read_image()?) } else { None };
         let inputs = ExportInputs {
             project: &project,
@@ -242,7 +241,9 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
                 let files = plan.files().iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ");
                 let seconds = started.elapsed().as_secs_f64();
                 let n = frames.len();
-                bar.suspend(|| eprintln!("frame {} ({}/{n}): wrote {files} in {seconds:.2} s", number.unwrap_or(0), k + 1));
+                bar.suspend(|| {
+                    eprintln!("frame {} ({}/{n}): wrote {files} in {seconds:.2} s", number.unwrap_or(0), k + 1)
+                });
             }
         }
         if let (Some(vdb), Some(number)) = (&written.vdb, number) {
@@ -287,7 +288,10 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         _ => {}
     }
     if set.is_some() {
-        out.insert("frames".into(), serde_json::Value::Array(summaries.into_iter().map(serde_json::Value::Object).collect()));
+        out.insert(
+            "frames".into(),
+            serde_json::Value::Array(summaries.into_iter().map(serde_json::Value::Object).collect()),
+        );
     } else if let Some(summary) = summaries.pop() {
         out.extend(summary);
     }

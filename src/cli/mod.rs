@@ -1,8 +1,8 @@
 //! Command-line interface: the editor (no subcommand), headless rendering, export,
 //! verification and adapter information.
 
-use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::export::sequence::{FramePattern, FrameSet};
+use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::output::write_image;
 use crate::scene::{load_project, Project, Scheme};
 use clap::{Parser, Subcommand};
@@ -492,7 +492,15 @@ fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std:
         write_image(path, &image, project.render.exposure)?;
         let seconds = started.elapsed().as_secs_f64();
         if set.is_some() && !json {
-            bar.suspend(|| eprintln!("frame {} ({}/{}): wrote {} in {seconds:.2} s", frame.unwrap_or(0), k + 1, frames.len(), path.display()));
+            bar.suspend(|| {
+                eprintln!(
+                    "frame {} ({}/{}): wrote {} in {seconds:.2} s",
+                    frame.unwrap_or(0),
+                    k + 1,
+                    frames.len(),
+                    path.display()
+                )
+            });
         }
         records.push((frame, path.clone(), report, seconds, project));
     }

@@ -154,7 +154,15 @@ pub fn encode_usda_sequence(
 
 /// Writes `decl = value` when every frame has the same value (or the stage is a still), else
 /// `decl.timeSamples = { frame: value, ... }`; `sampled` asks for time samples regardless.
-fn attr(w: &mut String, indent: &str, decl: &str, frames: &[StageFrame], animated: bool, sampled: bool, value: impl Fn(&StageFrame) -> String) {
+fn attr(
+    w: &mut String,
+    indent: &str,
+    decl: &str,
+    frames: &[StageFrame],
+    animated: bool,
+    sampled: bool,
+    value: impl Fn(&StageFrame) -> String,
+) {
     let values: Vec<String> = frames.iter().map(&value).collect();
     let constant = values.iter().all(|v| *v == values[0]);
     if !animated || (constant && !sampled) {
@@ -282,7 +290,7 @@ fn encode(path: &Path, frames: &[StageFrame], fps: Option<f32>, opts: &UsdOption
     out!("    }}");
 
     // Lights: those visible in at least one frame.
-    for (i, _) in project.lights.iter().enumerate() {
+    for i in 0..project.lights.len() {
         let light = |f: &StageFrame| f.project.lights[i].clone();
         if frames.iter().all(|f| light(f).hidden) {
             continue;
@@ -291,9 +299,15 @@ fn encode(path: &Path, frames: &[StageFrame], fps: Option<f32>, opts: &UsdOption
         out!("    def SphereLight \"Light_{i}\"");
         out!("    {{");
         attr(w, "        ", "color3f inputs:color", frames, animated, false, |f| color(light(f).color));
-        attr(w, "        ", "float inputs:intensity", frames, animated, false, |f| {
-            num(4.0 * light(f).intensity as f64)
-        });
+        attr(
+            w,
+            "        ",
+            "float inputs:intensity",
+            frames,
+            animated,
+            false,
+            |f| num(4.0 * light(f).intensity as f64),
+        );
         out!("        bool inputs:normalize = 1");
         out!("        float inputs:radius = 0");
         out!("        bool treatAsPoint = 1");

@@ -120,7 +120,14 @@ pub struct VdbOptions {
 
 impl Default for VdbOptions {
     fn default() -> Self {
-        Self { compression: VdbCompression::Zip, half: false, threshold: 0.0, tiles: true, frame: Frame::NATIVE, time: None }
+        Self {
+            compression: VdbCompression::Zip,
+            half: false,
+            threshold: 0.0,
+            tiles: true,
+            frame: Frame::NATIVE,
+            time: None,
+        }
     }
 }
 
