@@ -277,7 +277,10 @@ fn bad_frames_and_paths_are_refused_with_the_fix() {
             render(&project, "1-3", &dir.path().join("f.png")),
             &["f.png: --frames 1-3 is 3 frames, and this path has no frame number", "f.####.png"],
         ),
-        (render(&project, "1-2", &dir.path().join("f.####.jpg")), &["name the image .png", ".exr"]),
+        (
+            render(&project, "1-2", &dir.path().join("f.####.jpg")),
+            &["f.####.jpg: unsupported output format; use a .png", ".exr"],
+        ),
     ];
     for (err, expected) in &cases {
         for e in *expected {

@@ -256,36 +256,33 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
 
     let mut out = serde_json::Map::new();
     out.insert("project".into(), serde_json::json!(args.bake.project));
-    match (&set, plan.usd.as_ref()) {
-        (Some(set), Some(usd)) => {
-            let opts = UsdOptions {
-                vdb_asset: String::new(),
-                fields,
-                frame,
-                width: session.request.width,
-                height: session.request.height,
-            };
-            let stage: Vec<StageFrame> = stage_frames
-                .iter()
-                .map(|(number, vdb, project)| StageFrame { frame: *number, project, vdb_asset: asset_path(usd, vdb) })
-                .collect();
-            let mut staged = Staged::default();
-            staged.write(usd, |p| write_usd_sequence(p, &stage, fps.unwrap_or(24.0), &opts))?;
-            check()?;
-            staged.commit()?;
-            out.insert(
-                "usd".into(),
-                serde_json::json!({"path": usd, "frames": set.len(), "fields": opts.fields.len(), "frame": frame.to_string()}),
-            );
-            notes.push(format!(
-                "wrote {} ({} frames of {} at {} fps, {frame})",
-                usd.display(),
-                set.len(),
-                stage.first().map_or(String::new(), |f| f.vdb_asset.clone()),
-                fps.unwrap_or(24.0)
-            ));
-        }
-        _ => {}
+    if let (Some(set), Some(usd)) = (&set, plan.usd.as_ref()) {
+        let opts = UsdOptions {
+            vdb_asset: String::new(),
+            fields,
+            frame,
+            width: session.request.width,
+            height: session.request.height,
+        };
+        let stage: Vec<StageFrame> = stage_frames
+            .iter()
+            .map(|(number, vdb, project)| StageFrame { frame: *number, project, vdb_asset: asset_path(usd, vdb) })
+            .collect();
+        let mut staged = Staged::default();
+        staged.write(usd, |p| write_usd_sequence(p, &stage, fps.unwrap_or(24.0), &opts))?;
+        check()?;
+        staged.commit()?;
+        out.insert(
+            "usd".into(),
+            serde_json::json!({"path": usd, "frames": set.len(), "fields": opts.fields.len(), "frame": frame.to_string()}),
+        );
+        notes.push(format!(
+            "wrote {} ({} frames of {} at {} fps, {frame})",
+            usd.display(),
+            set.len(),
+            stage.first().map_or(String::new(), |f| f.vdb_asset.clone()),
+            fps.unwrap_or(24.0)
+        ));
     }
     if set.is_some() {
         out.insert(

@@ -242,15 +242,18 @@ impl Session {
     }
 }
 
+/// The frames a command bakes, in order (`None`: a project without animation), and the
+/// `--frames` list they came from.
+pub type Frames = (Vec<Option<i32>>, Option<FrameSet>);
+
 /// The frames a command bakes: with `--frames`, those of the list (the project must be
 /// animated and hold them); without, the first frame of an animated project or the still.
-/// `None` stands for a project without animation.
 pub fn frames(
     project: &Project,
     path: &Path,
     spec: Option<&str>,
     flag: &str,
-) -> Result<(Vec<Option<i32>>, Option<FrameSet>), Box<dyn std::error::Error>> {
+) -> Result<Frames, Box<dyn std::error::Error>> {
     let Some(spec) = spec else {
         return Ok((vec![project.animation.map(|a| a.start)], None));
     };
@@ -472,7 +475,7 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
 fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std::error::Error>> {
     let ext = output.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if !matches!(ext.as_deref(), Some("png" | "exr")) {
-        return Err(format!("-o {}: name the image .png (tone-mapped) or .exr (linear HDR)", output.display()).into());
+        return Err(crate::output::OutputError::Format { path: output.to_path_buf() }.into());
     }
     let mut session = open(args)?;
     let (frames, set) = frames(&session.project, &args.project, args.frames.as_deref(), "--frames")?;
