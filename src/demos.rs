@@ -5,11 +5,12 @@ use crate::scene::{parse_project, Project, ProjectError};
 use std::path::Path;
 
 /// (name, RON text) of every bundled demo.
-pub const DEMOS: [(&str, &str); 4] = [
+pub const DEMOS: [(&str, &str); 5] = [
     ("cornell", include_str!("../projects/cornell.ron")),
     ("cloud", include_str!("../projects/cloud.ron")),
     ("street", include_str!("../projects/street.ron")),
     ("room", include_str!("../projects/room.ron")),
+    ("street-wind", include_str!("../projects/street-wind.ron")),
 ];
 
 /// The demo called `name`, parsed.

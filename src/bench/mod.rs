@@ -16,7 +16,10 @@
 //!   growth exponents; run on request only.
 //! - `interaction`: the editor under scripted input (see `interaction`): frame times, input
 //!   to preview latency and time to convergence; run on request only.
+//! - `animation`: frame sequences of the cloud demo, one kind of motion each, baked in one
+//!   pipeline against cold bakes of every frame (see `animation`); run on request only.
 
+mod animation;
 mod interaction;
 mod plot;
 mod scale;
@@ -38,6 +41,8 @@ pub struct BenchOptions {
     pub scenes: Vec<String>,
     /// Scheme labels of the propagation suite (`sweep8r`, `exact`, …); empty for all.
     pub schemes: Vec<String>,
+    /// The frame at which animated demos are baked (`--frame`); their first without it.
+    pub frame: Option<i32>,
 }
 
 /// Why a benchmark could not run.
@@ -134,6 +139,7 @@ fn run_suite(
         }
         Suite::Scaling => suites::scaling(ctx, out, log),
         Suite::Kinds => suites::kinds(ctx, out, log),
+        Suite::Animation => animation::run(ctx, out, log),
         Suite::Scale => scale::run(ctx, out, log),
         Suite::Interaction => {
             use crate::editor::app::Quality;

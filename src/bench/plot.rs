@@ -102,6 +102,8 @@ fn loglog(path: &Path, title: &str, xlabel: &str, ylabel: &str, series: &Series)
 pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), String> {
     match suite {
         Suite::Interaction => frame_times(&dir.join("interaction_frames.png"), records),
+        // A table of four rows: the text output says it all.
+        Suite::Animation => Ok(()),
         Suite::Opv => {
             let by_scheme = |r: &Value| Some(format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy")));
             // The grid's medium is not the scene's: against the gaussians themselves every

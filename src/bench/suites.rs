@@ -29,6 +29,9 @@ pub enum Suite {
     /// Light kinds (point, spot, sun) and medium features (height fog, noise, surfaces) on one
     /// small scene: bake-and-render time against OPV and image error, per grid resolution.
     Kinds,
+    /// Frame sequences of the cloud demo, one kind of motion each: the time per frame of one
+    /// pipeline baking them in order against cold bakes (see `animation`).
+    Animation,
 }
 
 pub struct Context {
@@ -37,6 +40,8 @@ pub struct Context {
     resolutions: Vec<u32>,
     pub(super) scenes: Vec<String>,
     schemes: Vec<String>,
+    /// The frame of an animated demo the suites bake (`--frame`).
+    frame: Option<i32>,
 }
 
 impl Context {
@@ -55,12 +60,25 @@ impl Context {
                 known.join(", ")
             )));
         }
+        if let Some(f) = opts.frame {
+            check_frame(f, &opts.scenes)?;
+        }
         Ok(Self {
             gpu: FogPipeline::new(GpuContext::new_headless()?),
             quick: opts.quick,
             resolutions: opts.resolutions.clone(),
             scenes: opts.scenes.clone(),
             schemes: opts.schemes.clone(),
+            frame: opts.frame,
+        })
+    }
+
+    /// The demo `name`; an animated one at `--frame`, or at its first frame.
+    pub(super) fn demo(&self, name: &str) -> Result<Project, BenchError> {
+        let p = demo(name)?;
+        Ok(match p.animation {
+            Some(a) => p.at_frame(self.frame.unwrap_or(a.start)),
+            None => p,
         })
     }
 
@@ -77,17 +95,41 @@ impl Context {
     }
 }
 
+/// `--frame f` needs `--scene` to name an animated demo, and f within each animated one's range.
+fn check_frame(f: i32, scenes: &[String]) -> Result<(), BenchError> {
+    let mut animated = Vec::new();
+    for (name, _) in crate::demos::DEMOS {
+        if let Some(a) = demo(name)?.animation {
+            if scenes.iter().any(|s| s == name) && !a.frames().contains(&f) {
+                return Err(BenchError::Option(format!(
+                    "--frame {f}: outside the demo {name}'s animation range {}-{}",
+                    a.start, a.end
+                )));
+            }
+            animated.push(name);
+        }
+    }
+    if !scenes.iter().any(|s| animated.contains(&s.as_str())) {
+        return Err(BenchError::Option(format!(
+            "--frame {f}: no animated demo among --scene {}; name one of {}",
+            if scenes.is_empty() { "(none given)".to_string() } else { scenes.join(",") },
+            animated.join(", ")
+        )));
+    }
+    Ok(())
+}
+
 /// The demo without its noise: the exact optical depth of noisy particles is an adaptive
 /// quadrature, too slow for the scheme and step-policy sweeps over whole demos (the `kinds`
 /// suite measures noise on a small scene).
-fn smooth_demo(name: &str) -> Result<Project, BenchError> {
-    let mut p = demo(name)?;
+fn smooth_demo(ctx: &Context, name: &str) -> Result<Project, BenchError> {
+    let mut p = ctx.demo(name)?;
     p.medium.noise = None;
     Ok(p)
 }
 
 /// The project with its grid's longest axis at `longest` cells, the others in proportion.
-fn with_resolution(project: &Project, longest: u32) -> Project {
+pub(super) fn with_resolution(project: &Project, longest: u32) -> Project {
     let mut p = project.clone();
     let size = p.grid.size();
     let scale = longest as f32 / size.max_element();
@@ -95,7 +137,7 @@ fn with_resolution(project: &Project, longest: u32) -> Project {
     p
 }
 
-fn image_size(project: &Project, width: u32) -> (u32, u32) {
+pub(super) fn image_size(project: &Project, width: u32) -> (u32, u32) {
     let h = (width as f32 * project.render.height as f32 / project.render.width as f32).round() as u32;
     (width, h.max(1))
 }
@@ -140,7 +182,7 @@ pub(super) fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&
         .collect();
     let max_cells = if ctx.quick { 20_000 } else { 100_000 };
     for name in &scenes {
-        let mut base = smooth_demo(name)?;
+        let mut base = smooth_demo(ctx, name)?;
         // Suns have rows of their own (`opv_suns`): the schemes are compared on the other
         // lights here.
         opv_suns(ctx, &base, name, &resolutions, out, log)?;
@@ -315,7 +357,7 @@ pub(super) fn march(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut
     let two_level = pick(&[6.0, 12.0, 24.0, 48.0, 96.0]);
     let adaptive = pick(&[0.4, 0.2, 0.1, 0.05, 0.025]);
     for name in scenes {
-        let mut project = with_resolution(&smooth_demo(name)?, res);
+        let mut project = with_resolution(&smooth_demo(ctx, name)?, res);
         project.propagation.scheme = Scheme::Sweep;
         let (w, h) = image_size(&project, width);
         let t = Instant::now();
@@ -567,7 +609,7 @@ pub(super) fn scaling(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnM
     // (with base fog every brick holds extinction, so nothing can be skipped).
     let mut scenes: Vec<(String, Project)> = Vec::new();
     for name in ["cornell", "cloud", "street"] {
-        scenes.push((name.into(), with_resolution(&demo(name)?, res)));
+        scenes.push((name.into(), with_resolution(&ctx.demo(name)?, res)));
     }
     let mut sparse = particle_scene(27, 2, res);
     for q in &mut sparse.particles {

@@ -1,10 +1,16 @@
-//! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files.
+//! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files, for
+//! one frame or for each frame of `--frames` (one pipeline bakes them in order, each frame's
+//! files are in place before the next frame starts, and one USD stage refers to them all).
 
 use super::progress::{check, interrupted, Bar, Cancelled};
-use super::{bake, BakeArgs};
+use super::{frames, open, still, BakeArgs};
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use crate::export::ktx::Ktx2Format;
-use crate::export::plan::{write_plan, ExportInputs, ExportPlan, ExportProblem, ExportRunError, ExportSettings};
+use crate::export::plan::{
+    write_plan, ExportInputs, ExportPlan, ExportProblem, ExportRunError, ExportSettings, Written,
+};
+use crate::export::sequence::{suggest_pattern, FramePattern, FrameSet, FrameTime, SequenceError};
+use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdOptions};
 use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
 use std::path::PathBuf;
@@ -133,6 +139,44 @@ fn problem_message(problem: &ExportProblem) -> String {
     }
 }
 
+/// Every target of `plan` for each frame: the paths with their frame numbers filled in. A
+/// sequence's stage is one file for all frames; its VDBs default to `NAME.####.vdb`.
+fn frame_plans(plan: &ExportPlan, frames: &FrameSet) -> Result<Vec<ExportPlan>, Box<dyn std::error::Error>> {
+    if let Some(usd) = &plan.usd {
+        if FramePattern::new(usd).has_frame() {
+            return Err(format!(
+                "--usd {}: one stage holds every frame (it points at each frame's VDB); name it without a frame number",
+                usd.display()
+            )
+            .into());
+        }
+    }
+    let vdb = plan.vdb.clone().or_else(|| plan.usd.as_ref().map(|u| suggest_pattern(&u.with_extension("vdb"))));
+    let each = |flag: &str, path: &Option<PathBuf>| -> Result<Vec<Option<PathBuf>>, SequenceError> {
+        match path {
+            Some(p) => Ok(FramePattern::new(p).paths(flag, frames)?.into_iter().map(Some).collect()),
+            None => Ok(vec![None; frames.len()]),
+        }
+    };
+    let vdbs = each("--vdb", &vdb)?;
+    let ktx2 = each("--ktx2", &plan.ktx2)?;
+    let render = each("--exr-render", &plan.exr_render)?;
+    let slices = each("--exr-slices", &plan.exr_slices)?;
+    let atlas = each("--exr-atlas", &plan.exr_atlas)?;
+    Ok((0..frames.len())
+        .map(|k| ExportPlan {
+            vdb: vdbs[k].clone(),
+            usd: None,
+            ktx2: ktx2[k].clone(),
+            exr_render: render[k].clone(),
+            png_render: None,
+            exr_slices: slices[k].clone(),
+            exr_atlas: atlas[k].clone(),
+            settings: plan.settings,
+        })
+        .collect())
+}
+
 pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     let plan = args.plan();
     if plan.is_empty() {
@@ -145,34 +189,132 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         return Err(problem_message(problem).into());
     }
     let frame = plan.settings.frame;
-    let baked = bake(&args.bake)?;
-    let project = &baked.project;
-    // Every file goes beside its target first and replaces it only once all are written.
-    let mut staged = Staged::default();
-    let mut bar = Bar::new(args.bake.quiet);
-    let ev = baked.pipeline.read_ev()?;
-    let opvs = (0..project.lights.len()).map(|l| baked.pipeline.read_opv(l)).collect::<Result<Vec<_>, _>>()?;
-    let image = if plan.needs_image() { Some(baked.pipeline.read_image()?) } else { None };
-    let inputs = ExportInputs {
-        project,
-        volumes: Some((&ev, &opvs)),
-        image: image.as_ref(),
-        render_size: [baked.request.width, baked.request.height],
+    let mut session = open(&args.bake)?;
+    let (frames, set) = frames(&session.project, &args.bake.project, args.bake.frames.as_deref(), "--frames")?;
+    let plans = match &set {
+        Some(set) => frame_plans(&plan, set)?,
+        None => vec![plan.clone()],
     };
-    let written =
-        match write_plan(&plan, &inputs, &mut staged, &mut |p| bar.stage(p.stage, p.fraction as f64), &interrupted) {
+    let fps = session.project.animation.map(|a| a.fps);
+    let mut bar = Bar::new(args.bake.quiet);
+    let mut summaries = Vec::new();
+    let mut notes = Vec::new();
+    let mut stage_frames = Vec::new();
+    let mut fields = Vec::new();
+    for (k, (&number, plan)) in frames.iter().zip(&plans).enumerate() {
+        let started = std::time::Instant::now();
+        let project = still(&session.project, number);
+        bar.frame(k, frames.len(), number);
+        let report = session.bake(&project, &mut |p| bar.pipeline(p))?;
+        // Every file goes beside its target first and replaces it only once all of the frame's are written.
+        let mut staged = Staged::default();
+        let ev = session.pipeline.read_ev()?;
+        let opvs = (0..project.lights.len()).map(|l| session.pipeline.read_opv(l)).collect::<Result<Vec<_>, _>>()?;
+        let image = if plan.needs_image() { Some(session.pipeline.read_image()?) } else { None };
+        let inputs = ExportInputs {
+            project: &project,
+            volumes: Some((&ev, &opvs)),
+            image: image.as_ref(),
+            render_size: [session.request.width, session.request.height],
+            time: set.as_ref().zip(number).zip(fps).map(|((_, frame), fps)| FrameTime { frame, fps }),
+        };
+        let written = match write_plan(
+            plan,
+            &inputs,
+            &mut staged,
+            &mut |p| bar.stage(p.stage, p.fraction as f64),
+            &interrupted,
+        ) {
             Ok(w) => w,
             Err(ExportRunError::Cancelled) => return Err(Cancelled.into()),
             Err(ExportRunError::Failed(e)) => return Err(e.into()),
         };
-    check()?;
+        check()?;
+        staged.commit()?;
+        // A sequence says what each frame wrote as it goes.
+        let mut file_notes = Vec::new();
+        let mut summary = summarize(&written, &project, frame, &mut file_notes);
+        if set.is_none() {
+            notes.append(&mut file_notes);
+        }
+        summary.insert("timings_ms".into(), serde_json::json!(report.timings_ms));
+        if set.is_some() {
+            summary.insert("frame".into(), serde_json::json!(number));
+            summary.insert("counters".into(), serde_json::json!(report.counters));
+            summary.insert("seconds".into(), serde_json::json!(started.elapsed().as_secs_f64()));
+            if !args.json {
+                let files = plan.files().iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ");
+                let seconds = started.elapsed().as_secs_f64();
+                let n = frames.len();
+                bar.suspend(|| {
+                    eprintln!("frame {} ({}/{n}): wrote {files} in {seconds:.2} s", number.unwrap_or(0), k + 1)
+                });
+            }
+        }
+        if let (Some(vdb), Some(number)) = (&written.vdb, number) {
+            stage_frames.push((number, vdb.0.clone(), project));
+        }
+        fields = written.vdb_fields;
+        summaries.push(summary);
+    }
     bar.finish();
-    staged.commit()?;
 
+    let mut out = serde_json::Map::new();
+    out.insert("project".into(), serde_json::json!(args.bake.project));
+    if let (Some(set), Some(usd)) = (&set, plan.usd.as_ref()) {
+        let opts = UsdOptions {
+            vdb_asset: String::new(),
+            fields,
+            frame,
+            width: session.request.width,
+            height: session.request.height,
+        };
+        let stage: Vec<StageFrame> = stage_frames
+            .iter()
+            .map(|(number, vdb, project)| StageFrame { frame: *number, project, vdb_asset: asset_path(usd, vdb) })
+            .collect();
+        let mut staged = Staged::default();
+        staged.write(usd, |p| write_usd_sequence(p, &stage, fps.unwrap_or(24.0), &opts))?;
+        check()?;
+        staged.commit()?;
+        out.insert(
+            "usd".into(),
+            serde_json::json!({"path": usd, "frames": set.len(), "fields": opts.fields.len(), "frame": frame.to_string()}),
+        );
+        notes.push(format!(
+            "wrote {} ({} frames of {} at {} fps, {frame})",
+            usd.display(),
+            set.len(),
+            stage.first().map_or(String::new(), |f| f.vdb_asset.clone()),
+            fps.unwrap_or(24.0)
+        ));
+    }
+    if set.is_some() {
+        out.insert(
+            "frames".into(),
+            serde_json::Value::Array(summaries.into_iter().map(serde_json::Value::Object).collect()),
+        );
+    } else if let Some(summary) = summaries.pop() {
+        out.extend(summary);
+    }
+    if args.json {
+        println!("{}", serde_json::Value::Object(out));
+    } else {
+        for note in notes {
+            eprintln!("{note}");
+        }
+    }
+    Ok(())
+}
+
+/// The JSON summary of one frame's files, and a line per file for the terminal.
+fn summarize(
+    written: &Written,
+    project: &crate::scene::Project,
+    frame: Frame,
+    notes: &mut Vec<String>,
+) -> serde_json::Map<String, serde_json::Value> {
     let mut summary = serde_json::Map::new();
-    summary.insert("project".into(), serde_json::json!(args.bake.project));
-    summary.insert("timings_ms".into(), serde_json::json!(baked.report.timings_ms));
-    let mut notes = Vec::new();
     if let Some((path, stats, ms)) = &written.vdb {
         let grids_json: Vec<_> = stats
             .grids
@@ -226,12 +368,5 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         summary.insert("exr_atlas".into(), serde_json::json!({"path": path, "layout": layout.to_string()}));
         notes.push(format!("wrote {}: {layout}", path.display()));
     }
-    if args.json {
-        println!("{}", serde_json::Value::Object(summary));
-    } else {
-        for note in notes {
-            eprintln!("{note}");
-        }
-    }
-    Ok(())
+    summary
 }

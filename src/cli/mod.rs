@@ -1,6 +1,7 @@
 //! Command-line interface: the editor (no subcommand), headless rendering, export,
 //! verification and adapter information.
 
+use crate::export::sequence::{FramePattern, FrameSet};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::output::write_image;
 use crate::scene::{load_project, Project, Scheme};
@@ -65,6 +66,9 @@ enum Command {
         /// Largest number of cells compared per volume; larger grids are sampled.
         #[arg(long, default_value_t = 100_000)]
         cells: usize,
+        /// The frame of an animated project to compare (default: its first).
+        #[arg(long, allow_hyphen_values = true)]
+        frame: Option<i32>,
         /// Print one JSON object on stdout.
         #[arg(long)]
         json: bool,
@@ -109,6 +113,10 @@ enum Command {
         /// (default: all of giroud, sweep4, sweep4r, sweep8, sweep8r, exact and analytic).
         #[arg(long, value_delimiter = ',')]
         scheme: Vec<String>,
+        /// The frame at which the animated demos named by --scene are baked by the suites that
+        /// take --scene (default: each one's first frame).
+        #[arg(long, allow_hyphen_values = true)]
+        frame: Option<i32>,
         /// Print the records as JSON on stdout (progress lines go to stderr).
         #[arg(long)]
         json: bool,
@@ -149,6 +157,12 @@ pub struct BakeArgs {
     /// accepts per interpolation (1e-6..=0.1, default 5e-4).
     #[arg(long, value_name = "TOLERANCE")]
     pub sweep_tolerance: Option<f32>,
+    /// Frames of an animated project to bake: 7, 1-120, 1-120x4 (every 4th) or a list such
+    /// as 1,5,9-12. With more than one, every output path needs a frame number: ####
+    /// (padded to as many digits), %04d or $F4. Without it, an animated project bakes its
+    /// first frame.
+    #[arg(long, value_name = "FRAMES", allow_hyphen_values = true)]
+    pub frames: Option<String>,
     /// No progress bar on stderr (bars appear only when stderr is a terminal).
     #[arg(long)]
     pub quiet: bool,
@@ -163,8 +177,18 @@ pub struct Baked {
     pub adapter: String,
 }
 
-/// Loads the project (and its VDB base layer), opens the GPU and runs the whole pipeline.
-pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
+/// A project loaded (with the command line's overrides) into one GPU pipeline that bakes its
+/// frames in turn, reusing whatever a frame leaves unchanged.
+pub struct Session {
+    /// The project as loaded: animated when it has `animation`.
+    pub project: Project,
+    pub pipeline: FogPipeline,
+    pub request: FrameRequest,
+    pub adapter: String,
+}
+
+/// Opens the GPU and loads the project and its VDB base layer; nothing is baked yet.
+pub fn open(args: &BakeArgs) -> Result<Session, Box<dyn std::error::Error>> {
     let mut project = load_project(&args.project)?;
     if let Some(refine) = args.sweep_refine {
         project.propagation.sweep_refine = refine;
@@ -200,14 +224,69 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     pipeline.check_limits(&project, request.width, request.height)?;
     let layer = crate::export::load_base_layer(&project, Some(&args.project))?;
     pipeline.set_base_layer(layer);
-    let mut bar = progress::Bar::new(args.quiet);
-    let report = match pipeline
-        .update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p))
-    {
-        Err(crate::gpu::GpuError::Cancelled) => return Err(progress::Cancelled.into()),
-        other => other?,
+    Ok(Session { project, pipeline, request, adapter })
+}
+
+impl Session {
+    /// Bakes and renders `still` (a frame of the project, see [`frames`]), reusing what the
+    /// previous call left unchanged. `on_progress` sees the work and may stop it.
+    pub fn bake(
+        &mut self,
+        still: &Project,
+        on_progress: &mut dyn FnMut(&crate::gpu::Progress) -> bool,
+    ) -> Result<FrameReport, Box<dyn std::error::Error>> {
+        match self.pipeline.update_with(still, &self.request, std::time::Duration::from_millis(100), on_progress) {
+            Err(crate::gpu::GpuError::Cancelled) => Err(progress::Cancelled.into()),
+            other => Ok(other?),
+        }
+    }
+}
+
+/// The frames a command bakes, in order (`None`: a project without animation), and the
+/// `--frames` list they came from.
+pub type Frames = (Vec<Option<i32>>, Option<FrameSet>);
+
+/// The frames a command bakes: with `--frames`, those of the list (the project must be
+/// animated and hold them); without, the first frame of an animated project or the still.
+pub fn frames(
+    project: &Project,
+    path: &Path,
+    spec: Option<&str>,
+    flag: &str,
+) -> Result<Frames, Box<dyn std::error::Error>> {
+    let Some(spec) = spec else {
+        return Ok((vec![project.animation.map(|a| a.start)], None));
     };
+    let set = FrameSet::parse(spec).map_err(|e| e.0.replace("--frames", flag))?;
+    let Some(animation) = project.animation else {
+        return Err(format!(
+            "{flag} {set}: {} has no animation. Add a frame range to the project, e.g. \
+             `animation: Some((fps: 24.0, start: 1, end: 120)),` with keyframe `tracks`, or leave out {flag}",
+            path.display()
+        )
+        .into());
+    };
+    set.check_within(animation.start, animation.end).map_err(|e| e.0.replace("--frames", flag))?;
+    Ok((set.frames().iter().map(|&f| Some(f)).collect(), Some(set)))
+}
+
+/// The still project of `frame` (`None`: the project itself).
+pub fn still(project: &Project, frame: Option<i32>) -> Project {
+    frame.map_or_else(|| project.clone(), |f| project.at_frame(f))
+}
+
+/// Loads the project and bakes it whole (its first frame when animated).
+pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
+    let mut session = open(args)?;
+    let (frames, _) = frames(&session.project, &args.project, args.frames.as_deref(), "--frames")?;
+    if frames.len() > 1 {
+        return Err("this command bakes one frame: give a single frame".into());
+    }
+    let project = still(&session.project, frames[0]);
+    let mut bar = progress::Bar::new(args.quiet);
+    let report = session.bake(&project, &mut |p| bar.pipeline(p))?;
     bar.finish();
+    let Session { pipeline, request, adapter, .. } = session;
     Ok(Baked { project, pipeline, report, request, adapter })
 }
 
@@ -255,13 +334,13 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
         Some(Command::Info { project, json }) => info(project.as_deref(), json),
-        Some(Command::Verify { project, scheme, width, cells, json, quiet }) => {
-            verify::run(&project, scheme, width, cells, json, quiet)
+        Some(Command::Verify { project, scheme, width, cells, frame, json, quiet }) => {
+            verify::run(&project, scheme, width, cells, frame, json, quiet)
         }
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
         Some(Command::Stress { quick, json, quiet }) => stress::run(quick, json, quiet),
-        Some(Command::Bench { quick, out, suite, resolution, scene, scheme, json, quiet }) => {
+        Some(Command::Bench { quick, out, suite, resolution, scene, scheme, frame, json, quiet }) => {
             if let Some(bad) = resolution.iter().find(|&&r| r == 0 || r > 1024) {
                 return Err(format!("--resolution must be within 1..=1024, got {bad}").into());
             }
@@ -281,6 +360,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
                 resolutions: resolution,
                 scenes: scene,
                 schemes: scheme,
+                frame,
             };
             let records = crate::bench::run(&options, &mut |line| {
                 // The suites do not know their length ahead: the bar counts measurements.
@@ -320,6 +400,7 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
                 scheme: None,
                 sweep_refine: None,
                 sweep_tolerance: None,
+                frames: None,
                 quiet: true,
             };
             let b = bake(&args)?;
@@ -392,9 +473,81 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
 }
 
 fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std::error::Error>> {
-    let Baked { project, pipeline, report, request, adapter } = bake(args)?;
-    let image = pipeline.read_image()?;
-    write_image(output, &image, project.render.exposure)?;
+    let ext = output.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("png" | "exr")) {
+        return Err(crate::output::OutputError::Format { path: output.to_path_buf() }.into());
+    }
+    let mut session = open(args)?;
+    let (frames, set) = frames(&session.project, &args.project, args.frames.as_deref(), "--frames")?;
+    let outputs = match &set {
+        Some(set) => FramePattern::new(output).paths("-o", set)?,
+        None => vec![output.to_path_buf()],
+    };
+    let mut bar = progress::Bar::new(args.quiet);
+    let mut records = Vec::new();
+    for (k, (&frame, path)) in frames.iter().zip(&outputs).enumerate() {
+        let project = still(&session.project, frame);
+        let started = std::time::Instant::now();
+        bar.frame(k, frames.len(), frame);
+        let report = session.bake(&project, &mut |p| bar.pipeline(p))?;
+        let image = session.pipeline.read_image()?;
+        progress::check()?;
+        write_image(path, &image, project.render.exposure)?;
+        let seconds = started.elapsed().as_secs_f64();
+        if set.is_some() && !json {
+            bar.suspend(|| {
+                eprintln!(
+                    "frame {} ({}/{}): wrote {} in {seconds:.2} s",
+                    frame.unwrap_or(0),
+                    k + 1,
+                    frames.len(),
+                    path.display()
+                )
+            });
+        }
+        records.push((frame, path.clone(), report, seconds, project));
+    }
+    bar.finish();
+    let request = session.request;
+    let adapter = &session.adapter;
+    let pipeline = &session.pipeline;
+    if set.is_some() {
+        if json {
+            let list: Vec<_> = records
+                .iter()
+                .map(|(frame, path, report, seconds, _)| {
+                    serde_json::json!({
+                        "frame": frame,
+                        "output": path,
+                        "seconds": seconds,
+                        "timings_ms": report.timings_ms,
+                        "counters": report.counters,
+                    })
+                })
+                .collect();
+            let v = serde_json::json!({
+                "project": args.project,
+                "width": request.width,
+                "height": request.height,
+                "scheme": request.scheme.to_string(),
+                "fps": session.project.animation.map(|a| a.fps),
+                "frames": list,
+                "adapter": adapter,
+                "timing_source": if records.first().is_some_and(|r| r.2.gpu_timestamps) { "gpu_timestamps" } else { "wall_clock" },
+            });
+            println!("{}", serde_json::to_string(&v)?);
+        } else {
+            let total: f64 = records.iter().map(|r| r.3).sum();
+            eprintln!(
+                "rendered {} frames ({}×{}) on {adapter} in {total:.1} s",
+                records.len(),
+                request.width,
+                request.height
+            );
+        }
+        return Ok(());
+    }
+    let Some((_, _, report, _, project)) = records.pop() else { return Ok(()) };
     if json {
         let v = serde_json::json!({
             "project": args.project,

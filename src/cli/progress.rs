@@ -42,9 +42,12 @@ pub fn check() -> Result<(), Cancelled> {
 }
 
 /// One bar whose message is the current stage and whose position is the stage's fraction.
+/// In a sequence of frames the bar spans the whole sequence and its message names the frame.
 pub struct Bar {
     bar: Option<ProgressBar>,
     stage: String,
+    /// The frame being baked: its place in the sequence, the sequence's length, its number.
+    frame: Option<(usize, usize, Option<i32>)>,
 }
 
 const SCALE: u64 = 1000;
@@ -61,18 +64,34 @@ impl Bar {
             );
             bar
         });
-        Self { bar, stage: String::new() }
+        Self { bar, stage: String::new(), frame: None }
     }
 
-    /// Shows `fraction` (in [0, 1]) of stage `name`; a new stage restarts the bar.
+    /// Shows `fraction` (in [0, 1]) of stage `name`; a new stage restarts the bar, except
+    /// within a sequence of frames, where the bar shows the whole sequence's progress.
     pub fn stage(&mut self, name: &str, fraction: f64) {
         let Some(bar) = &self.bar else { return };
-        if name != self.stage {
-            self.stage = name.to_string();
+        let fraction = fraction.clamp(0.0, 1.0);
+        let (message, position, restart) = match self.frame {
+            Some((k, n, frame)) if n > 1 => {
+                let number = frame.map_or(String::new(), |f| format!("frame {f} "));
+                (format!("{number}({}/{n}) {name}", k + 1), (k as f64 + fraction) / n as f64, false)
+            }
+            _ => (name.to_string(), fraction, true),
+        };
+        if message != self.stage {
+            self.stage = message;
             bar.set_message(self.stage.clone());
-            bar.reset();
+            if restart {
+                bar.reset();
+            }
         }
-        bar.set_position((fraction.clamp(0.0, 1.0) * SCALE as f64) as u64);
+        bar.set_position((position * SCALE as f64) as u64);
+    }
+
+    /// Starts frame `frame`, the `k`-th (from 0) of `count`.
+    pub fn frame(&mut self, k: usize, count: usize, frame: Option<i32>) {
+        self.frame = Some((k, count, frame));
     }
 
     /// Shows the pipeline's progress; returns false once Ctrl+C asks to stop.

@@ -12,10 +12,14 @@ pub fn run(
     scheme: Option<Scheme>,
     width: u32,
     max_cells: usize,
+    frame: Option<i32>,
     json: bool,
     quiet: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let project = load_project(path)?;
+    // One frame of an animated project: --frame, else its first.
+    let (frames, _) = super::frames(&project, path, frame.map(|f| f.to_string()).as_deref(), "--frame")?;
+    let project = super::still(&project, frames[0]);
     if width == 0 || width > 4096 {
         return Err(format!("--width must be within 1..=4096, got {width}").into());
     }

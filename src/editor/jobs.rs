@@ -104,6 +104,7 @@ impl EditorState {
                 volumes: volumes.as_ref().map(|(ev, opvs)| (ev, opvs.as_slice())),
                 image: image.as_ref(),
                 render_size: [project.render.width, project.render.height],
+                time: None,
             };
             // Written beside the target and moved onto it only if not cancelled meanwhile.
             let mut staged = crate::export::Staged::default();

@@ -12,6 +12,8 @@
 //!   [`vdb_read::resample_into`] turns such a grid into a project's dense grid.
 //! - [`exr`]: the linear HDR render, the grids as one multi-layer EXR (a layer per quantity
 //!   per z-slice) and the extinction as a 2D slice atlas for game engines.
+//! - [`sequence`]: frame lists (`--frames 1-120x4`) and frame-numbered output paths
+//!   (`fog.####.vdb`) for animations.
 //! - [`plan`]: which of these files to write and with which settings, and the one function
 //!   that writes them; `fogsmith export` and the editor's Export window both call it.
 //!
@@ -26,6 +28,7 @@ pub mod exr;
 pub mod frame;
 pub mod ktx;
 pub mod plan;
+pub mod sequence;
 pub mod staged;
 pub mod usd;
 pub mod vdb;

@@ -9,6 +9,7 @@
 use super::exr::{write_atlas_exr_in_frame, write_render_exr, write_slices_exr, AtlasLayout};
 use super::frame::{Frame, Handedness};
 use super::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format, Ktx2Info};
+use super::sequence::FrameTime;
 use super::usd::{asset_path, write_usd, UsdField, UsdOptions};
 use super::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions, VdbStats};
 use super::{light_infos, Staged};
@@ -98,6 +99,8 @@ pub struct ExportInputs<'a> {
     pub image: Option<&'a Image>,
     /// The render size the USD camera's aspect ratio follows.
     pub render_size: [u32; 2],
+    /// The animation frame the data is of, recorded in the VDB's metadata; None for a still.
+    pub time: Option<FrameTime>,
 }
 
 /// Where an export stands: the file being written, the fraction of it done, and the fraction
@@ -114,6 +117,8 @@ pub struct ExportProgress {
 pub struct Written {
     /// The VDB (the plan's, or the one beside the stage), its stats and milliseconds taken.
     pub vdb: Option<(PathBuf, VdbStats, f64)>,
+    /// The VDB's grids as the fields of a USD volume.
+    pub vdb_fields: Vec<UsdField>,
     pub usd: Option<WrittenUsd>,
     /// The texture, what it holds, and its snippet's path.
     pub ktx2: Option<(PathBuf, Ktx2Info, PathBuf)>,
@@ -238,6 +243,7 @@ pub fn write_plan(
             half: s.half,
             threshold: s.threshold,
             frame,
+            time: inputs.time,
             ..VdbOptions::default()
         };
         check()?;
@@ -247,6 +253,7 @@ pub fn write_plan(
         steps.finished(1.0);
         fields = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
         written.vdb = Some((path.clone(), stats, t.elapsed().as_secs_f64() * 1e3));
+        written.vdb_fields = fields.clone();
     }
     if let (Some(path), Some(vdb)) = (&plan.usd, &vdb_path) {
         let opts = UsdOptions {

@@ -15,6 +15,11 @@
 //!   /Looks/...                the materials
 //! ```
 //!
+//! An animation ([`write_usd_sequence`]) adds `startTimeCode`, `endTimeCode`,
+//! `timeCodesPerSecond` and `framesPerSecond` to the layer, one `filePath` time sample per
+//! frame on every field (each frame's VDB), and time samples on every light and camera value
+//! that changes between frames (a light hidden in some frames gets `visibility` samples).
+//!
 //! Positions are in the export frame ([`super::frame`]): the same frame as the VDB the fields
 //! point at, whose own transform places the voxels, so the Volume prim has no transform. USD
 //! stages are right-handed; a left-handed frame is refused (USD importers, Unreal's among them,
@@ -108,9 +113,73 @@ fn color(c: glam::Vec3) -> String {
     format!("({}, {}, {})", num32(c.x), num32(c.y), num32(c.z))
 }
 
+/// One frame of an animated stage: its time code, the still project of that frame
+/// ([`Project::at_frame`]) and the VDB holding its grids, as the stage refers to it.
+pub struct StageFrame<'a> {
+    pub frame: i32,
+    pub project: &'a Project,
+    pub vdb_asset: String,
+}
+
+/// Writes an animated stage to `path` atomically: `startTimeCode` and `endTimeCode` are the
+/// first and last of `frames`, `timeCodesPerSecond` and `framesPerSecond` are `fps`, every
+/// field's `filePath` has one time sample per frame, and every light or camera value that
+/// changes between frames has a time sample per frame. `opts.vdb_asset` is not used.
+pub fn write_usd_sequence(path: &Path, frames: &[StageFrame], fps: f32, opts: &UsdOptions) -> Result<(), ExportError> {
+    let text = encode_usda_sequence(path, frames, fps, opts)?;
+    write_bytes_atomic(path, text.as_bytes())
+}
+
 /// The stage as `.usda` text; `path` only names errors.
 pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<String, ExportError> {
+    let still = [StageFrame { frame: 0, project, vdb_asset: opts.vdb_asset.clone() }];
+    encode(path, &still, None, opts)
+}
+
+/// The animated stage of [`write_usd_sequence`] as `.usda` text.
+pub fn encode_usda_sequence(
+    path: &Path,
+    frames: &[StageFrame],
+    fps: f32,
+    opts: &UsdOptions,
+) -> Result<String, ExportError> {
+    if frames.is_empty() {
+        return Err(ExportError::invalid(path, "the animation has no frames", "export at least one frame"));
+    }
+    if !(fps.is_finite() && fps > 0.0) {
+        return Err(ExportError::invalid(path, format!("frame rate {fps}"), "set animation.fps above 0"));
+    }
+    encode(path, frames, Some(fps), opts)
+}
+
+/// Writes `decl = value` when every frame has the same value (or the stage is a still), else
+/// `decl.timeSamples = { frame: value, ... }`; `sampled` asks for time samples regardless.
+fn attr(
+    w: &mut String,
+    indent: &str,
+    decl: &str,
+    frames: &[StageFrame],
+    animated: bool,
+    sampled: bool,
+    value: impl Fn(&StageFrame) -> String,
+) {
+    let values: Vec<String> = frames.iter().map(&value).collect();
+    let constant = values.iter().all(|v| *v == values[0]);
+    if !animated || (constant && !sampled) {
+        let _ = writeln!(w, "{indent}{decl} = {}", values[0]);
+        return;
+    }
+    let _ = writeln!(w, "{indent}{decl}.timeSamples = {{");
+    for (f, v) in frames.iter().zip(&values) {
+        let _ = writeln!(w, "{indent}    {}: {v},", f.frame);
+    }
+    let _ = writeln!(w, "{indent}}}");
+}
+
+fn encode(path: &Path, frames: &[StageFrame], fps: Option<f32>, opts: &UsdOptions) -> Result<String, ExportError> {
     let frame = opts.frame;
+    let project = frames[0].project;
+    let animated = fps.is_some();
     if frame.handedness == Handedness::Left {
         return Err(ExportError::invalid(
             path,
@@ -118,12 +187,14 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
             "use --handedness right (for Unreal: --up z --units cm; its USD importer converts to its own axes)",
         ));
     }
-    if opts.vdb_asset.is_empty() || opts.vdb_asset.contains('@') {
-        return Err(ExportError::invalid(
-            path,
-            format!("the VDB path {:?} cannot be a USD asset path", opts.vdb_asset),
-            "write the VDB to a path without '@'",
-        ));
+    for f in frames {
+        if f.vdb_asset.is_empty() || f.vdb_asset.contains('@') {
+            return Err(ExportError::invalid(
+                path,
+                format!("the VDB path {:?} cannot be a USD asset path", f.vdb_asset),
+                "write the VDB to a path without '@'",
+            ));
+        }
     }
     if opts.fields.is_empty() {
         return Err(ExportError::invalid(path, "the volume has no fields", "export at least the density grid"));
@@ -166,7 +237,15 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
         num(frame.meters_per_unit()),
         frame.up_name()
     );
+    if let Some(fps) = fps {
+        out!("    endTimeCode = {}", frames[frames.len() - 1].frame);
+        out!("    framesPerSecond = {}", num32(fps));
+    }
     out!("    metersPerUnit = {}", num(frame.meters_per_unit()));
+    if let Some(fps) = fps {
+        out!("    startTimeCode = {}", frames[0].frame);
+        out!("    timeCodesPerSecond = {}", num32(fps));
+    }
     out!("    upAxis = \"{}\"", frame.up_name());
     out!(")");
     out!("");
@@ -192,7 +271,9 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
     out!("        float3[] extent = [{}, {}]", tuple(lo), tuple(hi));
     out!("        custom float fogsmith:albedo = {}", num32(project.medium.albedo));
     out!("        custom float fogsmith:anisotropy = {}", num32(project.medium.anisotropy));
-    out!("        custom float fogsmith:baseExtinction = {}", num32(project.medium.base_extinction));
+    attr(w, "        ", "custom float fogsmith:baseExtinction", frames, animated, false, |f| {
+        num32(f.project.medium.base_extinction)
+    });
     for f in &opts.fields {
         out!("        rel field:{} = </World/Fog/{}>", f.name, f.name);
     }
@@ -203,55 +284,68 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
         out!("            token fieldClass = \"{}\"", if f.density { "fogVolume" } else { "unknown" });
         out!("            token fieldDataType = \"float\"");
         out!("            token fieldName = \"{}\"", f.name);
-        out!("            asset filePath = @{}@", opts.vdb_asset);
+        attr(w, "            ", "asset filePath", frames, animated, true, |f| format!("@{}@", f.vdb_asset));
         out!("        }}");
     }
     out!("    }}");
 
-    // Lights.
-    for (i, l) in project.lights.iter().enumerate() {
-        if l.hidden {
+    // Lights: those visible in at least one frame.
+    for i in 0..project.lights.len() {
+        let light = |f: &StageFrame| f.project.lights[i].clone();
+        if frames.iter().all(|f| light(f).hidden) {
             continue;
         }
         out!("");
         out!("    def SphereLight \"Light_{i}\"");
         out!("    {{");
-        out!("        color3f inputs:color = {}", color(l.color));
-        out!("        float inputs:intensity = {}", num(4.0 * l.intensity as f64));
+        attr(w, "        ", "color3f inputs:color", frames, animated, false, |f| color(light(f).color));
+        attr(
+            w,
+            "        ",
+            "float inputs:intensity",
+            frames,
+            animated,
+            false,
+            |f| num(4.0 * light(f).intensity as f64),
+        );
         out!("        bool inputs:normalize = 1");
         out!("        float inputs:radius = 0");
         out!("        bool treatAsPoint = 1");
-        out!("        double3 xformOp:translate = {}", p(l.position));
+        if frames.iter().any(|f| light(f).hidden) {
+            attr(w, "        ", "token visibility", frames, animated, false, |f| {
+                if light(f).hidden { "\"invisible\"" } else { "\"inherited\"" }.to_string()
+            });
+        }
+        attr(w, "        ", "double3 xformOp:translate", frames, animated, false, |f| p(light(f).position));
         out!("        uniform token[] xformOpOrder = [\"xformOp:translate\"]");
         out!("    }}");
     }
 
     // Camera.
-    let cam = &project.camera;
-    let (right, up, forward) = cam.basis();
-    let v = |d: glam::Vec3| frame.vector(d.to_array().map(f64::from));
-    let (r, u_, b) = (v(right), v(up), v(-forward));
-    let pos = frame.point(cam.position.to_array().map(f64::from));
     let focal = 50.0f64;
-    let vap = 2.0 * focal * ((cam.fov_y_deg as f64).to_radians() * 0.5).tan();
-    let hap = vap * opts.width as f64 / opts.height as f64;
+    let vap = |f: &StageFrame| 2.0 * focal * ((f.project.camera.fov_y_deg as f64).to_radians() * 0.5).tan();
+    let hap = |f: &StageFrame| vap(f) * opts.width as f64 / opts.height as f64;
     let row = |a: [f64; 3], last: f64| format!("({}, {}, {}, {})", num(a[0]), num(a[1]), num(a[2]), num(last));
+    let transform = |f: &StageFrame| {
+        let cam = &f.project.camera;
+        let (right, up, forward) = cam.basis();
+        let v = |d: glam::Vec3| frame.vector(d.to_array().map(f64::from));
+        let (r, u_, b) = (v(right), v(up), v(-forward));
+        let pos = frame.point(cam.position.to_array().map(f64::from));
+        format!("( {}, {}, {}, {} )", row(r, 0.0), row(u_, 0.0), row(b, 0.0), row(pos, 1.0))
+    };
     out!("");
     out!("    def Camera \"Camera\"");
     out!("    {{");
     out!("        float2 clippingRange = ({}, {})", num(0.01 * s), num(1.0e5 * s));
     out!("        float focalLength = {}", num(focal));
-    out!("        float horizontalAperture = {}", num(hap));
+    attr(w, "        ", "float horizontalAperture", frames, animated, false, |f| num(hap(f)));
     out!("        token projection = \"perspective\"");
-    out!("        float verticalAperture = {}", num(vap));
-    out!("        custom float fogsmith:fovYDeg = {}", num32(cam.fov_y_deg));
-    out!(
-        "        matrix4d xformOp:transform = ( {}, {}, {}, {} )",
-        row(r, 0.0),
-        row(u_, 0.0),
-        row(b, 0.0),
-        row(pos, 1.0)
-    );
+    attr(w, "        ", "float verticalAperture", frames, animated, false, |f| num(vap(f)));
+    attr(w, "        ", "custom float fogsmith:fovYDeg", frames, animated, false, |f| {
+        num32(f.project.camera.fov_y_deg)
+    });
+    attr(w, "        ", "matrix4d xformOp:transform", frames, animated, false, transform);
     out!("        uniform token[] xformOpOrder = [\"xformOp:transform\"]");
     out!("    }}");
 

@@ -68,9 +68,11 @@
 //! the export frame as `up_axis` ("Y" or "Z"), `meters_per_unit` (double: 1 or 0.01) and
 //! `handedness` ("right" or "left"), and on a light's grids `light_index` (int32, its place
 //! in the list), `light_id` (int32, its stable id in the project), `light_position` (vec3s, in the export frame), `light_intensity` (float, W/sr),
-//! `light_color` (vec3s, linear RGB). The file's own metadata holds `creator` and the frame.
+//! `light_color` (vec3s, linear RGB). A frame of an animation adds `frame` (int32) and `fps`
+//! (float). The file's own metadata holds `creator`, the export frame and the time.
 
 use super::frame::Frame;
+use super::sequence::FrameTime;
 use super::{write_bytes_atomic, ExportError, LightInfo};
 use crate::scene::{GridSpec, Volume};
 use std::borrow::Cow;
@@ -112,11 +114,20 @@ pub struct VdbOptions {
     pub tiles: bool,
     /// Axes and units of the grids' world space. Default Fogsmith's own (Y-up, metres).
     pub frame: Frame,
+    /// The animation frame and rate the grids are of; None for a still.
+    pub time: Option<FrameTime>,
 }
 
 impl Default for VdbOptions {
     fn default() -> Self {
-        Self { compression: VdbCompression::Zip, half: false, threshold: 0.0, tiles: true, frame: Frame::NATIVE }
+        Self {
+            compression: VdbCompression::Zip,
+            half: false,
+            threshold: 0.0,
+            tiles: true,
+            frame: Frame::NATIVE,
+            time: None,
+        }
     }
 }
 
@@ -399,10 +410,10 @@ fn encode_vdb_with_progress(
     out.push(1); // grid offsets follow each descriptor
     out.extend_from_slice(make_uuid().as_bytes());
     // File-level metadata, sorted by name.
-    let frame_meta = frame_metadata(&opts.frame);
-    put_u32(&mut out, 1 + frame_meta.len() as u32);
-    put_meta(&mut out, "creator", &MetaValue::String("fogsmith".into()));
-    for (k, v) in &frame_meta {
+    let mut file_meta: BTreeMap<&str, MetaValue> = frame_metadata(opts).into_iter().collect();
+    file_meta.insert("creator", MetaValue::String("fogsmith".into()));
+    put_u32(&mut out, file_meta.len() as u32);
+    for (k, v) in &file_meta {
         put_meta(&mut out, k, v);
     }
     put_u32(&mut out, grids.len() as u32);
@@ -568,7 +579,7 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
     }
     meta.insert("name".into(), MetaValue::String(g.name.clone()));
     meta.insert("class".into(), MetaValue::String(g.class.as_str().into()));
-    for (k, v) in frame_metadata(&opts.frame) {
+    for (k, v) in frame_metadata(opts) {
         meta.insert(k.into(), v);
     }
     meta.insert("creator".into(), MetaValue::String("fogsmith".into()));
@@ -652,13 +663,19 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
     VdbGridStats { name: g.name.clone(), active_voxels: tree.active, leaves: tree.leaves, tiles: tree.tiles, bytes: 0 }
 }
 
-/// The up axis, units and handedness as metadata entries, sorted by name.
-fn frame_metadata(frame: &Frame) -> Vec<(&'static str, MetaValue)> {
-    vec![
+/// The up axis, units and handedness, and an animation frame's number and rate, as
+/// metadata entries.
+fn frame_metadata(opts: &VdbOptions) -> Vec<(&'static str, MetaValue)> {
+    let frame = &opts.frame;
+    let mut out = vec![
         ("handedness", MetaValue::String(frame.handedness_name().into())),
         ("meters_per_unit", MetaValue::Double(frame.meters_per_unit())),
         ("up_axis", MetaValue::String(frame.up_name().into())),
-    ]
+    ];
+    if let Some(t) = opts.time {
+        out.extend([("frame", MetaValue::Int32(t.frame)), ("fps", MetaValue::Float(t.fps))]);
+    }
+    out
 }
 
 /// The index-to-world map of `spec` in `frame` as a 4×4 row-vector matrix (OpenVDB's

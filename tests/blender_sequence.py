@@ -1,0 +1,117 @@
+"""Imports an animated Fogsmith USD stage with Blender 4.5 (bpy) and reports what it made of
+the animation, then renders chosen frames with Cycles on the CPU (single scattering).
+
+Usage: .venv/bin/python tests/blender_sequence.py STAGE.usda OUT_PREFIX WIDTH HEIGHT SAMPLES FRAME [FRAME ...]
+Prints one JSON line: the scene's frame range and fps, the volume's sequence settings
+(is_sequence, frame_start, frame_duration) and the file it shows at each rendered frame, the
+world position of every light and of the camera at every frame of the stage, and per
+rendered frame the mean linear radiance; writes each render as OUT_PREFIX<frame>.f32 (linear
+RGB float32, rows top to bottom). The volume is set up as in tests/blender_render.py.
+"""
+import json
+import sys
+
+import bpy
+import numpy as np
+from pxr import Usd
+
+stage, prefix, width, height, samples = sys.argv[1], sys.argv[2], *map(int, sys.argv[3:6])
+render_frames = [int(a) for a in sys.argv[6:]]
+
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.wm.usd_import(filepath=stage)
+scene = bpy.context.scene
+usd_stage = Usd.Stage.Open(stage)
+start, end = int(usd_stage.GetStartTimeCode()), int(usd_stage.GetEndTimeCode())
+
+vols = [o for o in scene.objects if o.type == "VOLUME"]
+assert len(vols) == 1, f"expected one volume, found {[o.name for o in vols]}"
+vol = vols[0]
+prim = usd_stage.GetPrimAtPath("/World/Fog")
+albedo = prim.GetAttribute("fogsmith:albedo").Get()
+anisotropy = prim.GetAttribute("fogsmith:anisotropy").Get()
+
+mat = bpy.data.materials.new("FogsmithFog")
+mat.use_nodes = True
+nodes = mat.node_tree.nodes
+nodes.clear()
+pv = nodes.new("ShaderNodeVolumePrincipled")
+pv.inputs["Density"].default_value = 1.0
+pv.inputs["Density Attribute"].default_value = "density"
+pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+pv.inputs["Anisotropy"].default_value = anisotropy
+outn = nodes.new("ShaderNodeOutputMaterial")
+mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
+vol.data.materials.clear()
+vol.data.materials.append(mat)
+
+scene.frame_set(start)
+vol.data.grids.load()
+m = vol.data.grids["density"].matrix_object
+half_voxel = [0.5 * (m[r][0] + m[r][1] + m[r][2]) for r in range(3)]
+vol.location = [vol.location[r] - half_voxel[r] for r in range(3)]
+
+for o in scene.objects:
+    if o.type == "LIGHT":
+        o.data.use_soft_falloff = False
+cams = [o for o in scene.objects if o.type == "CAMERA"]
+scene.camera = cams[0]
+
+out = {
+    "scene_frames": [scene.frame_start, scene.frame_end],
+    "fps": scene.render.fps / scene.render.fps_base,
+    "is_sequence": bool(vol.data.is_sequence),
+    "frame_start": vol.data.frame_start,
+    "frame_duration": vol.data.frame_duration,
+    "filepath": vol.data.filepath,
+    "lights": {},
+    "camera": [],
+    "shown": {},
+    "renders": {},
+}
+for f in range(start, end + 1):
+    scene.frame_set(f)
+    for o in scene.objects:
+        if o.type == "LIGHT":
+            out["lights"].setdefault(o.name, []).append(list(o.matrix_world.translation))
+    out["camera"].append(list(scene.camera.matrix_world.translation))
+
+world = bpy.data.worlds.new("Black")
+world.use_nodes = True
+world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+scene.world = world
+scene.render.engine = "CYCLES"
+c = scene.cycles
+c.device = "CPU"
+c.samples = samples
+c.seed = 1
+c.use_denoising = False
+c.use_adaptive_sampling = False
+c.max_bounces = 1
+c.volume_bounces = 0
+c.diffuse_bounces = 0
+c.glossy_bounces = 0
+c.transmission_bounces = 0
+c.transparent_max_bounces = 8
+c.sample_clamp_direct = 0.0
+c.sample_clamp_indirect = 0.0
+c.pixel_filter_type = "BOX"
+c.filter_width = 1.0
+scene.render.resolution_x = width
+scene.render.resolution_y = height
+scene.render.resolution_percentage = 100
+scene.view_settings.view_transform = "Standard"
+scene.render.image_settings.file_format = "OPEN_EXR"
+scene.render.image_settings.color_depth = "32"
+for f in render_frames:
+    scene.frame_set(f)
+    vol.data.grids.load()
+    out["shown"][str(f)] = bpy.path.abspath(vol.data.grids.frame_filepath)
+    path = f"{prefix}{f}"
+    scene.render.filepath = path + ".exr"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(path + ".exr")
+    px = np.array(img.pixels[:], dtype=np.float32).reshape(height, width, 4)[::-1, :, :3]
+    np.ascontiguousarray(px).tofile(path + ".f32")
+    out["renders"][str(f)] = float(px.mean())
+print(json.dumps(out))

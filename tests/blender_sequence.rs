@@ -1,0 +1,162 @@
+//! An animated stage in Blender 4.5 (`bpy` from the project's test venv, ./setup.sh): a small
+//! fog scene whose particles, lights and camera move over frames 1-4 is exported with
+//! `--frames 1-4 --preset blender --usd`, imported by Blender, and checked: the volume is a
+//! VDB sequence starting at frame 1 with one frame per file, the lights and the camera move as
+//! keyed, and Cycles renders frames 1 and 4 within 5 % in mean of `fogsmith render --frames`
+//! of the same frames.
+
+use fogsmith::scene::animation::{Animation, Channel, Interp, Key, KeyValue, Object, Prop, Track};
+use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
+use glam::{UVec3, Vec3};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const W: usize = 48;
+const H: usize = 36;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn venv_python() -> PathBuf {
+    let py = root().join(".venv/bin/python");
+    let ok = Command::new(&py).args(["-c", "import bpy"]).output().map(|o| o.status.success()).unwrap_or(false);
+    assert!(
+        ok,
+        "this test needs Blender's bpy 4.5 in the project's test venv ({}), which is missing: run ./setup.sh",
+        py.display()
+    );
+    py
+}
+
+fn ramp(on: Channel, a: Vec3, b: Vec3) -> Track {
+    let key = |frame, v| Key { frame, value: KeyValue::Vec3(v), interp: Interp::Linear };
+    Track { on, keys: vec![key(1, a), key(4, b)] }
+}
+
+fn scene() -> Project {
+    let mut p = Project {
+        grid: GridSpec { min: Vec3::splat(-1.2), max: Vec3::splat(1.2), resolution: UVec3::splat(24) },
+        medium: Medium { base_extinction: 0.0, albedo: 0.9, anisotropy: 0.2, ..Medium::default() },
+        particles: vec![
+            Particle::new(Vec3::new(-0.2, 0.0, 0.1), 0.3, 3.0),
+            Particle::new(Vec3::new(0.3, 0.2, -0.1), 0.25, 4.0),
+            Particle::new(Vec3::new(0.0, -0.3, 0.2), 0.2, 2.0),
+        ],
+        lights: vec![
+            Light::new(Vec3::new(1.8, 1.2, 0.8), 20.0, Vec3::new(1.0, 0.9, 0.7)),
+            Light::new(Vec3::new(-1.8, 0.5, -1.0), 10.0, Vec3::new(0.5, 0.7, 1.0)),
+        ],
+        ..Default::default()
+    };
+    p.camera = Camera { position: Vec3::new(0.5, 0.8, 4.0), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 40.0 };
+    p.ensure_unique_ids();
+    p.animation = Some(Animation { fps: 12.0, start: 1, end: 4 });
+    let (l0, q0) = (p.lights[0].id, p.particles[0].id);
+    p.tracks = vec![
+        ramp(Channel(Object::Light(l0), Prop::Position), p.lights[0].position, Vec3::new(1.0, 1.6, 1.6)),
+        ramp(Channel(Object::Camera, Prop::Position), p.camera.position, Vec3::new(-1.2, 0.6, 3.8)),
+        ramp(Channel(Object::Particle(q0), Prop::Center), p.particles[0].center, Vec3::new(-0.5, 0.2, 0.0)),
+    ];
+    p
+}
+
+fn run(cmd: &mut Command, what: &str) -> String {
+    let out = cmd.output().unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert!(
+        out.status.success(),
+        "{what} failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn exr_mean(path: &Path) -> f64 {
+    use exr::prelude::*;
+    let image = read_all_flat_layers_from_file(path).unwrap();
+    let layer = &image.layer_data[0];
+    assert_eq!((layer.size.0, layer.size.1), (W, H));
+    let mut sum = 0.0;
+    for c in &layer.channel_data.list {
+        if ["R", "G", "B"].contains(&c.name.to_string().as_str()) {
+            sum += c.sample_data.values_as_f32().map(|v| v as f64).sum::<f64>();
+        }
+    }
+    sum / (W * H * 3) as f64
+}
+
+/// Blender's position in its Z-up world of a Fogsmith (Y-up) position.
+fn blender(p: Vec3) -> [f64; 3] {
+    [p.x as f64, -p.z as f64, p.y as f64]
+}
+
+fn close(a: &Value, b: [f64; 3], what: &str) {
+    let a: Vec<f64> = a.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert!((0..3).all(|i| (a[i] - b[i]).abs() < 1e-4), "{what}: Blender {a:?}, keyed {b:?}");
+}
+
+#[test]
+fn blender_imports_the_animated_stage_and_cycles_matches_each_frame() {
+    let py = venv_python();
+    fogsmith::cli::ensure_runtime_dir();
+    let bin = env!("CARGO_BIN_EXE_fogsmith");
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let project = scene();
+    let ron = dir.join("anim.ron");
+    fogsmith::scene::io::save_project(&ron, &project).unwrap();
+    let usd = dir.join("anim.usda");
+    let (w, h) = (W.to_string(), H.to_string());
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let common = ["--frames", "1-4", "--width", &w, "--height", &h];
+    run(Command::new(bin).args(["export", &s(&ron), "--preset", "blender", "--usd", &s(&usd)]).args(common), "export");
+    let exr = dir.join("fog.####.exr");
+    run(Command::new(bin).args(["render", &s(&ron), "-o", &s(&exr), "--scheme", "exact"]).args(common), "render");
+
+    let prefix = dir.join("cycles_");
+    let stdout = run(
+        Command::new(&py).arg(root().join("tests/blender_sequence.py")).args([
+            s(&usd),
+            s(&prefix),
+            w.clone(),
+            h.clone(),
+            "128".into(),
+            "1".into(),
+            "4".into(),
+        ]),
+        "Blender",
+    );
+    let line = stdout.lines().rev().find(|l| l.starts_with('{')).expect("a JSON line from blender_sequence.py");
+    let b: Value = serde_json::from_str(line).unwrap();
+    eprintln!("{b}");
+    assert_eq!(b["is_sequence"], true, "the volume is not a sequence: {b}");
+    assert_eq!(b["frame_start"], 1, "{b}");
+    assert_eq!(b["frame_duration"], 4, "{b}");
+    assert_eq!(b["scene_frames"], serde_json::json!([1, 4]), "{b}");
+    for f in [1, 4] {
+        let shown = PathBuf::from(b["shown"][f.to_string()].as_str().unwrap());
+        let want = dir.join(format!("anim.{f:04}.vdb"));
+        assert_eq!(shown.canonicalize().unwrap(), want.canonicalize().unwrap(), "frame {f}: {b}");
+    }
+    for f in 1..=4 {
+        let still = project.at_frame(f);
+        let k = (f - 1) as usize;
+        close(&b["camera"][k], blender(still.camera.position), &format!("camera at frame {f}"));
+        let lights = b["lights"].as_object().unwrap();
+        for (i, l) in still.lights.iter().enumerate() {
+            let name = format!("Light_{i}");
+            let got = lights.get(&name).unwrap_or_else(|| panic!("no light {name}: {b}"));
+            close(&got[k], blender(l.position), &format!("{name} at frame {f}"));
+        }
+    }
+    for f in [1, 4] {
+        let fog = exr_mean(&dir.join(format!("fog.{f:04}.exr")));
+        let cycles = b["renders"][f.to_string()].as_f64().unwrap();
+        let ratio = cycles / fog;
+        eprintln!("frame {f}: mean Fogsmith {fog:.5}, Cycles {cycles:.5}, ratio {ratio:.4}");
+        assert!(fog > 1e-4, "frame {f}: Fogsmith's image is black");
+        assert!((ratio - 1.0).abs() <= 0.05, "frame {f}: Cycles/Fogsmith mean radiance {ratio:.4}, allowed 1 ± 0.05");
+    }
+}
