@@ -135,6 +135,8 @@ impl EditorApp {
             export: super::export::ExportUi::new(state_dir),
             last_command: None,
             dock_commands: Vec::new(),
+            timeline: super::timeline::TimelineState::new(),
+            still: None,
         };
         if state.options.recovery {
             state.find_recoveries();
@@ -265,6 +267,33 @@ impl EditorApp {
     pub fn title(&self) -> &str {
         &self.state.title
     }
+    /// Where the Timeline's scrub bar was drawn last, to point at frames and key markers.
+    pub fn scrub_bar(&self) -> Option<super::timeline::ScrubBar> {
+        self.state.timeline.bar
+    }
+    /// Whether playback is running.
+    pub fn playing(&self) -> bool {
+        self.state.timeline.playing.is_some()
+    }
+    pub fn set_play_mode(&mut self, mode: super::timeline::PlayMode) {
+        self.state.timeline.mode = mode;
+    }
+    pub fn set_looping(&mut self, looping: bool) {
+        self.state.timeline.looping = looping;
+    }
+    /// The frame of the selected key marker, if one is selected.
+    pub fn selected_key(&self) -> Option<i32> {
+        self.state.timeline.selected_key.as_ref().map(|(f, _)| *f)
+    }
+    /// Playback's rate: frames shown per second over the last two seconds, and the frames
+    /// real-time playback dropped since it started.
+    pub fn playback_rate(&self) -> (Option<f64>, u64) {
+        (self.state.timeline.meter.fps(), self.state.timeline.dropped)
+    }
+    /// Runs `command`, as its menu item or shortcut would.
+    pub fn run(&mut self, command: Command) {
+        self.state.run(command);
+    }
 
     /// Opens (in the focused area) or closes a panel.
     pub fn set_tab_open(&mut self, tab: Tab, open: bool) {
@@ -347,6 +376,7 @@ impl egui_dock::TabViewer for EditorState {
             Tab::Outliner => super::panels::outliner(self, ui),
             Tab::Inspector => super::panels::inspector(self, ui),
             Tab::Stats => super::panels::stats(self, ui),
+            Tab::Timeline => super::timeline::show(self, ui),
         }
     }
 

@@ -11,10 +11,11 @@ pub enum Tab {
     Outliner,
     Inspector,
     Stats,
+    Timeline,
 }
 
 impl Tab {
-    pub const ALL: [Tab; 5] = [Tab::Viewport, Tab::Slices, Tab::Outliner, Tab::Inspector, Tab::Stats];
+    pub const ALL: [Tab; 6] = [Tab::Viewport, Tab::Slices, Tab::Outliner, Tab::Inspector, Tab::Stats, Tab::Timeline];
     pub fn title(self) -> &'static str {
         match self {
             Tab::Viewport => "Viewport",
@@ -22,18 +23,20 @@ impl Tab {
             Tab::Outliner => "Outliner",
             Tab::Inspector => "Inspector",
             Tab::Stats => "Stats",
+            Tab::Timeline => "Timeline",
         }
     }
 }
 
-/// The default arrangement: outliner left, viewport centre with slices below, inspector and
-/// stats right.
+/// The default arrangement: outliner left, viewport centre with the timeline and slices
+/// below, inspector and stats right.
 pub fn default_layout() -> DockState<Tab> {
     let mut dock = DockState::new(vec![Tab::Viewport]);
     let tree = dock.main_surface_mut();
     let [center, _right] = tree.split_right(NodeIndex::root(), 0.76, vec![Tab::Inspector, Tab::Stats]);
     let [center, _left] = tree.split_left(center, 0.2, vec![Tab::Outliner]);
-    tree.split_below(center, 0.64, vec![Tab::Slices]);
+    let [viewport, _slices] = tree.split_below(center, 0.64, vec![Tab::Slices]);
+    tree.split_below(viewport, 0.8, vec![Tab::Timeline]);
     dock
 }
 
