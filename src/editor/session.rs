@@ -472,7 +472,11 @@ impl Session {
     /// Changes the frame range or rate (one undo step per `tag`), keeping the current frame
     /// within the range.
     pub fn set_animation(&mut self, tag: EditTag, animation: Animation) {
-        if self.project.animation == Some(animation) || !(animation.fps > 0.0) || animation.start > animation.end {
+        if self.project.animation == Some(animation)
+            || animation.fps.is_nan()
+            || animation.fps <= 0.0
+            || animation.start > animation.end
+        {
             return;
         }
         self.edit(tag).animation = Some(animation);
