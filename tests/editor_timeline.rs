@@ -190,6 +190,40 @@ fn scrubbing_shows_at_frame_and_converges_to_its_fresh_bake() {
     assert_eq!(differs_from_fresh_bake_of(&h, &animated().at_frame(30)), 0);
 }
 
+/// With the frame-budgeted preview, a jump to another frame shows that frame's fog at once;
+/// while its shadows are still an earlier frame's, the Timeline says so, naming both frames,
+/// until the preview converges on the new frame.
+#[test]
+fn a_frame_shown_with_an_earlier_frames_shadows_says_so() {
+    let mut h = build(animated(), Quality::Balanced);
+    for _ in 0..5000 {
+        h.step();
+        if h.state().preview_status().is_some_and(|s| s.converged) {
+            break;
+        }
+    }
+    let bar = h.state().scrub_bar().expect("the Timeline shows its scrub bar");
+    click(&mut h, Pos2::new(bar.x_of(24), bar.rect.top() + 8.0), PointerButton::Primary);
+    let mut mixed = 0;
+    for _ in 0..5000 {
+        let status = h.state().preview_status().unwrap();
+        assert_eq!(status.shown_frame, Some(24), "the frame's fog shows in the frame of the click");
+        let shadows = status.shadows_frame.expect("shadows of a frame");
+        assert_eq!(status.shadows_stale, shadows != 24, "stale shadows are an earlier frame's");
+        let note = format!("Preview: frame 24 with shadows from frame {shadows}");
+        assert_eq!(has_label(&h, &note), shadows != 24, "the Timeline says so exactly when they differ");
+        mixed += usize::from(shadows != 24);
+        if status.converged {
+            break;
+        }
+        h.step();
+    }
+    let status = h.state().preview_status().unwrap();
+    assert!(status.converged);
+    assert_eq!(status.shadows_frame, Some(24));
+    eprintln!("{mixed} frames showed frame 24 with an earlier frame's shadows");
+}
+
 /// Space plays: in real time the frame follows the clock (kittest's steps are 0.25 s, six
 /// frames at 24 fps, so five are dropped per step); every frame shows each frame converged
 /// in turn. The preview follows; Space pauses.

@@ -62,6 +62,11 @@ struct Persisted {
     preview_scale: PreviewScale,
     outline_all: Option<bool>,
     show_gizmo: Option<bool>,
+    /// The layout has been given the Timeline once (layouts remembered from before it
+    /// existed get it under the viewport).
+    timeline_added: bool,
+    looping: Option<bool>,
+    play_mode: super::timeline::PlayMode,
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
@@ -81,7 +86,10 @@ impl EditorApp {
         };
         let file_dialogs = options.file_dialogs.clone().unwrap_or_else(FileDialogs::detect);
         let state_dir = options.state_dir.clone().unwrap_or_else(crate::scene::recovery::state_dir);
-        let dock = persisted.dock.filter(|d| d.iter_all_tabs().next().is_some()).unwrap_or_else(default_layout);
+        let mut dock = persisted.dock.filter(|d| d.iter_all_tabs().next().is_some()).unwrap_or_else(default_layout);
+        if !persisted.timeline_added && dock.find_tab(&Tab::Timeline).is_none() {
+            layout::add_timeline(&mut dock);
+        }
         let mut state = EditorState {
             session: Session::new(start.project, start.path, &start.name),
             epoch: 1,
@@ -135,7 +143,11 @@ impl EditorApp {
             export: super::export::ExportUi::new(state_dir),
             last_command: None,
             dock_commands: Vec::new(),
-            timeline: super::timeline::TimelineState::new(),
+            timeline: super::timeline::TimelineState {
+                looping: persisted.looping.unwrap_or(true),
+                mode: persisted.play_mode,
+                ..super::timeline::TimelineState::new()
+            },
             still: None,
         };
         if state.options.recovery {
@@ -353,6 +365,9 @@ impl eframe::App for EditorApp {
             preview_scale: self.state.view.preview_scale,
             outline_all: Some(self.state.view.outline_all),
             show_gizmo: Some(self.state.view.show_gizmo),
+            timeline_added: true,
+            looping: Some(self.state.timeline.looping),
+            play_mode: self.state.timeline.mode,
         };
         eframe::set_value(storage, STORAGE_KEY, &persisted);
     }

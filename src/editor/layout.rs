@@ -56,3 +56,31 @@ pub(super) fn set_open(dock: &mut DockState<Tab>, tab: Tab, open: bool) {
         _ => {}
     }
 }
+
+/// Puts the Timeline under the viewport, for a layout remembered from before there was one.
+pub(super) fn add_timeline(dock: &mut DockState<Tab>) {
+    match dock.find_tab(&Tab::Viewport) {
+        Some(path) => {
+            dock[path.surface].split_below(path.node, 0.8, vec![Tab::Timeline]);
+        }
+        None => set_open(dock, Tab::Timeline, true),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_layout_without_the_timeline_gets_it_under_the_viewport() {
+        let mut dock = DockState::new(vec![Tab::Viewport]);
+        dock.main_surface_mut().split_right(NodeIndex::root(), 0.7, vec![Tab::Inspector]);
+        add_timeline(&mut dock);
+        let timeline = dock.find_tab(&Tab::Timeline).expect("the Timeline was added");
+        let viewport = dock.find_tab(&Tab::Viewport).unwrap();
+        assert_ne!(timeline.node, viewport.node, "in its own area, not a tab behind the viewport");
+        assert_eq!(timeline.node.parent(), viewport.node.parent(), "split off the viewport's area");
+        let default = default_layout();
+        assert!(default.find_tab(&Tab::Timeline).is_some(), "the default layout has it");
+    }
+}

@@ -733,20 +733,10 @@ fn animation_stats(state: &EditorState, ui: &mut Ui) {
     }
     if let Some(status) = state.preview_status() {
         let warn = ui.visuals().warn_fg_color;
-        match (status.shown_frame, status.shadows_frame) {
-            (Some(fog), Some(shadows)) if fog != shadows => {
-                ui.colored_label(warn, format!("Preview: frame {fog} with shadows from frame {shadows}"))
-                    .on_hover_text(
-                    "Propagation has not caught up with the frames shown: the optical depths are an earlier frame's",
-                );
-            }
-            (Some(fog), None) if status.shadows_stale => {
-                ui.colored_label(
-                    warn,
-                    format!("Preview: frame {fog} with shadows from before the animation was shown"),
-                );
-            }
-            _ => {}
+        if let Some(note) = state.preview_frames_note() {
+            ui.colored_label(warn, note).on_hover_text(
+                "Propagation has not caught up with the frames shown: the optical depths are an earlier frame's",
+            );
         }
         if let Some(fog) = status.shown_frame.filter(|&f| f != frame) {
             ui.colored_label(warn, format!("Preview still shows frame {fog} while frame {frame} renders"));

@@ -239,7 +239,7 @@ impl Session {
             Some(a) => frame.clamp(a.start, a.end.max(a.start)),
             None => frame,
         };
-        if frame == self.frame && self.unkeyed.is_empty() {
+        if frame == self.frame {
             return Vec::new();
         }
         let dropped: Vec<Channel> = self.unkeyed.keys().copied().collect();

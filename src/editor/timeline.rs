@@ -274,6 +274,20 @@ impl EditorState {
         })
     }
 
+    /// "Preview: frame 40 with shadows from frame 31" while the image on show mixes frames.
+    pub(crate) fn preview_frames_note(&self) -> Option<String> {
+        let status = self.preview_status()?;
+        match (status.shown_frame, status.shadows_frame) {
+            (Some(fog), Some(shadows)) if fog != shadows => {
+                Some(format!("Preview: frame {fog} with shadows from frame {shadows}"))
+            }
+            (Some(fog), None) if status.shadows_stale => {
+                Some(format!("Preview: frame {fog} with shadows from before the animation was shown"))
+            }
+            _ => None,
+        }
+    }
+
     /// The Delete command on a selected key marker: its keys go.
     pub(crate) fn delete_selected_keys(&mut self) -> bool {
         let Some((frame, objects)) = self.timeline.selected_key.take() else { return false };
@@ -377,6 +391,11 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
         }
         if let Some(t) = state.playback_text() {
             ui.label(t);
+        }
+        if let Some(note) = state.preview_frames_note() {
+            ui.colored_label(ui.visuals().warn_fg_color, note).on_hover_text(
+                "Propagation has not caught up with the frames shown: the optical depths are an earlier frame's",
+            );
         }
     });
     scrub_bar(state, ui, a);
