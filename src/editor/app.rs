@@ -342,7 +342,9 @@ impl eframe::App for EditorApp {
         egui::Panel::top("menu").show(ui, |ui| self.state.menu_bar(ui, &self.dock));
         self.apply_dock_commands();
         egui::Panel::bottom("status").show(ui, |ui| self.state.status_bar(ui));
-        let style = egui_dock::Style::from_egui(ui.style().as_ref());
+        let mut style = egui_dock::Style::from_egui(ui.style().as_ref());
+        // Lets a panel be as short as the Timeline (egui_dock's default keeps 175 points).
+        style.separator.extra = layout::MIN_PANEL;
         egui::CentralPanel::default().frame(egui::Frame::NONE).show(ui, |ui| {
             DockArea::new(&mut self.dock).style(style).show_inside(ui, &mut self.state);
         });
@@ -403,7 +405,7 @@ impl egui_dock::TabViewer for EditorState {
 
     fn scroll_bars(&self, tab: &Tab) -> [bool; 2] {
         match tab {
-            Tab::Inspector | Tab::Stats => [false, true],
+            Tab::Inspector | Tab::Stats | Tab::Timeline => [false, true],
             _ => [false, false],
         }
     }

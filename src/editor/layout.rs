@@ -28,6 +28,9 @@ impl Tab {
     }
 }
 
+/// The least height or width a split leaves a panel, in points: the Timeline's two rows.
+pub const MIN_PANEL: f32 = 100.0;
+
 /// The default arrangement: outliner left, viewport centre with the timeline and slices
 /// below, inspector and stats right.
 pub fn default_layout() -> DockState<Tab> {
@@ -36,7 +39,7 @@ pub fn default_layout() -> DockState<Tab> {
     let [center, _right] = tree.split_right(NodeIndex::root(), 0.76, vec![Tab::Inspector, Tab::Stats]);
     let [center, _left] = tree.split_left(center, 0.2, vec![Tab::Outliner]);
     let [viewport, _slices] = tree.split_below(center, 0.64, vec![Tab::Slices]);
-    tree.split_below(viewport, 0.8, vec![Tab::Timeline]);
+    tree.split_below(viewport, 0.74, vec![Tab::Timeline]);
     dock
 }
 

@@ -323,7 +323,7 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
         });
         return;
     };
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         let playing = state.timeline.playing.is_some();
         for (command, text) in [
             (Command::FirstFrame, "|<"),
@@ -376,15 +376,21 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
                 state.run(command);
             }
         }
-        for mode in [PlayMode::RealTime, PlayMode::EveryFrame] {
-            let tip = match mode {
-                PlayMode::RealTime => "Keep the animation's time, dropping frames the preview cannot finish",
-                PlayMode::EveryFrame => "Show every frame at full quality (converged) before the next, however slow",
-            };
-            if ui.selectable_label(state.timeline.mode == mode, mode.label()).on_hover_text(tip).clicked() {
-                state.timeline.mode = mode;
-            }
-        }
+        egui::ComboBox::from_id_salt("play mode")
+            .selected_text(state.timeline.mode.label())
+            .show_ui(ui, |ui| {
+                for mode in [PlayMode::RealTime, PlayMode::EveryFrame] {
+                    let tip = match mode {
+                        PlayMode::RealTime => "Keep the animation's time, dropping frames the preview cannot finish",
+                        PlayMode::EveryFrame => {
+                            "Show every frame at full quality (converged) before the next, however slow"
+                        }
+                    };
+                    ui.selectable_value(&mut state.timeline.mode, mode, mode.label()).on_hover_text(tip);
+                }
+            })
+            .response
+            .on_hover_text("How playback treats frames the preview cannot finish in time");
         let (text, tip) = Command::InsertKey.text_and_tooltip();
         if ui.button(text).on_hover_text(format!("{tip} (K)")).clicked() {
             state.run(Command::InsertKey);
@@ -411,7 +417,7 @@ fn marker_frames(state: &EditorState, objects: &[Object]) -> Vec<i32> {
 }
 
 fn scrub_bar(state: &mut EditorState, ui: &mut Ui, a: Animation) {
-    let height = 40.0;
+    let height = 36.0;
     let (rect, response) =
         ui.allocate_exact_size(Vec2::new(ui.available_width().max(60.0), height), Sense::click_and_drag());
     let bar = ScrubBar { rect, start: a.start, end: a.end };
