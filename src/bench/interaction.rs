@@ -251,6 +251,9 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         settle_pipeline: Vec::new(),
         scene: scene.to_owned(),
     };
+    // The Timeline is driven by its commands here; closed, it leaves the viewport the size of
+    // the earlier records.
+    d.h.state_mut().set_tab_open(crate::editor::Tab::Timeline, false);
     d.frame(None)?;
     d.settle()?;
     let rect = d.h.state().viewport_rect().ok_or_else(|| BenchError::Editor("the viewport is not shown".into()))?;

@@ -201,6 +201,7 @@ impl Session {
 
     /// Changes the view camera: saved with the project but not an undo step, like a view
     /// change in other editors.
+    ///
     /// Moving the view is not an edit, so an animated camera is never keyed by it: the
     /// changed camera values are unkeyed edits (K or the Inspector's diamonds key them).
     pub fn set_camera(&mut self, camera: crate::scene::Camera) {
