@@ -4,13 +4,16 @@
 //! - a 40-dab paint stroke over 2 s;
 //! - a 1 s drag of a light (Select tool);
 //! - 5 wheel steps of the Scale tool on a selection;
-//! - an erase stroke over 1 s.
+//! - an erase stroke over 1 s;
+//! - playback: the first light with a position keyed to travel across 24 frames, played in
+//!   the Timeline's "every frame" mode (each frame shown converged before the next).
 //!
 //! For each it records every frame's wall time (p50, p95, p99, max), the time from each input
 //! to the end of the first frame whose preview shows it, and the time from the end of the
 //! interaction to the converged image (full resolution, fresh optical depths), and where the
 //! frames' time went: the pipeline's call (budgeted work and the quick image) against the
-//! rest (egui's layout and painting), during the interaction and while converging.
+//! rest (egui's layout and painting), during the interaction and while converging. For
+//! playback it records the frames played per second of wall time.
 
 use super::BenchError;
 use crate::editor::app::{Quality, StartProject};
@@ -248,6 +251,9 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         settle_pipeline: Vec::new(),
         scene: scene.to_owned(),
     };
+    // The Timeline is driven by its commands here; closed, it leaves the viewport the size of
+    // the earlier records.
+    d.h.state_mut().set_tab_open(crate::editor::Tab::Timeline, false);
     d.frame(None)?;
     d.settle()?;
     let rect = d.h.state().viewport_rect().ok_or_else(|| BenchError::Editor("the viewport is not shown".into()))?;
@@ -325,5 +331,82 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
     d.pointer_path(Duration::from_secs(1), 20, across)?;
     d.press(across(1.0), false)?;
     records.push(d.record("erase", quality, log)?);
+
+    match playback(&mut d, quality, log)? {
+        Some(record) => records.push(record),
+        None => log(&format!("interaction {scene:<8} playback: skipped, the scene has no light with a position")),
+    }
     Ok(records)
+}
+
+/// Frames of the playback interaction.
+const PLAYBACK_FRAMES: i32 = 24;
+
+/// Keys the first light with a position to travel across [`PLAYBACK_FRAMES`] frames and plays
+/// them in "every frame" mode: the achieved frames per second of wall time, each frame
+/// converged. None when the scene has no such light.
+fn playback(d: &mut Driver, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Option<Value>, BenchError> {
+    use crate::editor::commands::Command;
+    use crate::editor::timeline::PlayMode;
+    use crate::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
+    let project = d.h.state().session().project().clone();
+    let Some(light) = project.lights.iter().find(|l| !matches!(l.kind, crate::scene::LightKind::Directional { .. }))
+    else {
+        return Ok(None);
+    };
+    let channel = Channel(Object::Light(light.id), Prop::Position);
+    let travel = project.grid.size() * glam::Vec3::new(0.3, -0.1, 0.2);
+    {
+        let app = d.h.state_mut();
+        app.set_looping(false);
+        app.set_play_mode(PlayMode::EveryFrame);
+        let edit = app.session_mut().edit(crate::editor::session::NEW_STEP);
+        edit.animation = Some(Animation { fps: 24.0, start: 1, end: PLAYBACK_FRAMES });
+        let keyed = edit.set_key(channel, 1, KeyValue::Vec3(light.position), Interp::Linear).and_then(|_| {
+            edit.set_key(channel, PLAYBACK_FRAMES, KeyValue::Vec3(light.position + travel), Interp::Linear)
+        });
+        keyed.map_err(|e| BenchError::Editor(format!("keying the playback's light: {e}")))?;
+        app.run(Command::FirstFrame);
+    }
+    d.frame(None)?;
+    d.settle()?;
+    d.begin();
+    let start = Instant::now();
+    d.h.state_mut().run(Command::PlayPause);
+    while d.h.state().playing() {
+        if start.elapsed() > CONVERGE_LIMIT * PLAYBACK_FRAMES as u32 {
+            return Err(BenchError::Editor("playback did not reach its last frame".into()));
+        }
+        d.frame(None)?;
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let played = d.h.state().session().frame() - 1;
+    if played != PLAYBACK_FRAMES - 1 {
+        return Err(BenchError::Editor(format!("playback stopped at frame {} of {PLAYBACK_FRAMES}", played + 1)));
+    }
+    let fps = played as f64 / seconds;
+    let f = percentiles(&d.frames);
+    let breakdown = Breakdown::of(&d.frames, &d.pipeline);
+    log(&format!(
+        "interaction {:<8} playback     {:?}: {played} frames played converged in {seconds:.2} s = {fps:.2} frames/s ({} editor frames, frame ms p50 {:.0} max {:.0}); {}",
+        d.scene,
+        quality,
+        d.frames.len(),
+        f[0],
+        f[3],
+        breakdown.text()
+    ));
+    Ok(Some(json!({
+        "suite": "interaction",
+        "scene": d.scene,
+        "case": "playback",
+        "quality": format!("{quality:?}"),
+        "mode": "every frame",
+        "frames_played": played,
+        "seconds": seconds,
+        "fps": fps,
+        "frames": d.frames.len(),
+        "frame_ms": {"p50": f[0], "p95": f[1], "p99": f[2], "max": f[3]},
+        "breakdown_during": breakdown.json(),
+    })))
 }

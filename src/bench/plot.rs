@@ -269,7 +269,8 @@ fn particle_sweep_resolution(records: &[Value]) -> f64 {
 fn frame_times(path: &Path, records: &[Value]) -> Result<(), String> {
     let series: Series = records
         .iter()
-        .filter(|r| text(r, "suite") == "interaction")
+        // Playback records its rate, not each frame's time.
+        .filter(|r| text(r, "suite") == "interaction" && r.get("frame_times_ms").is_some())
         .map(|r| {
             let times = r.get("frame_times_ms").and_then(Value::as_array).cloned().unwrap_or_default();
             let pts = times.iter().enumerate().map(|(i, v)| (i as f64, v.as_f64().unwrap_or(f64::NAN))).collect();

@@ -62,6 +62,11 @@ struct Persisted {
     preview_scale: PreviewScale,
     outline_all: Option<bool>,
     show_gizmo: Option<bool>,
+    /// The layout has been given the Timeline once (layouts remembered from before it
+    /// existed get it under the viewport).
+    timeline_added: bool,
+    looping: Option<bool>,
+    play_mode: super::timeline::PlayMode,
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
@@ -81,7 +86,10 @@ impl EditorApp {
         };
         let file_dialogs = options.file_dialogs.clone().unwrap_or_else(FileDialogs::detect);
         let state_dir = options.state_dir.clone().unwrap_or_else(crate::scene::recovery::state_dir);
-        let dock = persisted.dock.filter(|d| d.iter_all_tabs().next().is_some()).unwrap_or_else(default_layout);
+        let mut dock = persisted.dock.filter(|d| d.iter_all_tabs().next().is_some()).unwrap_or_else(default_layout);
+        if !persisted.timeline_added && dock.find_tab(&Tab::Timeline).is_none() {
+            layout::add_timeline(&mut dock);
+        }
         let mut state = EditorState {
             session: Session::new(start.project, start.path, &start.name),
             epoch: 1,
@@ -135,6 +143,12 @@ impl EditorApp {
             export: super::export::ExportUi::new(state_dir),
             last_command: None,
             dock_commands: Vec::new(),
+            timeline: super::timeline::TimelineState {
+                looping: persisted.looping.unwrap_or(true),
+                mode: persisted.play_mode,
+                ..super::timeline::TimelineState::new()
+            },
+            still: None,
         };
         if state.options.recovery {
             state.find_recoveries();
@@ -265,6 +279,33 @@ impl EditorApp {
     pub fn title(&self) -> &str {
         &self.state.title
     }
+    /// Where the Timeline's scrub bar was drawn last, to point at frames and key markers.
+    pub fn scrub_bar(&self) -> Option<super::timeline::ScrubBar> {
+        self.state.timeline.bar
+    }
+    /// Whether playback is running.
+    pub fn playing(&self) -> bool {
+        self.state.timeline.playing.is_some()
+    }
+    pub fn set_play_mode(&mut self, mode: super::timeline::PlayMode) {
+        self.state.timeline.mode = mode;
+    }
+    pub fn set_looping(&mut self, looping: bool) {
+        self.state.timeline.looping = looping;
+    }
+    /// The frame of the selected key marker, if one is selected.
+    pub fn selected_key(&self) -> Option<i32> {
+        self.state.timeline.selected_key.as_ref().map(|(f, _)| *f)
+    }
+    /// Playback's rate: frames shown per second over the last two seconds, and the frames
+    /// real-time playback dropped since it started.
+    pub fn playback_rate(&self) -> (Option<f64>, u64) {
+        (self.state.timeline.meter.fps(), self.state.timeline.dropped)
+    }
+    /// Runs `command`, as its menu item or shortcut would.
+    pub fn run(&mut self, command: Command) {
+        self.state.run(command);
+    }
 
     /// Opens (in the focused area) or closes a panel.
     pub fn set_tab_open(&mut self, tab: Tab, open: bool) {
@@ -301,7 +342,9 @@ impl eframe::App for EditorApp {
         egui::Panel::top("menu").show(ui, |ui| self.state.menu_bar(ui, &self.dock));
         self.apply_dock_commands();
         egui::Panel::bottom("status").show(ui, |ui| self.state.status_bar(ui));
-        let style = egui_dock::Style::from_egui(ui.style().as_ref());
+        let mut style = egui_dock::Style::from_egui(ui.style().as_ref());
+        // Lets a panel be as short as the Timeline (egui_dock's default keeps 175 points).
+        style.separator.extra = layout::MIN_PANEL;
         egui::CentralPanel::default().frame(egui::Frame::NONE).show(ui, |ui| {
             DockArea::new(&mut self.dock).style(style).show_inside(ui, &mut self.state);
         });
@@ -324,6 +367,9 @@ impl eframe::App for EditorApp {
             preview_scale: self.state.view.preview_scale,
             outline_all: Some(self.state.view.outline_all),
             show_gizmo: Some(self.state.view.show_gizmo),
+            timeline_added: true,
+            looping: Some(self.state.timeline.looping),
+            play_mode: self.state.timeline.mode,
         };
         eframe::set_value(storage, STORAGE_KEY, &persisted);
     }
@@ -347,6 +393,7 @@ impl egui_dock::TabViewer for EditorState {
             Tab::Outliner => super::panels::outliner(self, ui),
             Tab::Inspector => super::panels::inspector(self, ui),
             Tab::Stats => super::panels::stats(self, ui),
+            Tab::Timeline => super::timeline::show(self, ui),
         }
     }
 
@@ -358,7 +405,7 @@ impl egui_dock::TabViewer for EditorState {
 
     fn scroll_bars(&self, tab: &Tab) -> [bool; 2] {
         match tab {
-            Tab::Inspector | Tab::Stats => [false, true],
+            Tab::Inspector | Tab::Stats | Tab::Timeline => [false, true],
             _ => [false, false],
         }
     }

@@ -52,11 +52,27 @@ pub enum Command {
     PanelOutliner,
     PanelInspector,
     PanelStats,
+    PanelTimeline,
     ResetLayout,
     /// View toggles, shown as check boxes.
     ParticleOutlines,
     SlicePlane,
     MoveGizmo,
+    /// Animation: give a still project a frame range.
+    Animate,
+    PlayPause,
+    PreviousFrame,
+    NextFrame,
+    FirstFrame,
+    LastFrame,
+    /// K: key every animatable value of the selection at the current frame.
+    InsertKey,
+    /// Delete the keys of the selected timeline marker.
+    DeleteKeys,
+    /// Toggles, shown as check boxes.
+    AutoKey,
+    LoopPlayback,
+    PlayEveryFrame,
     Shortcuts,
 }
 
@@ -65,6 +81,9 @@ const fn key(k: Key) -> KeyboardShortcut {
 }
 const fn cmd(k: Key) -> KeyboardShortcut {
     KeyboardShortcut::new(Modifiers::COMMAND, k)
+}
+const fn shift(k: Key) -> KeyboardShortcut {
+    KeyboardShortcut::new(Modifiers::SHIFT, k)
 }
 const fn cmd_shift(k: Key) -> KeyboardShortcut {
     KeyboardShortcut::new(Modifiers::COMMAND.plus(Modifiers::SHIFT), k)
@@ -106,6 +125,7 @@ impl Command {
             Tab::Outliner => Command::PanelOutliner,
             Tab::Inspector => Command::PanelInspector,
             Tab::Stats => Command::PanelStats,
+            Tab::Timeline => Command::PanelTimeline,
         }
     }
 
@@ -130,7 +150,7 @@ impl Command {
             Command::Redo => ("Redo", "Bring back the edit undone last"),
             Command::SelectAll => ("Select all", "Select every particle and light"),
             Command::Duplicate => ("Duplicate", "Copy the selection, slightly offset, and select the copies"),
-            Command::Delete => ("Delete", "Delete the selection"),
+            Command::Delete => ("Delete", "Delete the selection (with a key marker selected in the Timeline: its keys)"),
             Command::Escape => ("Cancel / deselect", "Cancel grab or scale, or close the Export or Shortcuts window; otherwise clear the selection"),
             Command::Grab => ("Grab", "Move the selection with the mouse (pointer over the viewport); click confirms, Esc cancels"),
             Command::ScaleSelection => ("Scale", "Scale the selected particles with the mouse (pointer over the viewport)"),
@@ -155,10 +175,22 @@ impl Command {
             Command::PanelOutliner => (Tab::Outliner.title(), "Show or hide this panel"),
             Command::PanelInspector => (Tab::Inspector.title(), "Show or hide this panel"),
             Command::PanelStats => (Tab::Stats.title(), "Show or hide this panel"),
+            Command::PanelTimeline => (Tab::Timeline.title(), "Show or hide this panel"),
             Command::ResetLayout => ("Reset layout", "Back to the default arrangement of panels"),
             Command::ParticleOutlines => ("Particle outlines", "Outline every particle in the viewport; when off, only the selection is outlined"),
             Command::SlicePlane => ("Slice plane", "Show the Slices panel's plane in the viewport, in its axis colour"),
             Command::MoveGizmo => ("Move gizmo", "With the Select tool, arrows and squares at the selection's centre: drag one to move along that axis or in that plane (Ctrl snaps the centre to a grid cell's centre; Esc or right click cancels)"),
+            Command::Animate => ("Animate", "Give this still project a frame range (frames 1–120 at 24 fps) to key values on"),
+            Command::PlayPause => ("Play / pause", "Play the animation in the preview, or stop"),
+            Command::PreviousFrame => ("Previous frame", "Show the frame before"),
+            Command::NextFrame => ("Next frame", "Show the frame after"),
+            Command::FirstFrame => ("First frame", "Show the first frame of the range"),
+            Command::LastFrame => ("Last frame", "Show the last frame of the range"),
+            Command::InsertKey => ("Key selection", "Key every animatable value of the selected particles and lights at this frame"),
+            Command::DeleteKeys => ("Delete keys", "Delete the keys of the marker selected in the Timeline"),
+            Command::AutoKey => ("Auto-key", "Edits of animated values set a key at this frame; when off, such an edit on a frame without a key lasts only until the frame changes"),
+            Command::LoopPlayback => ("Loop", "Play from the start again after the last frame"),
+            Command::PlayEveryFrame => ("Play every frame", "Show every frame converged before the next, instead of keeping time by dropping frames"),
             Command::Shortcuts => ("Shortcuts", "All keyboard and mouse shortcuts"),
         }
     }
@@ -200,6 +232,12 @@ impl Command {
             Command::SliceNext => vec![key(Key::CloseBracket), key(Key::PageUp)],
             Command::SlicePrevious => vec![key(Key::OpenBracket), key(Key::PageDown)],
             Command::Shortcuts => vec![key(Key::F1)],
+            Command::PlayPause => vec![key(Key::Space)],
+            Command::PreviousFrame => vec![key(Key::ArrowLeft)],
+            Command::NextFrame => vec![key(Key::ArrowRight)],
+            Command::FirstFrame => vec![key(Key::Home), shift(Key::ArrowLeft)],
+            Command::LastFrame => vec![key(Key::End), shift(Key::ArrowRight)],
+            Command::InsertKey => vec![key(Key::K)],
             Command::ImportVdb
             | Command::Revert
             | Command::RemoveBaseVolume
@@ -212,10 +250,16 @@ impl Command {
             | Command::PanelOutliner
             | Command::PanelInspector
             | Command::PanelStats
+            | Command::PanelTimeline
             | Command::ResetLayout
             | Command::ParticleOutlines
             | Command::SlicePlane
-            | Command::MoveGizmo => vec![],
+            | Command::MoveGizmo
+            | Command::Animate
+            | Command::DeleteKeys
+            | Command::AutoKey
+            | Command::LoopPlayback
+            | Command::PlayEveryFrame => vec![],
         }
     }
 
@@ -304,7 +348,7 @@ pub const GESTURES: &[(&str, &str)] = &[
     ("Middle drag / right drag", "Orbit"),
     ("Shift + middle / right drag", "Pan"),
     ("Wheel", "Zoom (with the Scale tool: scale; Ctrl + wheel zooms)"),
-    ("Arrow keys (held)", "Orbit"),
+    ("Arrow keys (held)", "Orbit (in an animated project Left / Right step frames instead)"),
     ("Alt (Scale tool)", "Change density instead of radius"),
     ("Shift / Ctrl + click", "Add to / toggle the selection"),
     ("Drag a gizmo arrow / square", "Move the selection along that axis / in that plane"),
@@ -340,5 +384,33 @@ mod tests {
         }
         assert_eq!(Command::ALL.iter().filter(|c| c.tool().is_some()).count(), Tool::ALL.len());
         assert_eq!(Command::ALL.iter().filter(|c| c.panel().is_some()).count(), Tab::ALL.len());
+    }
+
+    #[test]
+    fn playback_and_frame_keys_never_fire_while_typing() {
+        for c in [
+            Command::PlayPause,
+            Command::PreviousFrame,
+            Command::NextFrame,
+            Command::FirstFrame,
+            Command::LastFrame,
+            Command::InsertKey,
+        ] {
+            assert!(!c.works_while_typing(), "{c:?}");
+            for s in c.shortcuts() {
+                let ctx = egui::Context::default();
+                let event = egui::Event::Key {
+                    key: s.logical_key,
+                    physical_key: None,
+                    pressed: true,
+                    repeat: false,
+                    modifiers: s.modifiers,
+                };
+                let input = egui::RawInput { events: vec![event], ..Default::default() };
+                let mut got = vec![Command::New];
+                let _ = ctx.run_ui(input, |ui| got = Command::pressed(ui.ctx(), true, true));
+                assert!(got.is_empty(), "{} while typing", format_shortcut(&s));
+            }
+        }
     }
 }

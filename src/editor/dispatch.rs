@@ -18,12 +18,14 @@ impl EditorState {
             return;
         }
         let step = 0.08;
+        // In an animated project Left and Right step frames.
+        let sideways = self.session.project().animation.is_none();
         let orbit = ctx.input(|i| {
             let mut d = glam::Vec2::ZERO;
-            if i.key_down(Key::ArrowLeft) {
+            if sideways && i.key_down(Key::ArrowLeft) {
                 d.x -= step;
             }
-            if i.key_down(Key::ArrowRight) {
+            if sideways && i.key_down(Key::ArrowRight) {
                 d.x += step;
             }
             if i.key_down(Key::ArrowUp) {
@@ -66,7 +68,11 @@ impl EditorState {
             Command::Redo => self.redo(),
             Command::SelectAll => self.session.select_all(),
             Command::Duplicate => self.duplicate(),
-            Command::Delete => self.delete(),
+            Command::Delete => {
+                if !self.delete_selected_keys() {
+                    self.delete();
+                }
+            }
             Command::Escape => {
                 if self.view.modal.is_some() {
                     self.cancel_modal();
@@ -118,11 +124,43 @@ impl EditorState {
             | Command::PanelOutliner
             | Command::PanelInspector
             | Command::PanelStats
+            | Command::PanelTimeline
             | Command::ResetLayout => self.dock_commands.push(command),
             Command::ParticleOutlines => self.view.outline_all = !self.view.outline_all,
             Command::SlicePlane => self.view.show_slice_plane = !self.view.show_slice_plane,
             Command::MoveGizmo => self.view.show_gizmo = !self.view.show_gizmo,
             Command::Shortcuts => self.view.show_shortcuts = !self.view.show_shortcuts,
+            Command::Animate => {
+                if self.session.project().animation.is_none() {
+                    self.session.animate(crate::scene::animation::Animation::default());
+                }
+            }
+            Command::PlayPause => self.toggle_play(),
+            Command::PreviousFrame | Command::NextFrame | Command::FirstFrame | Command::LastFrame => {
+                self.step(command)
+            }
+            Command::InsertKey => {
+                if self.session.selection.is_empty() {
+                    self.info("Select particles or lights to key (the Inspector's diamonds key single values)");
+                } else {
+                    let n = self.session.key_selection();
+                    self.info(format!("{n} values keyed at frame {}", self.session.frame()));
+                }
+            }
+            Command::DeleteKeys => {
+                if !self.delete_selected_keys() {
+                    self.info("Select a key marker in the Timeline first");
+                }
+            }
+            Command::AutoKey => self.session.auto_key = !self.session.auto_key,
+            Command::LoopPlayback => self.timeline.looping = !self.timeline.looping,
+            Command::PlayEveryFrame => {
+                use super::timeline::PlayMode;
+                self.timeline.mode = match self.timeline.mode {
+                    PlayMode::RealTime => PlayMode::EveryFrame,
+                    PlayMode::EveryFrame => PlayMode::RealTime,
+                };
+            }
         }
     }
 
@@ -149,6 +187,7 @@ impl EditorState {
 
     pub(crate) fn undo(&mut self) {
         self.view.modal = None;
+        self.timeline.selected_key = None;
         if !self.session.undo() {
             self.info("Nothing to undo");
         }
@@ -156,6 +195,7 @@ impl EditorState {
 
     pub(crate) fn redo(&mut self) {
         self.view.modal = None;
+        self.timeline.selected_key = None;
         if !self.session.redo() {
             self.info("Nothing to redo");
         }

@@ -59,7 +59,7 @@ impl EditorState {
             self.ctx.request_repaint();
             return;
         }
-        let project = self.session.project().clone();
+        let project = self.session.frame_still();
         let volumes = if plan.needs_volumes() {
             let read = gpu.pipeline.read_ev().and_then(|ev| {
                 let opvs =
@@ -192,7 +192,7 @@ impl EditorState {
             return;
         }
         self.view.slice.exact_pending = Some(key);
-        let project = self.session.project().clone();
+        let project = self.session.frame_still();
         let path = self.session.path().map(Path::to_owned);
         self.spawn("Computing the exact optical depth", move || JobResult::Exact {
             key,

@@ -13,6 +13,7 @@ impl EditorState {
             ui.menu_button("File", |ui| self.file_menu(ui));
             ui.menu_button("Edit", |ui| self.edit_menu(ui));
             ui.menu_button("View", |ui| self.view_menu(ui, dock));
+            ui.menu_button("Animation", |ui| self.animation_menu(ui));
             ui.menu_button("Help", |ui| self.command_button(ui, Command::Shortcuts, true));
         });
     }
@@ -48,6 +49,33 @@ impl EditorState {
         ui.separator();
         ui.label("Camera");
         self.camera_menu(ui);
+    }
+
+    fn animation_menu(&mut self, ui: &mut egui::Ui) {
+        let animated = self.session.project().animation.is_some();
+        if !animated {
+            self.command_button(ui, Command::Animate, true);
+            ui.separator();
+        }
+        for c in
+            [Command::PlayPause, Command::PreviousFrame, Command::NextFrame, Command::FirstFrame, Command::LastFrame]
+        {
+            self.command_button(ui, c, animated);
+        }
+        ui.separator();
+        self.command_button(ui, Command::InsertKey, !self.session.selection.is_empty());
+        self.command_button(ui, Command::DeleteKeys, self.timeline.selected_key.is_some());
+        ui.separator();
+        let toggles = [
+            (Command::AutoKey, self.session.auto_key),
+            (Command::LoopPlayback, self.timeline.looping),
+            (Command::PlayEveryFrame, self.timeline.mode == super::timeline::PlayMode::EveryFrame),
+        ];
+        for (command, on) in toggles {
+            if command.menu_checkbox(ui, on) {
+                self.run(command);
+            }
+        }
     }
 
     fn camera_menu(&mut self, ui: &mut egui::Ui) {

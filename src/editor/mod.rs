@@ -13,7 +13,8 @@
 //!   choices per project), `file_actions`, `recovery`, `dispatch` (commands and
 //!   keys), `menus`, `shell` (status bar, messages), `scripted` (`--screenshot`,
 //!   `--measure-fps`).
-//! - `viewport`, `slice_panel` and `panels` draw the dockable tabs, from the state alone.
+//! - `viewport`, `slice_panel`, `panels` and [`timeline`] draw the dockable tabs, from the
+//!   state alone; `timeline` also drives playback.
 //!
 //! The editor never calls wgpu itself: it shares egui-wgpu's device with the
 //! [`FogPipeline`](crate::gpu::FogPipeline) and hands the pipeline's display view to egui-wgpu.
@@ -39,6 +40,7 @@ mod shell;
 mod slice_panel;
 pub mod slices;
 mod state;
+pub mod timeline;
 pub mod tools;
 pub mod view;
 mod viewport;

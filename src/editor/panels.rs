@@ -3,6 +3,7 @@
 use super::session::NEW_STEP;
 use super::state::EditorState;
 use super::tools::Hit;
+use crate::scene::animation::{Channel, Object, Prop};
 use crate::scene::{LightKindChoice, Project, Scheme};
 use egui::{Color32, DragValue, Ui};
 use glam::Vec3;
@@ -167,12 +168,77 @@ fn drag_vec3(ui: &mut Ui, value: Vec3, speed: f64, unit: &str, tip: &str) -> Opt
     out
 }
 
+/// The key diamond of `channel`, before its field's label: filled when keyed at this frame,
+/// hollow when animated, orange while the value is an unkeyed edit, faint when not
+/// animated. A click keys the value at this frame, or removes its key here.
+fn diamond(state: &mut EditorState, ui: &mut Ui, channel: Channel, name: &str) {
+    let p = state.session.project();
+    let frame = state.session.frame();
+    let keyed = p.has_key(channel, frame);
+    let animated = p.is_animated(channel);
+    let unkeyed = state.session.unkeyed().contains_key(&channel);
+    let size = ui.spacing().interact_size.y * 0.7;
+    let (rect, r) = ui.allocate_exact_size(egui::vec2(size, size), egui::Sense::click());
+    let label = format!("Key {name}");
+    r.widget_info(|| egui::WidgetInfo::labeled(egui::WidgetType::Button, true, &label));
+    let key = Color32::from_rgb(240, 200, 60);
+    let (fill, stroke) = if unkeyed {
+        (None, egui::Stroke::new(1.5, Color32::from_rgb(240, 130, 40)))
+    } else if keyed {
+        (Some(key), egui::Stroke::new(1.0, Color32::BLACK))
+    } else if animated {
+        (None, egui::Stroke::new(1.5, key))
+    } else {
+        (None, egui::Stroke::new(1.0, ui.visuals().weak_text_color()))
+    };
+    let radius = if r.hovered() { size * 0.5 } else { size * 0.4 };
+    super::timeline::paint_diamond(ui, rect.center(), radius, fill, stroke);
+    let tip = if keyed {
+        format!("{name}: keyed at frame {frame}; click to remove this key")
+    } else if unkeyed {
+        format!("{name}: changed at frame {frame} without a key (lost when the frame changes); click to key it")
+    } else if animated {
+        format!("{name}: animated, no key at frame {frame}; click to key it here")
+    } else {
+        format!("{name}: not animated; click to key it at frame {frame}")
+    };
+    if r.on_hover_text(tip).clicked() {
+        state.session.toggle_key(channel);
+    }
+}
+
+/// A field's label with its key diamond.
+fn keyed_label(state: &mut EditorState, ui: &mut Ui, channel: Channel, name: &str) {
+    ui.horizontal(|ui| {
+        diamond(state, ui, channel, name);
+        ui.label(name);
+    });
+}
+
+/// The warning that unkeyed edits will not stick, naming them.
+pub(crate) fn unkeyed_warning(state: &EditorState, ui: &mut Ui) {
+    let unkeyed = state.session.unkeyed();
+    if unkeyed.is_empty() {
+        return;
+    }
+    let names: Vec<String> = unkeyed.keys().map(|c| c.to_string()).collect();
+    ui.colored_label(
+        Color32::from_rgb(240, 130, 40),
+        format!(
+            "Not keyed: {} changed at frame {} only. Press K or click its diamond to key it; changing the frame drops it (auto-key keys such edits)",
+            names.join(", "),
+            state.session.frame()
+        ),
+    );
+}
+
 pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
+    unkeyed_warning(state, ui);
     egui::CollapsingHeader::new("Selection").default_open(true).show(ui, |ui| selection_inspector(state, ui));
     egui::CollapsingHeader::new("Medium").default_open(true).show(ui, |ui| {
         let m = state.session.project().medium;
         egui::Grid::new("medium").num_columns(2).show(ui, |ui| {
-            ui.label("base extinction");
+            keyed_label(state, ui, Channel(Object::Medium, Prop::BaseExtinction), "base extinction");
             if let Some((v, t)) =
                 drag(ui, m.base_extinction, 0.002, 0.0..=100.0, " 1/m", "Homogeneous fog σt filling all space")
             {
@@ -274,7 +340,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 state.session.edit(t).render.step_factor = v;
             }
             ui.end_row();
-            ui.label("field of view");
+            keyed_label(state, ui, Channel(Object::Camera, Prop::FovYDeg), "field of view");
             if let Some((v, t)) = drag(ui, cam.fov_y_deg, 0.2, 1.0..=170.0, "°", "Vertical field of view of the camera")
             {
                 state.session.edit(t).camera.fov_y_deg = v;
@@ -457,8 +523,9 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
             }
         }
     });
+    let id = l.id;
     if kind != LightKindChoice::Sun {
-        ui.label("position");
+        keyed_label(state, ui, Channel(Object::Light(id), Prop::Position), "position");
         if let Some((v, t)) = drag_vec3(ui, l.position, 0.005, " m", "Position of the light") {
             if let Some(q) = state.session.edit(t).lights.get_mut(i) {
                 q.position = v;
@@ -469,7 +536,11 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
         LightKind::Spot { direction, .. } | LightKind::Directional { direction } => direction,
         LightKind::Point => return,
     };
-    ui.label(if kind == LightKindChoice::Sun { "direction (travel)" } else { "axis" });
+    let (prop, name) = match kind {
+        LightKindChoice::Sun => (Prop::SunDirection, "direction (travel)"),
+        _ => (Prop::SpotDirection, "axis"),
+    };
+    keyed_label(state, ui, Channel(Object::Light(id), prop), name);
     let tip = "Direction the light travels (normalised when used); drag the light in the viewport to aim it";
     if let Some((v, t)) = drag_vec3(ui, direction, 0.01, "", tip) {
         if let Some(q) = state.session.edit(t).lights.get_mut(i) {
@@ -481,7 +552,7 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
     }
     if let LightKind::Spot { angle_deg, blend, .. } = l.kind {
         egui::Grid::new("spot").num_columns(2).show(ui, |ui| {
-            ui.label("angle");
+            keyed_label(state, ui, Channel(Object::Light(id), Prop::AngleDeg), "angle");
             let tip = "Half-angle of the cone: no light beyond it";
             if let Some((v, t)) = drag(ui, angle_deg, 0.2, 0.1..=90.0, "°", tip) {
                 if let Some(LightKind::Spot { angle_deg, .. }) =
@@ -491,7 +562,7 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
                 }
             }
             ui.end_row();
-            ui.label("blend");
+            keyed_label(state, ui, Channel(Object::Light(id), Prop::Blend), "blend");
             let tip = "Fraction of the cone over which the light fades out towards its edge";
             if let Some((v, t)) = drag(ui, blend, 0.005, 0.0..=1.0, "", tip) {
                 if let Some(LightKind::Spot { blend, .. }) =
@@ -515,21 +586,22 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
         let i = *sel.particles.iter().next().unwrap_or(&0);
         let Some(p) = state.session.project().particles.get(i).cloned() else { return };
         ui.label(state.session.project().particle_label(i));
-        ui.label("centre");
+        let object = Object::Particle(p.id);
+        keyed_label(state, ui, Channel(object, Prop::Center), "centre");
         if let Some((v, t)) = drag_vec3(ui, p.center, 0.005, " m", "Centre of the gaussian") {
             if let Some(q) = state.session.edit(t).particles.get_mut(i) {
                 q.center = v;
             }
         }
         egui::Grid::new("particle").num_columns(2).show(ui, |ui| {
-            ui.label("radius");
+            keyed_label(state, ui, Channel(object, Prop::Radius), "radius");
             if let Some((v, t)) = drag(ui, p.radius, 0.002, 1e-3..=100.0, " m", "r in σ = c·exp(−d²/r²)") {
                 if let Some(q) = state.session.edit(t).particles.get_mut(i) {
                     q.radius = v;
                 }
             }
             ui.end_row();
-            ui.label("density");
+            keyed_label(state, ui, Channel(object, Prop::Density), "density");
             if let Some((v, t)) = drag(ui, p.density, 0.02, 0.0..=1e4, " 1/m", "Peak extinction c") {
                 if let Some(q) = state.session.edit(t).particles.get_mut(i) {
                     q.density = v;
@@ -551,14 +623,14 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
                 LightKindChoice::Sun => ("irradiance", "Irradiance E on a plane facing the sun, before any fog"),
                 _ => ("intensity", "Radiant intensity I"),
             };
-            ui.label(label);
+            keyed_label(state, ui, Channel(Object::Light(l.id), Prop::Intensity), label);
             if let Some((v, t)) = drag(ui, l.intensity, 0.05, 0.0..=1e5, kind.intensity_unit(), tip) {
                 if let Some(q) = state.session.edit(t).lights.get_mut(i) {
                     q.intensity = v;
                 }
             }
             ui.end_row();
-            ui.label("colour");
+            keyed_label(state, ui, Channel(Object::Light(l.id), Prop::Color), "colour");
             let mut c = l.color.to_array();
             let r = ui.color_edit_button_rgb(&mut c).on_hover_text("Per-channel scale of the intensity (linear RGB)");
             if r.changed() {
@@ -650,7 +722,32 @@ fn grid_fit_warning(state: &EditorState, grid: &crate::scene::GridSpec, lights: 
 
 // ---------------------------------------------------------------- Stats
 
+/// The frame on show, playback's rate, which frames the preview's fog and shadows come from
+/// when they differ, and unkeyed edits.
+fn animation_stats(state: &EditorState, ui: &mut Ui) {
+    let Some(a) = state.session.project().animation else { return };
+    let frame = state.session.frame();
+    ui.label(format!("Frame {frame} of {}–{} at {} fps", a.start, a.end, a.fps));
+    if let Some(t) = state.playback_text() {
+        ui.label(t);
+    }
+    if let Some(status) = state.preview_status() {
+        let warn = ui.visuals().warn_fg_color;
+        if let Some(note) = state.preview_frames_note() {
+            ui.colored_label(warn, note).on_hover_text(
+                "Propagation has not caught up with the frames shown: the optical depths are an earlier frame's",
+            );
+        }
+        if let Some(fog) = status.shown_frame.filter(|&f| f != frame) {
+            ui.colored_label(warn, format!("Preview still shows frame {fog} while frame {frame} renders"));
+        }
+    }
+    unkeyed_warning(state, ui);
+    ui.separator();
+}
+
 pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
+    animation_stats(state, ui);
     match state.view.clock.fps() {
         Some(fps) => ui.label(format!("{fps:.1} frames/s (while redrawing)")),
         None => ui.label("– frames/s (idle)"),

@@ -2,9 +2,10 @@
 //! time budget and hands its image to egui-wgpu as a texture; also reads the extinction
 //! volume back for painting at the fog's depth.
 
-use super::session::{Session, Version};
-use super::state::{BaseKey, EditorState, FogEv, GpuView, PreviewKey, Quality};
+use super::session::Version;
+use super::state::{BaseKey, EditorState, FogEv, GpuView, PreviewKey, Quality, ShownFrames};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext, Progress};
+use crate::scene::Project;
 use eframe::egui_wgpu::{self, wgpu};
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -50,6 +51,10 @@ pub struct PreviewStatus {
     pub shown_size: [u32; 2],
     /// Images shown so far.
     pub renders: u64,
+    /// In an animation: the frame of the fog on show, and of its shadows (an earlier one
+    /// while propagation catches up with playback or a scrub).
+    pub shown_frame: Option<i32>,
+    pub shadows_frame: Option<i32>,
 }
 
 impl GpuView {
@@ -71,6 +76,7 @@ impl GpuView {
             frame_ms: None,
             last_frame: u64::MAX,
             shown: None,
+            frames: ShownFrames::default(),
         }
     }
 
@@ -79,15 +85,22 @@ impl GpuView {
         self.converged.is_none() && self.error.is_none()
     }
 
-    /// Advances the pipeline towards the session's scene at `size` pixels within `budget`
-    /// (None: to convergence); returns whether a new image is on show.
-    fn render(&mut self, session: &Session, version: Version, size: [u32; 2], budget: Option<Duration>) -> bool {
+    /// Advances the pipeline towards `project` (the still of animation frame `frame`, if
+    /// any) at `size` pixels within `budget` (None: to convergence); returns whether a new
+    /// image is on show.
+    fn render(
+        &mut self,
+        project: &Project,
+        frame: Option<i32>,
+        version: Version,
+        size: [u32; 2],
+        budget: Option<Duration>,
+    ) -> bool {
         let key = PreviewKey { version, size };
         if self.converged == Some(key) {
             return false;
         }
         self.converged = None;
-        let project = session.project();
         let request =
             FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
         let started = Instant::now();
@@ -106,6 +119,7 @@ impl GpuView {
         if progress.report.counters.dispatches > 0 {
             self.report = progress.report;
         }
+        self.frames = shown_frames(self.frames, frame, &progress);
         self.progress = progress;
         if progress.converged() {
             self.converged = Some(key);
@@ -132,6 +146,24 @@ impl GpuView {
         }
         true
     }
+}
+
+/// The frames on show after a pipeline call for animation frame `frame` (None: a still)
+/// that made `progress`. Once a call ends past propagation, the optical depths are that
+/// frame's; a new image's shadows are its frame's unless they are stale, and then those
+/// baked before the call (a quick image is marched before propagation runs).
+pub(crate) fn shown_frames(before: ShownFrames, frame: Option<i32>, progress: &crate::gpu::Progress) -> ShownFrames {
+    use crate::gpu::Stage;
+    let Some(frame) = frame else { return ShownFrames::default() };
+    let mut now = before;
+    if matches!(progress.stage, Stage::March | Stage::Done) {
+        now.baked_shadows = Some(frame);
+    }
+    if progress.new_image {
+        now.fog = Some(frame);
+        now.shadows = if progress.shadows_stale { before.baked_shadows } else { Some(frame) };
+    }
+    now
 }
 
 impl EditorState {
@@ -180,9 +212,17 @@ impl EditorState {
             }
         }
         let version = self.version();
+        let animated = self.session.project().animation.is_some();
+        if animated && self.still.as_ref().is_none_or(|(v, _)| *v != version) {
+            self.still = Some((version, self.session.frame_still()));
+        }
+        let (project, frame) = match &self.still {
+            Some((_, still)) if animated => (still, Some(self.session.frame())),
+            _ => (self.session.project(), None),
+        };
         let Some(gpu) = &mut self.gpu else { return };
         let before = gpu.error.clone();
-        gpu.render(&self.session, version, self.view.preview_size, budget);
+        gpu.render(project, frame, version, self.view.preview_size, budget);
         if gpu.refining() {
             self.ctx.request_repaint();
         }
@@ -224,6 +264,8 @@ impl EditorState {
             shadows_stale: gpu.progress.shadows_stale,
             shown_size: gpu.progress.shown_size,
             renders: gpu.renders,
+            shown_frame: gpu.frames.fog,
+            shadows_frame: gpu.frames.shadows,
         })
     }
 }
@@ -240,5 +282,30 @@ mod tests {
         assert_eq!(frame_budget_ms(true, Some(35.0), 30.0), FRAME_BUDGET_MS, "never below the frame budget");
         assert_eq!(frame_budget_ms(true, Some(500.0), 30.0), IDLE_BUDGET_MAX_MS, "never above the cap");
         assert_eq!(frame_budget_ms(true, Some(10.0), 30.0), FRAME_BUDGET_MS, "a rest below zero counts as none");
+    }
+
+    #[test]
+    fn the_frames_on_show_follow_propagation_and_new_images() {
+        use crate::gpu::{Progress, Stage};
+        let call = |stage: Stage, new_image: bool, shadows_stale: bool| Progress {
+            stage,
+            new_image,
+            shadows_stale,
+            ..Progress::default()
+        };
+        let s = shown_frames(ShownFrames::default(), Some(1), &call(Stage::Done, true, false));
+        assert_eq!(s, ShownFrames { baked_shadows: Some(1), fog: Some(1), shadows: Some(1) });
+        // Frame 5: a quick image with frame 1's optical depths while propagation runs.
+        let s = shown_frames(s, Some(5), &call(Stage::Propagate { lights: 1 }, true, true));
+        assert_eq!(s, ShownFrames { baked_shadows: Some(1), fog: Some(5), shadows: Some(1) });
+        // Frame 9: a quick image first, then frame 9's propagation finishes in the same call.
+        let s = shown_frames(s, Some(9), &call(Stage::March, true, true));
+        assert_eq!(s, ShownFrames { baked_shadows: Some(9), fog: Some(9), shadows: Some(1) });
+        // No new image: what is on show stays.
+        let s = shown_frames(s, Some(9), &call(Stage::March, false, true));
+        assert_eq!(s.fog, Some(9));
+        let s = shown_frames(s, Some(9), &call(Stage::Done, true, false));
+        assert_eq!((s.fog, s.shadows), (Some(9), Some(9)));
+        assert_eq!(shown_frames(s, None, &call(Stage::Done, true, false)), ShownFrames::default(), "a still");
     }
 }

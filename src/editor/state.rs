@@ -133,6 +133,21 @@ pub(crate) struct GpuView {
     pub(super) last_frame: u64,
     /// The project state the image on show was rendered from.
     pub(super) shown: Option<Version>,
+    /// Animation: the frame the baked optical depths belong to, and the frames of the image
+    /// on show (its fog's, its shadows').
+    pub(super) frames: ShownFrames,
+}
+
+/// Which animation frames the preview's image and optical depths come from: while playback
+/// outruns propagation, an image shows one frame's fog with an earlier frame's shadows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct ShownFrames {
+    /// The frame whose optical depths the pipeline holds (propagation finished for it).
+    pub baked_shadows: Option<i32>,
+    /// The frame of the fog on show.
+    pub fog: Option<i32>,
+    /// The frame of the shadows on show.
+    pub shadows: Option<i32>,
 }
 
 /// What a converged preview was rendered from: nothing to do until it changes.
@@ -281,6 +296,10 @@ pub struct EditorState {
     pub(super) last_command: Option<Command>,
     /// Layout commands (View → Panels, Reset layout) for the app to apply to the dock.
     pub(super) dock_commands: Vec<Command>,
+    /// The Timeline: playback and the selected key marker.
+    pub(crate) timeline: super::timeline::TimelineState,
+    /// The still of the frame on show, for the preview, and the state it was made from.
+    pub(super) still: Option<(Version, Project)>,
 }
 
 /// How the artist looks at the document: tools, brush, slices, gestures, the viewport.
@@ -438,6 +457,10 @@ impl EditorState {
         self.view.modal = None;
         self.view.rename = None;
         self.view.slice = SliceCache::default();
+        self.timeline.playing = None;
+        self.timeline.selected_key = None;
+        self.timeline.drag = None;
+        self.still = None;
     }
 
     pub(super) fn begin_frame(&mut self, ctx: &Context) {
@@ -452,9 +475,12 @@ impl EditorState {
             self.confirm = Some(Action::Quit);
         }
         self.shortcuts(ctx);
+        self.tick_playback();
     }
 
     pub(super) fn end_frame(&mut self, ctx: &Context) {
+        // This frame's edits of animated values become keys (or unkeyed edits).
+        self.session.sync_keys();
         // After every panel has seen the release, so a gesture's last step joins its undo step.
         if ctx.input(|i| i.pointer.any_released()) {
             self.session.end_edit();

@@ -1,10 +1,11 @@
 //! The Viewport tab: the tool bar, the pipeline's preview, camera navigation, the tools'
 //! pointer handling and the overlays (grid box, particle outlines, light gizmos, selection,
-//! the move gizmo).
+//! the move gizmo, the motion paths of selected animated particles and lights).
 
 use super::commands::Command;
 use super::gizmo::{self, Gizmo, Handle};
 use super::state::{EditorState, Gesture};
+use super::timeline::MOTION_PATH;
 use super::tools::{self, Hit, Stroke, Tool};
 use super::view::{self, ViewProjection};
 use crate::scene::FitKeep;
@@ -12,6 +13,8 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke as Line, Ui};
 use glam::Vec3;
 
 const SELECTED: Color32 = Color32::from_rgb(255, 160, 40);
+/// Most frames sampled along a motion path.
+const MAX_PATH_POINTS: i32 = 2000;
 /// Particles drawn with outlines; beyond this only the selection is outlined.
 const MAX_OUTLINES: usize = 20_000;
 
@@ -55,6 +58,7 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
         }
     }
     overlays(state, &painter, rect, response.hover_pos());
+    motion_paths(state, &painter, rect);
     gizmo_overlay(state, &painter, rect, response.hover_pos().or(ui.input(|i| i.pointer.latest_pos())));
 }
 
@@ -707,6 +711,34 @@ fn modal(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2>, ui: &U
     } else if confirm {
         state.view.modal = None;
         state.session.end_edit();
+    }
+}
+
+/// The path over the frame range of each selected particle's animated centre and light's
+/// animated position, with a dot at each key.
+fn motion_paths(state: &EditorState, painter: &egui::Painter, rect: Rect) {
+    use crate::scene::animation::{Channel, KeyValue, Object, Prop};
+    let project = state.session.project();
+    let Some(a) = project.animation else { return };
+    let vp = ViewProjection::new(&project.camera, rect);
+    let step = ((a.end - a.start) / MAX_PATH_POINTS).max(1) as usize;
+    for object in state.session.selected_objects() {
+        let prop = match object {
+            Object::Particle(_) => Prop::Center,
+            _ => Prop::Position,
+        };
+        let Some(track) = project.track(Channel(object, prop)) else { continue };
+        let at = |v: Option<KeyValue>| match v {
+            Some(KeyValue::Vec3(v)) => vp.project(v).map(|(p, _)| p),
+            _ => None,
+        };
+        let points: Vec<Pos2> = (a.start..=a.end).step_by(step).filter_map(|f| at(track.sample(f))).collect();
+        painter.add(egui::Shape::line(points, Line::new(1.5, MOTION_PATH)));
+        for k in &track.keys {
+            if let Some(p) = at(Some(k.value)) {
+                painter.circle(p, 3.5, MOTION_PATH, Line::new(1.0, Color32::BLACK));
+            }
+        }
     }
 }
 

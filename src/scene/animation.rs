@@ -371,8 +371,9 @@ impl Project {
     }
 
     /// Writes `value` into the channel's still field; false (nothing written) when the
-    /// channel does not exist or the value's kind is wrong.
-    fn apply(&mut self, channel: Channel, value: KeyValue) -> bool {
+    /// channel does not exist or the value's kind is wrong. Editors pose a keyed project at
+    /// a frame with it, so that its still fields show that frame.
+    pub fn apply(&mut self, channel: Channel, value: KeyValue) -> bool {
         if self.value_of(channel).map(|v| v.kind()) != Some(value.kind()) {
             return false;
         }
