@@ -60,6 +60,10 @@ impl EditorState {
             return;
         }
         let project = self.session.frame_still();
+        let time = self.session.project().animation.map(|a| crate::export::sequence::FrameTime {
+            frame: self.session.frame(),
+            fps: a.fps,
+        });
         let volumes = if plan.needs_volumes() {
             let read = gpu.pipeline.read_ev().and_then(|ev| {
                 let opvs =
@@ -104,7 +108,7 @@ impl EditorState {
                 volumes: volumes.as_ref().map(|(ev, opvs)| (ev, opvs.as_slice())),
                 image: image.as_ref(),
                 render_size: [project.render.width, project.render.height],
-                time: None,
+                time,
             };
             // Written beside the target and moved onto it only if not cancelled meanwhile.
             let mut staged = crate::export::Staged::default();
