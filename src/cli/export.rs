@@ -7,6 +7,7 @@ use crate::export::ktx::Ktx2Format;
 use crate::export::plan::{write_plan, ExportInputs, ExportPlan, ExportProblem, ExportRunError, ExportSettings};
 use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
+use crate::gpu::BakePhase;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -65,9 +66,24 @@ pub struct ExportArgs {
     /// KTX2 texel format: r16f (the extinction in 1/m) or r8 (times the scale it records).
     #[arg(long, value_enum, default_value_t = Ktx2Format::R16f)]
     pub ktx2_format: Ktx2Format,
+    /// Bake the lit fog for engines without volumetric self-shadowing: the radiance each
+    /// cell scatters (W·m⁻³·sr⁻¹ per channel) as a vec3s `emission` grid beside `density` in
+    /// the VDB, and a field of the USD volume. Render it as emission and absorption, no lights.
+    #[arg(long)]
+    pub bake_light: bool,
+    /// The bake's phase function: isotropic (1/(4π), right from any view when g = 0) or
+    /// camera (Henyey–Greenstein towards the project's camera, right for that view, any g).
+    #[arg(long, value_enum, default_value_t = BakePhaseArg::Isotropic, requires = "bake_light")]
+    pub bake_phase: BakePhaseArg,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum BakePhaseArg {
+    Isotropic,
+    Camera,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -113,6 +129,10 @@ impl ExportArgs {
                 },
                 ktx2_format: self.ktx2_format,
                 exr_half: self.exr_half,
+                bake_light: self.bake_light.then_some(match self.bake_phase {
+                    BakePhaseArg::Isotropic => BakePhase::Isotropic,
+                    BakePhaseArg::Camera => BakePhase::Camera,
+                }),
             },
         }
     }
@@ -144,8 +164,25 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     if let Some(problem) = plan.problems().first() {
         return Err(problem_message(problem).into());
     }
+    if plan.settings.bake_light.is_some() && plan.vdb_path().is_none() && plan.ktx2.is_none() {
+        return Err("--bake-light writes the emission into the VDB or the KTX2 texture: give --vdb, --usd or --ktx2".into());
+    }
     let frame = plan.settings.frame;
-    let baked = bake(&args.bake)?;
+    let mut baked = bake(&args.bake)?;
+    let mut bake_summary = None;
+    let emission = match plan.settings.bake_light {
+        Some(phase) => {
+            let t = std::time::Instant::now();
+            let emission = baked.pipeline.bake_emission(&baked.project, &baked.request, phase).map_err(bake_error)?;
+            if baked.project.medium.albedo == 0.0 {
+                eprintln!("warning: medium.albedo is 0: the fog scatters no light, so the baked emission is 0 everywhere");
+            }
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            bake_summary = Some(serde_json::json!({"phase": phase.name(), "ms": ms, "max": emission.max_value()}));
+            Some(emission)
+        }
+        None => None,
+    };
     let project = &baked.project;
     // Every file goes beside its target first and replaces it only once all are written.
     let mut staged = Staged::default();
@@ -157,6 +194,7 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         project,
         volumes: Some((&ev, &opvs)),
         image: image.as_ref(),
+        emission: emission.as_ref(),
         render_size: [baked.request.width, baked.request.height],
     };
     let written =
@@ -173,6 +211,10 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     summary.insert("project".into(), serde_json::json!(args.bake.project));
     summary.insert("timings_ms".into(), serde_json::json!(baked.report.timings_ms));
     let mut notes = Vec::new();
+    if let Some(b) = bake_summary {
+        notes.push(format!("baked the lighting ({} phase) in {:.0} ms", b["phase"].as_str().unwrap_or(""), b["ms"].as_f64().unwrap_or(0.0)));
+        summary.insert("bake".into(), b);
+    }
     if let Some((path, stats, ms)) = &written.vdb {
         let grids_json: Vec<_> = stats
             .grids
@@ -234,4 +276,12 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     Ok(())
+}
+
+/// A bake refused for want of lights says so in the user's terms, without the GPU's prefix.
+fn bake_error(e: crate::gpu::GpuError) -> Box<dyn std::error::Error> {
+    match e {
+        crate::gpu::GpuError::Invalid(message) => message.into(),
+        other => other.into(),
+    }
 }

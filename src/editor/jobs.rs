@@ -103,6 +103,7 @@ impl EditorState {
                 project: &project,
                 volumes: volumes.as_ref().map(|(ev, opvs)| (ev, opvs.as_slice())),
                 image: image.as_ref(),
+                emission: None,
                 render_size: [project.render.width, project.render.height],
             };
             // Written beside the target and moved onto it only if not cancelled meanwhile.

@@ -8,12 +8,14 @@
 
 use super::exr::{write_atlas_exr_in_frame, write_render_exr, write_slices_exr, AtlasLayout};
 use super::frame::{Frame, Handedness};
-use super::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format, Ktx2Info};
+use super::ktx::{baked_texture_note, fog_volume_snippet, write_baked_ktx2, write_ktx2, Ktx2Format, Ktx2Info};
 use super::usd::{asset_path, write_usd, UsdField, UsdOptions};
-use super::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions, VdbStats};
+use super::vdb::{
+    grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbGrid, VdbOptions, VdbStats,
+};
 use super::{light_infos, Staged};
-use crate::gpu::Image;
-use crate::scene::{Project, Volume};
+use crate::gpu::{BakePhase, Image};
+use crate::scene::{Project, Volume, Volume3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -33,6 +35,8 @@ pub struct ExportSettings {
     pub ktx2_format: Ktx2Format,
     /// The rendered EXR as half floats.
     pub exr_half: bool,
+    /// Bake the lit fog's emission (physics.md §10) into the volume targets, with this phase.
+    pub bake_light: Option<BakePhase>,
 }
 
 impl Default for ExportSettings {
@@ -45,6 +49,7 @@ impl Default for ExportSettings {
             compression: VdbCompression::Zip,
             ktx2_format: Ktx2Format::R16f,
             exr_half: false,
+            bake_light: None,
         }
     }
 }
@@ -96,6 +101,8 @@ pub struct ExportInputs<'a> {
     pub volumes: Option<(&'a Volume, &'a [Volume])>,
     /// The rendered image, for the render targets.
     pub image: Option<&'a Image>,
+    /// The baked emission, when the settings ask for a light bake.
+    pub emission: Option<&'a Volume3>,
     /// The render size the USD camera's aspect ratio follows.
     pub render_size: [u32; 2],
 }
@@ -232,7 +239,11 @@ pub fn write_plan(
         let t = Instant::now();
         let infos = light_infos(project);
         let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, l.in_frame(&frame))).collect();
-        let grids = grids_from_volumes(ev, &lights, s.grids);
+        let mut grids = grids_from_volumes(ev, &lights, s.grids);
+        if s.bake_light.is_some() {
+            let emission = inputs.emission.ok_or_else(|| missing("the baked emission"))?;
+            grids.push(VdbGrid::from_volume3("emission", emission));
+        }
         let opts = VdbOptions {
             compression: s.compression,
             half: s.half,
@@ -245,7 +256,10 @@ pub fn write_plan(
             .write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| steps.report("write VDB", f)))
             .map_err(ExportRunError::Failed)?;
         steps.finished(1.0);
-        fields = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
+        fields = grids
+            .iter()
+            .map(|g| UsdField { name: g.name.clone(), density: g.name == "density", vector: g.components == 3 })
+            .collect();
         written.vdb = Some((path.clone(), stats, t.elapsed().as_secs_f64() * 1e3));
     }
     if let (Some(path), Some(vdb)) = (&plan.usd, &vdb_path) {
@@ -263,7 +277,18 @@ pub fn write_plan(
         let lights = project.lights.iter().filter(|l| !l.hidden).count();
         written.usd = Some(WrittenUsd { path: path.clone(), vdb_asset: opts.vdb_asset, fields: fields.len(), lights });
     }
-    if let Some(path) = &plan.ktx2 {
+    if let (Some(path), Some(_)) = (&plan.ktx2, s.bake_light) {
+        let (ev, _) = volumes()?;
+        let emission = inputs.emission.ok_or_else(|| missing("the baked emission"))?;
+        check()?;
+        steps.report("write KTX2", 0.0);
+        let info = staged.write(path, |p| write_baked_ktx2(p, ev, emission)).map_err(ExportRunError::Failed)?;
+        let snippet_path = ExportPlan::ktx2_snippet(path);
+        staged.write(&snippet_path, |p| super::write_text(p, &baked_texture_note(&info))).map_err(ExportRunError::Failed)?;
+        steps.finished(2.0);
+        let info = Ktx2Info { format: s.ktx2_format, scale: info.emission_scale, bytes: info.bytes };
+        written.ktx2 = Some((path.clone(), info, snippet_path));
+    } else if let Some(path) = &plan.ktx2 {
         let (ev, _) = volumes()?;
         check()?;
         steps.report("write KTX2", 0.0);

@@ -9,6 +9,7 @@
 //!   /Fog                      Volume, extent = the grid box; fogsmith:albedo, fogsmith:anisotropy,
 //!                             fogsmith:baseExtinction (1/m) as custom attributes
 //!     /density, /optical_depth_<i>, ...   OpenVDBAsset fields → the exported .vdb
+//!     /emission               with a light bake: the vec3s emission (fieldDataType float3)
 //!   /Light_<i>                SphereLight, treatAsPoint, normalize, radius 0
 //!   /Camera                   Camera (transform, focal length and apertures)
 //!   /Ground, /Box_<n>         Mesh with a UsdPreviewSurface material (diffuse albedo)
@@ -56,6 +57,8 @@ pub struct UsdField {
     pub name: String,
     /// True for a density (OpenVDB class fog volume), false for other quantities.
     pub density: bool,
+    /// A vec3s grid (the baked emission), else a float grid.
+    pub vector: bool,
 }
 
 /// What [`write_usd`] needs besides the project.
@@ -201,7 +204,7 @@ pub fn encode_usda(path: &Path, project: &Project, opts: &UsdOptions) -> Result<
         out!("        def OpenVDBAsset \"{}\"", f.name);
         out!("        {{");
         out!("            token fieldClass = \"{}\"", if f.density { "fogVolume" } else { "unknown" });
-        out!("            token fieldDataType = \"float\"");
+        out!("            token fieldDataType = \"{}\"", if f.vector { "float3" } else { "float" });
         out!("            token fieldName = \"{}\"", f.name);
         out!("            asset filePath = @{}@", opts.vdb_asset);
         out!("        }}");
