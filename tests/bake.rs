@@ -7,14 +7,15 @@ mod common;
 use common::{pipeline, small_scene, Rng};
 use fogsmith::gpu::{BakePhase, FrameRequest};
 use fogsmith::measure::image_error;
-use fogsmith::reference::render_emission;
+use fogsmith::reference::{render_emission, render_reference, RefRenderOptions};
 use fogsmith::scene::{Light, LightKind, Project, StepPolicy};
 use glam::{DVec3, Vec3};
 use std::path::Path;
 use std::process::Command;
 
-/// A random scene of particles in the [−1, 1]³ grid lit by one light of each kind, with no
-/// base fog and no surfaces, so that all the light the march gathers comes from the grid.
+/// A random scene of particles in the [−1, 1]³ grid lit by one light of each kind, all outside
+/// the grid, with no base fog and no surfaces, so that all the light the march gathers comes
+/// from the grid.
 fn random_scene(seed: u64, res: u32) -> Project {
     let mut rng = Rng(seed);
     let mut p = small_scene(res, &[]);
@@ -23,7 +24,10 @@ fn random_scene(seed: u64, res: u32) -> Project {
     for _ in 0..6 {
         p.particles.push(fogsmith::scene::Particle::new(rng.v(-0.5, 0.5), rng.range(0.15, 0.35), rng.range(1.0, 6.0)));
     }
-    let point = Light::new(rng.v(-0.9, 0.9), rng.range(1.0, 4.0), Vec3::new(1.0, 0.8, 0.6));
+    // Outside the grid: a point light inside the fog glows within its cell, which a grid can
+    // only hold as the cell's mean (`cells_by_a_point_light_hold_their_mean`), while the march
+    // resolves the glow along each ray; pixels through that cell would differ by design.
+    let point = Light::new(rng.dir() * 1.5, rng.range(1.0, 4.0), Vec3::new(1.0, 0.8, 0.6));
     let spot_at = rng.dir() * 1.6;
     let mut spot = Light::new(spot_at, rng.range(2.0, 6.0), Vec3::new(0.6, 0.8, 1.0));
     spot.kind = LightKind::Spot { direction: -spot_at, angle_deg: rng.range(15.0, 35.0), blend: rng.range(0.0, 0.5) };
@@ -33,13 +37,16 @@ fn random_scene(seed: u64, res: u32) -> Project {
     for (i, l) in p.lights.iter_mut().enumerate() {
         l.id = i as u32;
     }
+    for (i, q) in p.particles.iter_mut().enumerate() {
+        q.id = i as u32;
+    }
     p.render.step_policy = StepPolicy::Adaptive;
     p
 }
 
 /// Relative RMSE and relative error of the mean of the bake's emission–absorption render
 /// against the GPU's lit render of `project`.
-fn bake_error(project: &Project, phase: BakePhase) -> (f64, f64) {
+fn bake_error(project: &Project, phase: BakePhase) -> (f64, f64, f64) {
     let mut gpu = pipeline();
     let request = FrameRequest::for_project(project);
     gpu.update(project, &request).unwrap();
@@ -59,48 +66,49 @@ fn bake_error(project: &Project, phase: BakePhase) -> (f64, f64) {
     let mean = |v: &[[f64; 3]]| v.iter().flatten().sum::<f64>() / (v.len() * 3) as f64;
     let (m_bake, m_lit) = (mean(&baked), mean(&lit));
     assert!(m_lit > 0.0, "the lit render is black: the scene tests nothing");
-    (err.rel_rmse, (m_bake - m_lit).abs() / m_lit)
+    let exact = render_reference(project, image.width, image.height, &RefRenderOptions::default());
+    let march = image_error(&image, &exact).rel_rmse;
+    (err.rel_rmse, (m_bake - m_lit).abs() / m_lit, march)
 }
 
-/// The bound. The march evaluates each light's E·exp(−T)·p at its samples, with T trilinear
-/// in the mean extinction between cell centres; the bake evaluates the same lookups at the
-/// cell centres (cell means by a point light) and the render interpolates the product
-/// trilinearly. The two differ by the trilinear interpolation error of that product, the same
-/// order as the grid discretisation the march itself carries against the exact reference
-/// (`render_accuracy.rs`: 0.25–0.38 % relative RMSE at 32³–64³, bounded there by 0.4–0.6 %),
-/// here on a product with more curvature (a spot's cone edge, 1/d² by a point light inside
-/// the grid); plus the march's own quadrature. Measured on llvmpipe (printed below): the
-/// bounds leave about 50 % headroom over the worst of the seeds.
-const RMSE_BOUND: f64 = 0.03;
+/// The bound follows from the march's own error. The march evaluates each light's
+/// E·exp(−T)·p at its samples, with σ_t and T trilinear between cell centres; the bake
+/// evaluates the same lookups at the cell centres and its render interpolates the product
+/// trilinearly between them. So the bake adds one more trilinear interpolation on the same
+/// grid, of a quantity as smooth as T, to the discretisation that makes up the march's error
+/// against the exact reference (physics.md §8, computed here on each scene): the relative RMSE
+/// between the two renders must stay within `MARCH_FACTOR` times the march's own. Measured on
+/// llvmpipe at 48³ (printed): the march's error 1.2–1.8 %, the bake's difference 0.6–2.8 %,
+/// at most 1.8× the march's. The image means agree far closer (the cell means keep every
+/// ray's integral): within 0.4 %, bounded by 1 %.
+const MARCH_FACTOR: f64 = 2.5;
 const MEAN_BOUND: f64 = 0.01;
 
 #[test]
 fn isotropic_bake_renders_like_the_lit_scene() {
-    let mut worst = (0.0f64, 0.0f64);
     for seed in [3, 17, 29] {
         let p = random_scene(seed, 48);
-        let (rmse, mean) = bake_error(&p, BakePhase::Isotropic);
-        println!("seed {seed}, g = 0, isotropic: relative RMSE {rmse:.4}, mean {mean:.4}");
-        worst = (worst.0.max(rmse), worst.1.max(mean));
+        let (rmse, mean, march) = bake_error(&p, BakePhase::Isotropic);
+        println!("seed {seed}, g = 0, isotropic: relative RMSE {rmse:.4}, mean {mean:.4}; march vs exact {march:.4}");
+        assert!(rmse < MARCH_FACTOR * march && mean < MEAN_BOUND, "seed {seed}");
     }
-    assert!(worst.0 < RMSE_BOUND && worst.1 < MEAN_BOUND, "worst {worst:?}");
 }
 
 /// For g ≠ 0 the camera bake holds the view's phase and matches; the isotropic one holds the
 /// direction average and must not (else the test could not tell the modes apart).
 #[test]
 fn camera_bake_renders_like_the_lit_scene_for_any_g() {
-    let mut worst = (0.0f64, 0.0f64);
     for seed in [5, 41] {
         let mut p = random_scene(seed, 48);
         p.medium.anisotropy = 0.6;
-        let (rmse, mean) = bake_error(&p, BakePhase::Camera);
-        let (iso_rmse, _) = bake_error(&p, BakePhase::Isotropic);
-        println!("seed {seed}, g = 0.6: camera relative RMSE {rmse:.4}, mean {mean:.4}; isotropic {iso_rmse:.4}");
-        worst = (worst.0.max(rmse), worst.1.max(mean));
+        let (rmse, mean, march) = bake_error(&p, BakePhase::Camera);
+        let (iso_rmse, _, _) = bake_error(&p, BakePhase::Isotropic);
+        println!(
+            "seed {seed}, g = 0.6: camera relative RMSE {rmse:.4}, mean {mean:.4}; isotropic {iso_rmse:.4}; march vs exact {march:.4}"
+        );
+        assert!(rmse < MARCH_FACTOR * march && mean < MEAN_BOUND, "seed {seed}");
         assert!(iso_rmse > 3.0 * rmse, "seed {seed}: the isotropic bake should be far off for g = 0.6");
     }
-    assert!(worst.0 < RMSE_BOUND && worst.1 < MEAN_BOUND, "worst {worst:?}");
 }
 
 /// In homogeneous fog T = β·d exactly, so a cell's emission is albedo·β·I·⟨e^{−βd}/d²⟩/(4π).
