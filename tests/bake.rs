@@ -210,7 +210,8 @@ fn write_project(dir: &Path, p: &Project) -> std::path::PathBuf {
 /// class and the density's transform, holding the bake's values; albedo 0 warns and bakes 0.
 #[test]
 fn openvdb_reads_the_emission_grid() {
-    let ok = Command::new("/usr/bin/python3").args(["-c", "import pyopenvdb"]).output().is_ok_and(|o| o.status.success());
+    let ok =
+        Command::new("/usr/bin/python3").args(["-c", "import pyopenvdb"]).output().is_ok_and(|o| o.status.success());
     assert!(ok, "/usr/bin/python3 cannot import pyopenvdb: run ./setup.sh (it installs python3-openvdb)");
     let dir = tempfile::tempdir().unwrap();
     let mut p = random_scene(7, 24);

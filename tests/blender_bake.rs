@@ -5,9 +5,10 @@
 //! `fogsmith render` of the lit scene.
 //!
 //! Cycles renders twice with different seeds; their difference estimates its noise. The mean
-//! must agree within 5 % plus 4σ of that noise; the relative RMSE within the noise's own
-//! relative RMS plus 8 % (Fogsmith's march against its bake, see tests/bake.rs, and the two
-//! renderers' different interpolation of the voxels).
+//! must agree within 5 % plus 4σ of that noise. Over 4×4-pixel blocks, Cycles must match our
+//! own emission–absorption render of the bake within 4σ plus [`RMSE_ALLOWANCE`], and the lit
+//! render within that plus the bake's own difference from it (its resolution error, which
+//! tests/bake.rs bounds).
 
 mod common;
 use common::Rng;
@@ -24,6 +25,10 @@ const SAMPLES: u32 = 64;
 /// Principled Volume's Emission Strength that makes Cycles' emission the bake's j: measured
 /// (the printed ratio at strength 1 is 1 within the noise) and documented in docs/interchange.md.
 const STRENGTH: f64 = 1.0;
+/// Beyond 4σ of Cycles' noise, the relative RMSE over 4×4-pixel blocks between Cycles and our
+/// own emission–absorption render of the same bake (`reference::render_emission`) may hold the
+/// renderers' different voxel interpolation and volume sampling: measured 2 % (printed).
+const RMSE_ALLOWANCE: f64 = 0.03;
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -168,16 +173,63 @@ fn cycles_renders_the_bake_like_the_lit_scene() {
         let sigma_mean = (var_d / 4.0 / n).sqrt();
         let ratio = mc / mf;
         let bound = 0.05 + 4.0 * sigma_mean / mf;
-        let rmse = ((0..W * H).map(|i| (0.5 * (px(&cycles[0], i) + px(&cycles[1], i)) - px(&fog, i)).powi(2)).sum::<f64>()
-            / n)
-            .sqrt()
-            / mf;
-        let noise = (var_d / 4.0).sqrt() / mf;
+        // The relative RMSE over 4×4-pixel blocks: Fogsmith shoots one ray through each pixel's
+        // centre, Cycles averages over the pixel (box filter), which differ at every sharp edge
+        // of the fog; blocks of 4×4 pixels average that out and keep the fog's shape.
+        let r = 4;
+        let block = |f: &dyn Fn(usize) -> f64| -> Vec<f64> {
+            let mut out = Vec::new();
+            for by in 0..H / r {
+                for bx in 0..W / r {
+                    let mut sum = 0.0;
+                    for y in by * r..(by + 1) * r {
+                        for x in bx * r..(bx + 1) * r {
+                            sum += f(y * W + x);
+                        }
+                    }
+                    out.push(sum / (r * r) as f64);
+                }
+            }
+            out
+        };
+        // Our own emission–absorption render of the same bake, for the share of the difference
+        // that is the bake's (against the march) rather than Cycles'.
+        let ours = {
+            let mut gpu = common::pipeline();
+            let request = fogsmith::gpu::FrameRequest {
+                width: W as u32,
+                height: H as u32,
+                ..fogsmith::gpu::FrameRequest::for_project(&p)
+            };
+            let emission = gpu.bake_emission(&p, &request, fogsmith::gpu::BakePhase::Camera).unwrap();
+            let ev = gpu.read_ev().unwrap();
+            fogsmith::reference::render_emission(&p, &ev, &emission, W as u32, H as u32)
+        };
+        let bo = block(&|i| ours[i].iter().sum::<f64>() / 3.0);
+        let bf = block(&|i| px(&fog, i));
+        let bc = block(&|i| 0.5 * (px(&cycles[0], i) + px(&cycles[1], i)));
+        let bd = block(&|i| px(&cycles[0], i) - px(&cycles[1], i));
+        let nb = bf.len() as f64;
+        let rmse = (bf.iter().zip(&bc).map(|(f, c)| (c - f).powi(2)).sum::<f64>() / nb).sqrt() / mf;
+        let noise = (bd.iter().map(|d| d * d).sum::<f64>() / nb / 4.0).sqrt() / mf;
+        let ours_rmse = (bf.iter().zip(&bo).map(|(f, o)| (o - f).powi(2)).sum::<f64>() / nb).sqrt() / mf;
+        let cycles_vs_ours = (bo.iter().zip(&bc).map(|(o, c)| (c - o).powi(2)).sum::<f64>() / nb).sqrt() / mf;
+        eprintln!(
+            "seed {seed}: blocks: our bake render vs lit {ours_rmse:.4}; Cycles vs our bake render {cycles_vs_ours:.4}"
+        );
         eprintln!(
             "seed {seed}: mean Fogsmith {mf:.5}, Cycles {m1:.5} / {m2:.5}, ratio {ratio:.4} (bound ±{bound:.4}); \
              relative RMSE {rmse:.4}, Cycles' noise {noise:.4}"
         );
         assert!((ratio - 1.0).abs() <= bound, "seed {seed}: Cycles/Fogsmith mean {ratio:.4}, allowed 1 ± {bound:.4}");
-        assert!(rmse <= noise + 0.08, "seed {seed}: relative RMSE {rmse:.4} beyond the noise {noise:.4} + 0.08");
+        let bound = 4.0 * noise + RMSE_ALLOWANCE;
+        assert!(
+            cycles_vs_ours <= bound,
+            "seed {seed}: Cycles differs from our render of the bake by {cycles_vs_ours:.4} > {bound:.4}"
+        );
+        assert!(
+            rmse <= ours_rmse + bound,
+            "seed {seed}: Cycles differs from the lit render by {rmse:.4}, beyond the bake's own {ours_rmse:.4} + {bound:.4}"
+        );
     }
 }

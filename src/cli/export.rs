@@ -75,6 +75,10 @@ pub struct ExportArgs {
     /// camera (Henyey–Greenstein towards the project's camera, right for that view, any g).
     #[arg(long, value_enum, default_value_t = BakePhaseArg::Isotropic, requires = "bake_light")]
     pub bake_phase: BakePhaseArg,
+    /// A Godot 4 scene (.tscn) with a FogVolume drawing the light bake (needs --bake-light),
+    /// plus its fog shader (NAME.gdshader) and texture (NAME.exr, with NAME.exr.import).
+    #[arg(long)]
+    pub godot: Option<PathBuf>,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -118,6 +122,7 @@ impl ExportArgs {
             png_render: None,
             exr_slices: self.exr_slices.clone(),
             exr_atlas: self.exr_atlas.clone(),
+            godot: self.godot.clone(),
             settings: ExportSettings {
                 frame: self.frame(),
                 half: self.half,
@@ -157,15 +162,23 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     let plan = args.plan();
     if plan.is_empty() {
         return Err(
-            "nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices and/or --exr-atlas".into()
+            "nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices, --exr-atlas and/or --godot"
+                .into(),
         );
     }
     // Refuse what cannot be written before the (long) bake.
     if let Some(problem) = plan.problems().first() {
         return Err(problem_message(problem).into());
     }
-    if plan.settings.bake_light.is_some() && plan.vdb_path().is_none() && plan.ktx2.is_none() {
-        return Err("--bake-light writes the emission into the VDB or the KTX2 texture: give --vdb, --usd or --ktx2".into());
+    if plan.godot.is_some() && plan.settings.bake_light.is_none() {
+        return Err("--godot draws the light bake: add --bake-light".into());
+    }
+    let bake_targets = [&plan.vdb_path(), &plan.ktx2, &plan.exr_atlas, &plan.godot];
+    if plan.settings.bake_light.is_some() && bake_targets.iter().all(|t| t.is_none()) {
+        return Err(
+            "--bake-light writes the emission into volume files: give --vdb, --usd, --ktx2, --exr-atlas or --godot"
+                .into(),
+        );
     }
     let frame = plan.settings.frame;
     let mut baked = bake(&args.bake)?;
@@ -175,7 +188,9 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             let t = std::time::Instant::now();
             let emission = baked.pipeline.bake_emission(&baked.project, &baked.request, phase).map_err(bake_error)?;
             if baked.project.medium.albedo == 0.0 {
-                eprintln!("warning: medium.albedo is 0: the fog scatters no light, so the baked emission is 0 everywhere");
+                eprintln!(
+                    "warning: medium.albedo is 0: the fog scatters no light, so the baked emission is 0 everywhere"
+                );
             }
             let ms = t.elapsed().as_secs_f64() * 1e3;
             bake_summary = Some(serde_json::json!({"phase": phase.name(), "ms": ms, "max": emission.max_value()}));
@@ -212,7 +227,11 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     summary.insert("timings_ms".into(), serde_json::json!(baked.report.timings_ms));
     let mut notes = Vec::new();
     if let Some(b) = bake_summary {
-        notes.push(format!("baked the lighting ({} phase) in {:.0} ms", b["phase"].as_str().unwrap_or(""), b["ms"].as_f64().unwrap_or(0.0)));
+        notes.push(format!(
+            "baked the lighting ({} phase) in {:.0} ms",
+            b["phase"].as_str().unwrap_or(""),
+            b["ms"].as_f64().unwrap_or(0.0)
+        ));
         summary.insert("bake".into(), b);
     }
     if let Some((path, stats, ms)) = &written.vdb {
@@ -267,6 +286,13 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     if let Some((path, layout)) = &written.exr_atlas {
         summary.insert("exr_atlas".into(), serde_json::json!({"path": path, "layout": layout.to_string()}));
         notes.push(format!("wrote {}: {layout}", path.display()));
+    }
+    if let Some((path, layout, gain)) = &written.godot {
+        summary.insert(
+            "godot".into(),
+            serde_json::json!({"path": path, "layout": layout.to_string(), "emission_gain": gain}),
+        );
+        notes.push(format!("wrote {} with its shader and texture ({layout}; emission gain {gain})", path.display()));
     }
     if args.json {
         println!("{}", serde_json::Value::Object(summary));

@@ -206,7 +206,11 @@ pub fn write_baked_ktx2(path: &Path, ev: &Volume, emission: &Volume3) -> Result<
 }
 
 /// The file [`write_baked_ktx2`] writes, in memory; `path` only names errors.
-pub fn encode_baked_ktx2(path: &Path, ev: &Volume, emission: &Volume3) -> Result<(Vec<u8>, BakedKtx2Info), ExportError> {
+pub fn encode_baked_ktx2(
+    path: &Path,
+    ev: &Volume,
+    emission: &Volume3,
+) -> Result<(Vec<u8>, BakedKtx2Info), ExportError> {
     let grid = ev.grid;
     if emission.grid != grid || ev.data.len() as u64 != grid.cell_count() || emission.data.len() != ev.data.len() {
         return Err(ExportError::invalid(path, "the extinction and emission grids differ", "bake both on one grid"));
@@ -227,7 +231,12 @@ pub fn encode_baked_ktx2(path: &Path, ev: &Volume, emission: &Volume3) -> Result
         .iter()
         .zip(&emission.data)
         .flat_map(|(&s, e)| {
-            [half(e[0] / emission_scale), half(e[1] / emission_scale), half(e[2] / emission_scale), half(s / extinction_scale)]
+            [
+                half(e[0] / emission_scale),
+                half(e[1] / emission_scale),
+                half(e[2] / emission_scale),
+                half(s / extinction_scale),
+            ]
         })
         .flatten()
         .collect();
@@ -243,15 +252,7 @@ pub fn encode_baked_ktx2(path: &Path, ev: &Volume, emission: &Volume3) -> Result
 
 /// The basic data format descriptor of RGBA16F: four signed float samples of 16 bits.
 fn rgba16f_dfd() -> Vec<u8> {
-    let mut words: Vec<u32> = vec![
-        24 + 16 * 4 + 4,
-        0,
-        2 | ((24 + 16 * 4) << 16),
-        1 | (1 << 8) | (1 << 16),
-        0,
-        8,
-        0,
-    ];
+    let mut words: Vec<u32> = vec![24 + 16 * 4 + 4, 0, 2 | ((24 + 16 * 4) << 16), 1 | (1 << 8) | (1 << 16), 0, 8, 0];
     for (c, channel) in [0u32, 1, 2, 15].into_iter().enumerate() {
         words.extend([(c as u32 * 16) | (15 << 16) | ((channel | 0xC0) << 24), 0, 0xBF80_0000, 0x3F80_0000]);
     }

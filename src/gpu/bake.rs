@@ -127,12 +127,15 @@ impl Baker {
                 wgpu::BindGroupEntry { binding: 11, resource: out.as_entire_binding() },
             ];
             entries.extend(inputs.opv.extra_entries(EXTRA_BINDING));
-            let bind_group =
-                device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("bake"), layout: &self.layout, entries: &entries });
+            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("bake"),
+                layout: &self.layout,
+                entries: &entries,
+            });
             let mut encoder = device.create_command_encoder(&Default::default());
             {
-                let mut pass =
-                    encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bake"), timestamp_writes: None });
+                let mut pass = encoder
+                    .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bake"), timestamp_writes: None });
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &bind_group, &[]);
                 pass.dispatch_workgroups(

@@ -32,13 +32,7 @@ impl BakedGrid64 {
             .zip(&emission.data)
             .map(|(&s, e)| [s as f64, e[0] as f64, e[1] as f64, e[2] as f64])
             .collect();
-        Self {
-            min,
-            max,
-            cell: (max - min) / r.as_dvec3(),
-            dims: [r.x as usize, r.y as usize, r.z as usize],
-            values,
-        }
+        Self { min, max, cell: (max - min) / r.as_dvec3(), dims: [r.x as usize, r.y as usize, r.z as usize], values }
     }
 
     /// [σ_t, j_r, j_g, j_b] at `x` inside the box.
