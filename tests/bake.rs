@@ -274,3 +274,74 @@ print(json.dumps(out))
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("nothing to bake"), "{stderr}");
 }
+
+/// The engine files of a bake: the RGBA16F KTX2 (the ktx2 crate's own descriptor, every texel
+/// the bake's values over the recorded scales), the RGBA half EXR atlas, and the Godot scene,
+/// shader and import settings that match the grid and the atlas.
+#[test]
+fn engine_files_hold_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = random_scene(11, 20);
+    let project = write_project(dir.path(), &p);
+    let (ktx, atlas, tscn) = (dir.path().join("fog.ktx2"), dir.path().join("atlas.exr"), dir.path().join("fog.tscn"));
+    let out = fogsmith()
+        .args(["export", "--quiet", "--bake-light", "--ktx2"])
+        .arg(&ktx)
+        .arg("--exr-atlas")
+        .arg(&atlas)
+        .arg("--godot")
+        .arg(&tscn)
+        .arg(&project)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let mut gpu = pipeline();
+    let emission = gpu.bake_emission(&p, &FrameRequest::for_project(&p), BakePhase::Isotropic).unwrap();
+    let ev = gpu.read_ev().unwrap();
+
+    let reader = ktx2::Reader::new(std::fs::read(&ktx).unwrap()).unwrap();
+    let h = reader.header();
+    assert_eq!(h.format, Some(ktx2::Format::R16G16B16A16_SFLOAT));
+    let (basic, type_size) = ktx2::dfd::Basic::from_format(ktx2::Format::R16G16B16A16_SFLOAT).unwrap();
+    assert_eq!((h.type_size, reader.basic_dfd()), (type_size, Some(&basic)));
+    let kv = |key: &str| -> f32 {
+        let v = reader.key_value_data().find(|(k, _)| *k == key).unwrap().1;
+        std::str::from_utf8(v.strip_suffix(&[0]).unwrap()).unwrap().parse().unwrap()
+    };
+    let (se, sa) = (kv("fogsmith.emission_scale"), kv("fogsmith.extinction_scale"));
+    let data = reader.levels().next().unwrap().data;
+    let half_at = |n: usize| half::f16::from_le_bytes([data[2 * n], data[2 * n + 1]]).to_f32();
+    for (n, (e, s)) in emission.data.iter().zip(&ev.data).enumerate() {
+        for c in 0..3 {
+            assert_eq!(half_at(4 * n + c), half::f16::from_f32(e[c] / se).to_f32(), "texel {n} channel {c}");
+        }
+        assert_eq!(half_at(4 * n + 3), half::f16::from_f32(s / sa).to_f32(), "texel {n} extinction");
+    }
+
+    use exr::prelude::*;
+    for path in [&atlas, &tscn.with_extension("exr")] {
+        let image = read_all_flat_layers_from_file(path).unwrap();
+        let layer = &image.layer_data[0];
+        let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+        assert_eq!(names, ["A", "B", "G", "R"], "{}", path.display());
+        // 20 slices in 5 × 4 tiles of 20 × 20 pixels; slice k = 7 is tile (2, 1), +y up.
+        assert_eq!((layer.size.0, layer.size.1), (100, 80));
+        let r: Vec<f32> = layer.channel_data.list[3].sample_data.values_as_f32().collect();
+        let (i, j, k) = (3u32, 5u32, 7u32);
+        let pixel = (20 + (19 - j as usize)) * 100 + 40 + i as usize;
+        assert_eq!(r[pixel], half::f16::from_f32(emission.get(i, j, k)[0] / se).to_f32());
+    }
+
+    let scene = std::fs::read_to_string(&tscn).unwrap();
+    assert!(scene.contains("type=\"FogVolume\""), "{scene}");
+    assert!(scene.contains("size = Vector3(2, 2, 2)") && scene.contains("0, 0, 1, 0, 0, 0)"), "{scene}");
+    assert!(scene.contains("path=\"fog.gdshader\"") && scene.contains("path=\"fog.exr\""), "{scene}");
+    let shader = std::fs::read_to_string(tscn.with_extension("gdshader")).unwrap();
+    for needle in ["shader_type fog;", "ALBEDO = vec3(0.0);", "DENSITY = density;", "EMISSION = ", "SLICE_FILL = 1.0;"]
+    {
+        assert!(shader.contains(needle), "{needle} missing from\n{shader}");
+    }
+    let import = std::fs::read_to_string(dir.path().join("fog.exr.import")).unwrap();
+    assert!(import.contains("importer=\"3d_texture\"") && import.contains("slices/horizontal=5"), "{import}");
+    assert!(import.contains("slices/vertical=4"), "{import}");
+}
