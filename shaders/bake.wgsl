@@ -61,13 +61,15 @@ fn light_at(y: vec3f, l: u32) -> f32 {
 }
 
 // The cell mean of light_at next to a point light S, without its singularity: in cones from S
-// over each face, y = S + t·(P − S) for P on the face and t in [0, 1], the inverse square
-// cancels the volume element: f dV = g(y)·h/|P − S|² dt dA, g = light_times_d2 and h the
-// signed distance from S to the face's plane (positive where the face's outward normal points
-// away from S). The signed cones sum to the cell whether or not it holds S. 4-point
-// Gauss–Legendre in t and on 2×2 panels of each face.
+// over the faces the light leaves the cell through, y = S + t·(P − S) for P on the face, the
+// inverse square cancels the volume element: f dV = g(y)·h/|P − S|² dt dA, g = light_times_d2
+// and h the distance from S to the face's plane. t runs from where the ray enters the cell (0
+// when S is inside) to 1, so every term is positive. 4-point Gauss–Legendre in t and on 2×2
+// panels of each face.
 fn pyramid_mean(c: vec3f, l: u32) -> f32 {
     let s = lights[l].position;
+    let lo = c - 0.5 * grid.cell;
+    let hi = c + 0.5 * grid.cell;
     var sum = 0.0;
     for (var a = 0u; a < 3u; a++) {
         let b = (a + 1u) % 3u;
@@ -75,8 +77,9 @@ fn pyramid_mean(c: vec3f, l: u32) -> f32 {
         for (var side = 0u; side < 2u; side++) {
             let sign = f32(side) * 2.0 - 1.0;
             let plane = c[a] + sign * 0.5 * grid.cell[a];
+            // Rays leave through this face only when S lies on its inner side.
             let h = sign * (plane - s[a]);
-            if abs(h) < 1e-7 * grid.cell[a] {
+            if h < 1e-7 * grid.cell[a] {
                 continue;
             }
             var face = 0.0;
@@ -89,12 +92,14 @@ fn pyramid_mean(c: vec3f, l: u32) -> f32 {
                     p[b] = c[b] + ub * grid.cell[b];
                     p[e] = c[e] + ue * grid.cell[e];
                     let v = p - s;
+                    let slabs = ray_slabs(s, safe_inverse(v), lo, hi);
+                    let t0 = clamp(max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0)), 0.0, 1.0);
                     let w = 0.25 * GL4_W[pb % 4u] * GL4_W[pe % 4u] * h / dot(v, v);
                     var along = 0.0;
                     for (var k = 0u; k < 4u; k++) {
-                        along += GL4_W[k] * light_times_d2(s + (0.5 + GL4_X[k]) * v, l);
+                        along += GL4_W[k] * light_times_d2(s + (t0 + (1.0 - t0) * (0.5 + GL4_X[k])) * v, l);
                     }
-                    face += w * along;
+                    face += w * (1.0 - t0) * along;
                 }
             }
             sum += face * grid.cell[b] * grid.cell[e];

@@ -17,6 +17,7 @@
 //! - `interaction`: the editor under scripted input (see `interaction`): frame times, input
 //!   to preview latency and time to convergence; run on request only.
 
+mod bake;
 mod interaction;
 mod plot;
 mod scale;
@@ -134,6 +135,7 @@ fn run_suite(
         }
         Suite::Scaling => suites::scaling(ctx, out, log),
         Suite::Kinds => suites::kinds(ctx, out, log),
+        Suite::Bake => bake::run(ctx, out, log),
         Suite::Scale => scale::run(ctx, out, log),
         Suite::Interaction => {
             use crate::editor::app::Quality;

@@ -29,6 +29,9 @@ pub enum Suite {
     /// Light kinds (point, spot, sun) and medium features (height fog, noise, surfaces) on one
     /// small scene: bake-and-render time against OPV and image error, per grid resolution.
     Kinds,
+    /// The light bake on each demo (fog only): time, error of its emission–absorption render
+    /// against the lit render per phase mode, output sizes, texture quantisation error.
+    Bake,
 }
 
 pub struct Context {

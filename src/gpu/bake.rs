@@ -81,7 +81,8 @@ impl Baker {
         let r = inputs.spec.resolution;
         let layer_bytes = r.x as u64 * r.y as u64 * CELL_BYTES;
         let cap = ctx.max_binding_bytes().min(64 << 20);
-        let slab = ((cap / layer_bytes.max(1)) as u32 / WORKGROUP_3D * WORKGROUP_3D).clamp(WORKGROUP_3D, r.z.max(1));
+        let fitting = (cap / layer_bytes.max(1)).min(u32::MAX as u64) as u32 / WORKGROUP_3D * WORKGROUP_3D;
+        let slab = fitting.max(WORKGROUP_3D).min(r.z.max(1));
         if layer_bytes * slab as u64 > ctx.max_binding_bytes() {
             return Err(GpuError::Limit {
                 what: "the bake's output for one slab of z layers".into(),
