@@ -8,10 +8,11 @@
 // Why the mean: trilinear interpolation between cell centres integrates to the sum of the cell
 // values, so storing each cell's mean keeps every ray's integral of the emission, where a
 // point sample of 1/d² would not (it varies by orders of magnitude inside the cells by a
-// light). Where a point light is within 2 cells the mean is taken in cones from the light
-// (pyramid_mean), which removes the 1/d² singularity; within 8 cells, or where a spot's cone
-// edge or a surface's shadow edge may cross the cell, by 4-point Gauss–Legendre per axis;
-// elsewhere the centre value stands for it.
+// light). In the cell holding a point light the mean is taken in cones from the light
+// (pyramid_mean), which removes the 1/d² singularity; within 2 cells of it by 4-point
+// Gauss–Legendre per axis on 4³ sub-cells; within 8 cells, or where a spot's cone edge or a
+// surface's shadow edge may cross the cell, by the same on the whole cell; elsewhere the
+// centre value stands for it.
 //
 // params.row_offset is the first z layer of the dispatch: the output holds one slab.
 
@@ -60,12 +61,12 @@ fn light_at(y: vec3f, l: u32) -> f32 {
     return light_times_d2(y, l) / d2;
 }
 
-// The cell mean of light_at next to a point light S, without its singularity: in cones from S
-// over the faces the light leaves the cell through, y = S + t·(P − S) for P on the face, the
+// The mean of light_at over the cell holding a point light S, without its singularity: in
+// cones from S over each face, y = S + t·(P − S) for P on the face and t in [0, 1], the
 // inverse square cancels the volume element: f dV = g(y)·h/|P − S|² dt dA, g = light_times_d2
-// and h the distance from S to the face's plane. t runs from where the ray enters the cell (0
-// when S is inside) to 1, so every term is positive. 4-point Gauss–Legendre in t and on 2×2
-// panels of each face.
+// and h the distance from S to the face's plane. Every integrand is smooth and positive.
+// 4-point Gauss–Legendre in t and on 2×2 panels of each face. (The entry point of the ray,
+// t0, is 0 here; it is kept so that the formula holds for any cell.)
 fn pyramid_mean(c: vec3f, l: u32) -> f32 {
     let s = lights[l].position;
     let lo = c - 0.5 * grid.cell;
@@ -173,7 +174,7 @@ fn cell_mean(c: vec3f, l: u32) -> f32 {
     if sub == 0u {
         return light_at(c, l);
     }
-    if sub == 4u {
+    if sub == 4u && all(abs(lights[l].position - c) <= 0.5 * grid.cell) {
         return pyramid_mean(c, l);
     }
     let step = grid.cell / f32(sub);
