@@ -356,3 +356,40 @@ fn engine_files_hold_the_bake() {
     assert!(import.contains("importer=\"3d_texture\"") && import.contains("slices/horizontal=5"), "{import}");
     assert!(import.contains("slices/vertical=4"), "{import}");
 }
+
+/// Surfaces shadow the baked fog: under a box that covers half of a sun's light, the cells
+/// bake nothing; away from the shadow's edge the others bake what they bake without the box.
+#[test]
+fn a_box_shadows_the_baked_fog() {
+    // A sun in endless base fog sees infinite optical depth: the fog is one wide particle.
+    let mut p = common::homogeneous_scene(16, 0.0, Vec3::ZERO);
+    p.particles = vec![fogsmith::scene::Particle::new(Vec3::ZERO, 20.0, 0.5)];
+    p.lights[0].kind = LightKind::Directional { direction: Vec3::new(0.0, -1.0, 0.0) };
+    let mut gpu = pipeline();
+    let request = FrameRequest::for_project(&p);
+    let open = gpu.bake_emission(&p, &request, BakePhase::Isotropic).unwrap();
+    p.surfaces.boxes.push(fogsmith::scene::SurfaceBox {
+        min: Vec3::new(-1.0, 0.5, -1.0),
+        max: Vec3::new(0.0, 0.625, 1.0),
+        ..Default::default()
+    });
+    let shaded = gpu.bake_emission(&p, &request, BakePhase::Isotropic).unwrap();
+    let (mut dark, mut lit) = (0, 0);
+    for k in 0..16 {
+        for j in 0..16 {
+            for i in 0..16 {
+                let c = p.grid.cell_center(i, j, k);
+                let (a, b) = (open.get(i, j, k)[0], shaded.get(i, j, k)[0]);
+                assert!(a > 0.0, "cell {i} {j} {k} is dark without the box");
+                if c.x < -0.125 && c.y < 0.625 {
+                    assert_eq!(b, 0.0, "cell {i} {j} {k} in the box's shadow holds {b}");
+                    dark += 1;
+                } else if c.x > 0.125 {
+                    assert_eq!(b, a, "cell {i} {j} {k} away from the shadow");
+                    lit += 1;
+                }
+            }
+        }
+    }
+    assert!(dark > 500 && lit > 1000, "{dark} shadowed cells, {lit} lit");
+}
