@@ -49,8 +49,4 @@ impl Volume3 {
     pub fn max_value(&self) -> f32 {
         self.data.iter().flatten().copied().fold(0.0, f32::max)
     }
-    /// One channel as a scalar volume.
-    pub fn channel(&self, c: usize) -> Volume {
-        Volume::new(self.grid, self.data.iter().map(|v| v[c]).collect())
-    }
 }
