@@ -4,7 +4,7 @@
 //! radii and counts, light placement and kind, camera placement, base and height fog, grid
 //! size, propagation scheme).
 //! [`run_case`] bakes it on the real adapter and checks what must hold whatever the input:
-//! EV, OPV and image free of NaN and infinity, optical depth T ≥ 0 (so the transmittance
+//! EV, OPV, image and light bake (both phase modes) free of NaN and infinity, optical depth T ≥ 0 (so the transmittance
 //! exp(−T) lies in [0, 1]), image alpha within [0, 1], OPV non-decreasing away from the light
 //! along the axes through its cell in homogeneous fog, and, where the grid resolves the
 //! medium, the OPV transmittance within a stated bound of the exact reference
@@ -18,7 +18,7 @@
 //! storage binding, so a million small particles bake while a thousand grid-filling ones on
 //! 256³ are refused.
 
-use crate::gpu::{FogPipeline, FrameRequest, GpuError};
+use crate::gpu::{BakePhase, FogPipeline, FrameRequest, GpuError};
 use crate::measure::{ev_error, opv_error, sample_cells};
 use crate::scene::{
     Camera, GridSpec, Light, LightKind, Medium, Particle, Project, Scheme, StepPolicy, Volume, MAX_COORDINATE,
@@ -548,7 +548,7 @@ pub fn run_case(gpu: &mut FogPipeline, case: &StressCase) -> StressResult {
 }
 
 fn check_bake(
-    gpu: &FogPipeline,
+    gpu: &mut FogPipeline,
     case: &StressCase,
     monotone: bool,
     result: &mut StressResult,
@@ -585,6 +585,23 @@ fn check_bake(
     }
     if !p.lights.is_empty() {
         result.max_error = Some(worst);
+    }
+    if p.lights.iter().any(|l| !l.hidden) {
+        let request = FrameRequest { scheme: case.scheme, ..FrameRequest::for_project(p) };
+        for phase in [BakePhase::Isotropic, BakePhase::Camera] {
+            // The bake refuses non-finite values itself, with a message saying so.
+            match gpu.bake_emission(p, &request, phase) {
+                Ok(emission) => {
+                    if let Some(v) = emission.data.iter().flatten().find(|v| **v < 0.0) {
+                        failures.push(format!("the {} light bake holds {v}", phase.name()));
+                    }
+                }
+                Err(e) => {
+                    result.nan_or_inf |= e.to_string().contains("not finite");
+                    failures.push(format!("the {} light bake failed: {e}", phase.name()));
+                }
+            }
+        }
     }
     let image = gpu.read_image()?;
     for px in &image.rgba {

@@ -336,3 +336,23 @@ fn an_image_export_is_cancelled_while_it_renders() {
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(left.len(), 2, "the project and the state folder only: {left:?}");
 }
+
+/// "Bake lighting for engines" with the camera phase adds the vec3s `emission` grid to the
+/// VDB, as `fogsmith export --bake-light --bake-phase camera` does.
+#[test]
+fn baking_the_lighting_adds_the_emission_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = project_file(dir.path(), "lit.ron", |_| {});
+    let mut h = editor(&project, &dir.path().join("state"));
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "Bake lighting for engines");
+    click(&mut h, "towards the camera");
+    let choices = h.state().export_window().unwrap();
+    assert_eq!(choices.settings.bake_light, Some(fogsmith::gpu::BakePhase::Camera));
+    let summary = export_through_the_dialog(&mut h);
+    assert!(summary.contains("lit.vdb"), "{summary}");
+    let grids = list_vdb_grids(&dir.path().join("lit.vdb")).expect("the VDB reads back");
+    let emission = grids.iter().find(|g| g.name == "emission").unwrap_or_else(|| panic!("no emission grid: {grids:?}"));
+    assert_eq!(emission.tree_type, "Tree_vec3s_5_4_3");
+    assert!(!emission.importable, "a vector grid is not offered as a density");
+}

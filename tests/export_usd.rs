@@ -122,7 +122,7 @@ fn write_stage(dir: &Path, name: &str, p: &Project, frame: Frame) -> (PathBuf, P
     let vdb = dir.join(format!("{name}.vdb"));
     write_vdb(&vdb, &grids, &VdbOptions { frame, ..Default::default() }).unwrap();
     let fields: Vec<UsdField> =
-        grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
+        grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density", vector: false }).collect();
     let usd = dir.join(format!("{name}.usda"));
     let opts = UsdOptions {
         vdb_asset: asset_path(&usd, &vdb),

@@ -20,6 +20,7 @@
 //!   pipeline against cold bakes of every frame (see `animation`); run on request only.
 
 mod animation;
+mod bake;
 mod interaction;
 mod plot;
 mod scale;
@@ -140,6 +141,7 @@ fn run_suite(
         Suite::Scaling => suites::scaling(ctx, out, log),
         Suite::Kinds => suites::kinds(ctx, out, log),
         Suite::Animation => animation::run(ctx, out, log),
+        Suite::Bake => bake::run(ctx, out, log),
         Suite::Scale => scale::run(ctx, out, log),
         Suite::Interaction => {
             use crate::editor::app::Quality;

@@ -134,6 +134,17 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
             }
             Ok(())
         }
+        Suite::Bake => loglog(
+            &dir.join("bake_pareto.png"),
+            "Light bake: GPU time vs the error of its render against the lit render",
+            "bake (ms)",
+            "relative RMSE vs the lit render",
+            &group(
+                records,
+                |r| Some(format!("{} / {}", text(r, "scene"), text(r, "phase"))),
+                |r| (num(r, "time_ms"), num(r, "error_mean")),
+            ),
+        ),
         Suite::Kinds => loglog(
             &dir.join("kinds_pareto.png"),
             "Light kinds and medium features: bake and render time vs image error",

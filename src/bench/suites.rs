@@ -32,6 +32,9 @@ pub enum Suite {
     /// Frame sequences of the cloud demo, one kind of motion each: the time per frame of one
     /// pipeline baking them in order against cold bakes (see `animation`).
     Animation,
+    /// The light bake on each demo (fog only): time, error of its emission–absorption render
+    /// against the lit render per phase mode, output sizes, texture quantisation error.
+    Bake,
 }
 
 pub struct Context {

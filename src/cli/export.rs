@@ -13,6 +13,7 @@ use crate::export::sequence::{suggest_pattern, FramePattern, FrameSet, FrameTime
 use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdOptions};
 use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
+use crate::gpu::BakePhase;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -71,9 +72,28 @@ pub struct ExportArgs {
     /// KTX2 texel format: r16f (the extinction in 1/m) or r8 (times the scale it records).
     #[arg(long, value_enum, default_value_t = Ktx2Format::R16f)]
     pub ktx2_format: Ktx2Format,
+    /// Bake the lit fog for engines without volumetric self-shadowing: the radiance each
+    /// cell scatters (W·m⁻³·sr⁻¹ per channel) as a vec3s `emission` grid beside `density` in
+    /// the VDB, and a field of the USD volume. Render it as emission and absorption, no lights.
+    #[arg(long)]
+    pub bake_light: bool,
+    /// The bake's phase function: isotropic (1/(4π), right from any view when g = 0) or
+    /// camera (Henyey–Greenstein towards the project's camera, right for that view, any g).
+    #[arg(long, value_enum, default_value_t = BakePhaseArg::Isotropic, requires = "bake_light")]
+    pub bake_phase: BakePhaseArg,
+    /// A Godot 4 scene (.tscn) with a FogVolume drawing the light bake (needs --bake-light),
+    /// plus its fog shader (NAME.gdshader) and texture (NAME.exr, with NAME.exr.import).
+    #[arg(long)]
+    pub godot: Option<PathBuf>,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum BakePhaseArg {
+    Isotropic,
+    Camera,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -108,6 +128,7 @@ impl ExportArgs {
             png_render: None,
             exr_slices: self.exr_slices.clone(),
             exr_atlas: self.exr_atlas.clone(),
+            godot: self.godot.clone(),
             settings: ExportSettings {
                 frame: self.frame(),
                 half: self.half,
@@ -119,6 +140,10 @@ impl ExportArgs {
                 },
                 ktx2_format: self.ktx2_format,
                 exr_half: self.exr_half,
+                bake_light: self.bake_light.then_some(match self.bake_phase {
+                    BakePhaseArg::Isotropic => BakePhase::Isotropic,
+                    BakePhaseArg::Camera => BakePhase::Camera,
+                }),
             },
         }
     }
@@ -163,6 +188,7 @@ fn frame_plans(plan: &ExportPlan, frames: &FrameSet) -> Result<Vec<ExportPlan>, 
     let render = each("--exr-render", &plan.exr_render)?;
     let slices = each("--exr-slices", &plan.exr_slices)?;
     let atlas = each("--exr-atlas", &plan.exr_atlas)?;
+    let godot = each("--godot", &plan.godot)?;
     Ok((0..frames.len())
         .map(|k| ExportPlan {
             vdb: vdbs[k].clone(),
@@ -172,6 +198,7 @@ fn frame_plans(plan: &ExportPlan, frames: &FrameSet) -> Result<Vec<ExportPlan>, 
             png_render: None,
             exr_slices: slices[k].clone(),
             exr_atlas: atlas[k].clone(),
+            godot: godot[k].clone(),
             settings: plan.settings,
         })
         .collect())
@@ -181,12 +208,23 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     let plan = args.plan();
     if plan.is_empty() {
         return Err(
-            "nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices and/or --exr-atlas".into()
+            "nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices, --exr-atlas and/or --godot"
+                .into(),
         );
     }
     // Refuse what cannot be written before the (long) bake.
     if let Some(problem) = plan.problems().first() {
         return Err(problem_message(problem).into());
+    }
+    if plan.godot.is_some() && plan.settings.bake_light.is_none() {
+        return Err("--godot draws the light bake: add --bake-light".into());
+    }
+    let bake_targets = [&plan.vdb_path(), &plan.ktx2, &plan.exr_atlas, &plan.godot];
+    if plan.settings.bake_light.is_some() && bake_targets.iter().all(|t| t.is_none()) {
+        return Err(
+            "--bake-light writes the emission into volume files: give --vdb, --usd, --ktx2, --exr-atlas or --godot"
+                .into(),
+        );
     }
     let frame = plan.settings.frame;
     let mut session = open(&args.bake)?;
@@ -211,10 +249,27 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         let ev = session.pipeline.read_ev()?;
         let opvs = (0..project.lights.len()).map(|l| session.pipeline.read_opv(l)).collect::<Result<Vec<_>, _>>()?;
         let image = if plan.needs_image() { Some(session.pipeline.read_image()?) } else { None };
+        let mut bake_summary = None;
+        let emission = match plan.settings.bake_light {
+            Some(phase) => {
+                let t = std::time::Instant::now();
+                let emission = session.pipeline.bake_emission(&project, &session.request, phase).map_err(bake_error)?;
+                if project.medium.albedo == 0.0 && k == 0 {
+                    eprintln!(
+                        "warning: medium.albedo is 0: the fog scatters no light, so the baked emission is 0 everywhere"
+                    );
+                }
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                bake_summary = Some(serde_json::json!({"phase": phase.name(), "ms": ms, "max": emission.max_value()}));
+                Some(emission)
+            }
+            None => None,
+        };
         let inputs = ExportInputs {
             project: &project,
             volumes: Some((&ev, &opvs)),
             image: image.as_ref(),
+            emission: emission.as_ref(),
             render_size: [session.request.width, session.request.height],
             time: set.as_ref().zip(number).zip(fps).map(|((_, frame), fps)| FrameTime { frame, fps }),
         };
@@ -233,7 +288,7 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         staged.commit()?;
         // A sequence says what each frame wrote as it goes.
         let mut file_notes = Vec::new();
-        let mut summary = summarize(&written, &project, frame, &mut file_notes);
+        let mut summary = summarize(&written, &project, frame, bake_summary, &mut file_notes);
         if set.is_none() {
             notes.append(&mut file_notes);
         }
@@ -312,9 +367,18 @@ fn summarize(
     written: &Written,
     project: &crate::scene::Project,
     frame: Frame,
+    bake: Option<serde_json::Value>,
     notes: &mut Vec<String>,
 ) -> serde_json::Map<String, serde_json::Value> {
     let mut summary = serde_json::Map::new();
+    if let Some(b) = bake {
+        notes.push(format!(
+            "baked the lighting ({} phase) in {:.0} ms",
+            b["phase"].as_str().unwrap_or(""),
+            b["ms"].as_f64().unwrap_or(0.0)
+        ));
+        summary.insert("bake".into(), b);
+    }
     if let Some((path, stats, ms)) = &written.vdb {
         let grids_json: Vec<_> = stats
             .grids
@@ -368,5 +432,20 @@ fn summarize(
         summary.insert("exr_atlas".into(), serde_json::json!({"path": path, "layout": layout.to_string()}));
         notes.push(format!("wrote {}: {layout}", path.display()));
     }
+    if let Some((path, layout, gain)) = &written.godot {
+        summary.insert(
+            "godot".into(),
+            serde_json::json!({"path": path, "layout": layout.to_string(), "emission_gain": gain}),
+        );
+        notes.push(format!("wrote {} with its shader and texture ({layout}; emission gain {gain})", path.display()));
+    }
     summary
+}
+
+/// A bake refused for want of lights says so in the user's terms, without the GPU's prefix.
+fn bake_error(e: crate::gpu::GpuError) -> Box<dyn std::error::Error> {
+    match e {
+        crate::gpu::GpuError::Invalid(message) => message.into(),
+        other => other.into(),
+    }
 }

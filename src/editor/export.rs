@@ -10,6 +10,7 @@ use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use crate::export::ktx::Ktx2Format;
 use crate::export::plan::{ExportPlan, ExportProblem, ExportSettings};
 use crate::export::vdb::VdbCompression;
+use crate::gpu::BakePhase;
 use crate::scene::Project;
 use egui::Context;
 use serde::{Deserialize, Serialize};
@@ -81,6 +82,11 @@ impl ExportFormat {
     }
 
     /// A VDB is written, with its grid options.
+    /// Whether the format can hold the light bake (volume files).
+    pub fn can_bake_light(self) -> bool {
+        matches!(self, ExportFormat::Vdb | ExportFormat::Usd | ExportFormat::Ktx2 | ExportFormat::ExrAtlas)
+    }
+
     pub fn writes_vdb(self) -> bool {
         matches!(self, ExportFormat::Vdb | ExportFormat::Usd)
     }
@@ -127,6 +133,9 @@ impl ExportChoices {
                 ImageFormat::Exr => plan.exr_render = target,
             },
         }
+        if !self.format.can_bake_light() {
+            plan.settings.bake_light = None;
+        }
         plan
     }
 
@@ -141,6 +150,12 @@ impl ExportChoices {
             } else if !g.density && project.lights.is_empty() {
                 out.push("The project has no lights, so it has no optical depth or transmittance grids: tick “density grid”.".into());
             }
+        }
+        if self.plan(path).settings.bake_light.is_some() && !project.lights.iter().any(|l| !l.hidden) {
+            out.push(
+                "Nothing to bake: the project has no visible light. Add a light or untick “Bake lighting for engines”."
+                    .into(),
+            );
         }
         out
     }
@@ -342,6 +357,26 @@ fn options(ui: &mut egui::Ui, c: &mut ExportChoices, size: [u32; 2], lights: usi
             ui.horizontal(|ui| {
                 ui.radio_value(&mut s.compression, VdbCompression::Zip, "zip");
                 ui.radio_value(&mut s.compression, VdbCompression::None, "none");
+            });
+            ui.end_row();
+        }
+        if c.format.can_bake_light() {
+            ui.label("lighting");
+            ui.horizontal(|ui| {
+                let mut on = s.bake_light.is_some();
+                ui.checkbox(&mut on, "Bake lighting for engines").on_hover_text(
+                    "Each cell's emitted radiance (the light it scatters, shadowed by the fog): engines draw it \
+                     as emission and absorption with no lights (an emission grid in the VDB, RGBA in textures)",
+                );
+                if on != s.bake_light.is_some() {
+                    s.bake_light = on.then_some(BakePhase::Isotropic);
+                }
+                if let Some(phase) = &mut s.bake_light {
+                    ui.radio_value(phase, BakePhase::Isotropic, "isotropic")
+                        .on_hover_text("Phase 1/(4π): right from any view when g = 0");
+                    ui.radio_value(phase, BakePhase::Camera, "towards the camera")
+                        .on_hover_text("Henyey–Greenstein towards the project's camera: right for that view, any g");
+                }
             });
             ui.end_row();
         }

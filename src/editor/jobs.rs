@@ -60,10 +60,27 @@ impl EditorState {
             return;
         }
         let project = self.session.frame_still();
-        let time = self.session.project().animation.map(|a| crate::export::sequence::FrameTime {
-            frame: self.session.frame(),
-            fps: a.fps,
+        let time = self
+            .session
+            .project()
+            .animation
+            .map(|a| crate::export::sequence::FrameTime { frame: self.session.frame(), fps: a.fps });
+        // The bake reads the preview's converged volumes: its request is the preview's, so
+        // nothing is recomputed.
+        let baked = plan.settings.bake_light.zip(self.gpu.as_mut()).map(|(phase, g)| {
+            let size = g.converged.map_or([project.render.width, project.render.height], |k| k.size);
+            let request =
+                FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
+            g.pipeline.bake_emission(&project, &request, phase)
         });
+        let emission = match baked.transpose() {
+            Ok(e) => e,
+            Err(e) => return self.error(format!("Export to {} failed baking the lighting: {e}", path.display())),
+        };
+        if emission.is_some() && project.medium.albedo == 0.0 {
+            self.info("The medium's albedo is 0: the fog scatters no light, so the baked lighting is 0");
+        }
+        let Some(gpu) = &self.gpu else { return };
         let volumes = if plan.needs_volumes() {
             let read = gpu.pipeline.read_ev().and_then(|ev| {
                 let opvs =
@@ -107,6 +124,7 @@ impl EditorState {
                 project: &project,
                 volumes: volumes.as_ref().map(|(ev, opvs)| (ev, opvs.as_slice())),
                 image: image.as_ref(),
+                emission: emission.as_ref(),
                 render_size: [project.render.width, project.render.height],
                 time,
             };

@@ -32,10 +32,14 @@
 //! `fogsmith/meters_per_unit` (double), `fogsmith/handedness` (text "right" or "left") and
 //! `fogsmith/index_to_world` (m44f, row vectors as in the VDB: `[i j k 1] · A` is the centre of
 //! cell (i, j, k) in the export frame).
+//!
+//! With a light bake ([`write_baked_atlas_exr`]) the atlas is RGBA half floats: emission in
+//! RGB, extinction in A, each over the scale in `fogsmith/emission_scale` and
+//! `fogsmith/extinction_scale`.
 
 use super::frame::Frame;
 use super::{write_atomic, ExportError};
-use crate::scene::{GridSpec, Volume};
+use crate::scene::{GridSpec, Volume, Volume3};
 use exr::prelude::*;
 use std::path::Path;
 
@@ -274,6 +278,66 @@ pub fn write_atlas_exr_in_frame(
     let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
     write_atomic(path, |tmp| Image::from_layer(layer).write().to_file(tmp).map_err(|e| exr_error(path, e)))?;
     Ok(layout)
+}
+
+/// The light bake as an atlas laid out as [`write_atlas_exr`] does: RGBA half floats, the
+/// emission (W·m⁻³·sr⁻¹) divided by `fogsmith/emission_scale` in RGB and the extinction (1/m)
+/// divided by `fogsmith/extinction_scale` in A (scales from [`super::ktx::half_scale`]).
+pub fn write_baked_atlas_exr(
+    path: &Path,
+    ev: &Volume,
+    emission: &Volume3,
+    frame: &Frame,
+) -> std::result::Result<(AtlasLayout, [f32; 2]), ExportError> {
+    let grid = ev.grid;
+    if emission.grid != grid || ev.data.len() as u64 != grid.cell_count() || emission.data.len() != ev.data.len() {
+        return Err(ExportError::invalid(path, "the extinction and emission grids differ", "bake both on one grid"));
+    }
+    if ev.data.iter().chain(emission.data.iter().flatten()).any(|v| !v.is_finite()) {
+        return Err(ExportError::invalid(path, "the bake holds values that are not finite", "bake a finite scene"));
+    }
+    let layout = AtlasLayout::for_resolution(grid.resolution.to_array());
+    let (w, h) = (layout.width as usize, layout.height as usize);
+    check_size(path, w, h)?;
+    let scales = [super::ktx::half_scale(emission.max_value()), super::ktx::half_scale(ev.max_value().max(0.0))];
+    let [nx, ny, nz] = grid.resolution.to_array().map(|c| c as usize);
+    let mut channels = vec![vec![half::f16::ZERO; w * h]; 4];
+    for k in 0..nz {
+        let (ox, oy) = layout.tile_origin(k as u32);
+        for y in 0..ny {
+            let j = ny - 1 - y;
+            for i in 0..nx {
+                let src = i + nx * (j + ny * k);
+                let dst = (oy as usize + y) * w + ox as usize + i;
+                for (c, channel) in channels.iter_mut().enumerate() {
+                    let v = if c < 3 { emission.data[src][c] / scales[0] } else { ev.data[src] / scales[1] };
+                    channel[dst] = half::f16::from_f32(v);
+                }
+            }
+        }
+    }
+    let mut attributes = LayerAttributes::default();
+    grid_attributes(&mut attributes, &grid);
+    let o = &mut attributes.other;
+    o.insert(
+        Text::new_or_panic("fogsmith/atlas_tiles"),
+        AttributeValue::IntVec2(Vec2(layout.tiles_x as i32, layout.tiles_y as i32)),
+    );
+    o.insert(Text::new_or_panic("fogsmith/atlas_slices"), AttributeValue::I32(layout.slices as i32));
+    o.insert(Text::new_or_panic("fogsmith/emission_scale"), AttributeValue::F32(scales[0]));
+    o.insert(Text::new_or_panic("fogsmith/extinction_scale"), AttributeValue::F32(scales[1]));
+    o.insert(Text::new_or_panic("fogsmith/up_axis"), AttributeValue::Text(Text::new_or_panic(frame.up_name())));
+    o.insert(Text::new_or_panic("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()));
+    let a = super::vdb::index_to_world_matrix(&grid, frame);
+    let m: [f32; 16] = std::array::from_fn(|n| a[n / 4][n % 4] as f32);
+    o.insert(Text::new_or_panic("fogsmith/index_to_world"), AttributeValue::Matrix4x4(m));
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (name, samples) in ["R", "G", "B", "A"].into_iter().zip(channels) {
+        list.push(AnyChannel::new(Text::new_or_panic(name), FlatSamples::F16(samples)));
+    }
+    let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
+    write_atomic(path, |tmp| Image::from_layer(layer).write().to_file(tmp).map_err(|e| exr_error(path, e)))?;
+    Ok((layout, scales))
 }
 
 fn grid_attributes(attributes: &mut LayerAttributes, grid: &GridSpec) {

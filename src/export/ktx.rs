@@ -17,6 +17,13 @@
 //! `fogsmith.grid_max` (metres, Y-up), `fogsmith.quantity` (`extinction 1/m`) and
 //! `fogsmith.scale` (the factor from texel value to extinction: 1 for R16F).
 //!
+//! # Light bake
+//!
+//! With a bake ([`write_baked_ktx2`]) the texture is `VK_FORMAT_R16G16B16A16_SFLOAT`: the
+//! emission (W·m⁻³·sr⁻¹) in RGB and the extinction (1/m) in A, each stored divided by a scale
+//! recorded as `fogsmith.emission_scale` and `fogsmith.extinction_scale` (1 unless the values
+//! exceed half precision; then a power of two).
+//!
 //! # Bevy
 //!
 //! Bevy's `FogVolume` is a unit cube centred on its entity's origin, sampled with
@@ -27,7 +34,7 @@
 //! `scattering_asymmetry` = the Henyey–Greenstein g.
 
 use super::{write_bytes_atomic, ExportError};
-use crate::scene::{Medium, Volume};
+use crate::scene::{Medium, Volume, Volume3};
 use std::path::Path;
 
 /// `VK_FORMAT_R8_UNORM`.
@@ -98,18 +105,33 @@ pub fn encode_ktx2(path: &Path, volume: &Volume, format: Ktx2Format) -> Result<(
             (VK_FORMAT_R8_UNORM, 1, scale, t)
         }
     };
-    let r = grid.resolution;
-
     let dfd = basic_dfd(format);
+    let kv = vec![("fogsmith.quantity".into(), "extinction 1/m".into()), ("fogsmith.scale".into(), format!("{scale}"))];
+    let out = container(&grid, vk_format, type_size, &dfd, kv, &texels);
+    let info = Ktx2Info { format, scale, bytes: out.len() as u64 };
+    Ok((out, info))
+}
+
+/// A KTX2 file of one uncompressed 3D level of `grid`'s size: the header, the level index,
+/// `dfd`, the key/value data (orientation, writer, the grid box and `extra`, sorted by key)
+/// and `texels`.
+fn container(
+    grid: &crate::scene::GridSpec,
+    vk_format: u32,
+    type_size: u32,
+    dfd: &[u8],
+    extra: Vec<(String, String)>,
+    texels: &[u8],
+) -> Vec<u8> {
+    let r = grid.resolution;
     let g = |v: glam::Vec3| format!("{} {} {}", v.x, v.y, v.z);
     let mut kv: Vec<(String, String)> = vec![
         ("KTXorientation".into(), "ruo".into()),
         ("KTXwriter".into(), format!("fogsmith {}", env!("CARGO_PKG_VERSION"))),
         ("fogsmith.grid_max".into(), g(grid.max)),
         ("fogsmith.grid_min".into(), g(grid.min)),
-        ("fogsmith.quantity".into(), "extinction 1/m".into()),
-        ("fogsmith.scale".into(), format!("{scale}")),
     ];
+    kv.extend(extra);
     kv.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
     let mut kvd = Vec::new();
     for (k, v) in &kv {
@@ -143,12 +165,98 @@ pub fn encode_ktx2(path: &Path, volume: &Volume, format: Ktx2Format) -> Result<(
     for v in [level_offset as u64, texels.len() as u64, texels.len() as u64] {
         out.extend_from_slice(&v.to_le_bytes());
     }
-    out.extend_from_slice(&dfd);
+    out.extend_from_slice(dfd);
     out.extend_from_slice(&kvd);
     out.resize(level_offset, 0);
-    out.extend_from_slice(&texels);
-    let info = Ktx2Info { format, scale, bytes: out.len() as u64 };
-    Ok((out, info))
+    out.extend_from_slice(texels);
+    out
+}
+
+/// `VK_FORMAT_R16G16B16A16_SFLOAT`.
+pub const VK_FORMAT_R16G16B16A16_SFLOAT: u32 = 97;
+
+/// What [`write_baked_ktx2`] wrote: value = texel · scale, per quantity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakedKtx2Info {
+    /// Emission (RGB) in W·m⁻³·sr⁻¹ = texel · `emission_scale`.
+    pub emission_scale: f32,
+    /// Extinction (A) in 1/m = texel · `extinction_scale`.
+    pub extinction_scale: f32,
+    pub bytes: u64,
+}
+
+/// The factor that brings `max` within half precision: 1 when it fits, else the power of two
+/// at or above max / 65504.
+pub fn half_scale(max: f32) -> f32 {
+    let limit = half::f16::MAX.to_f32();
+    if max <= limit {
+        1.0
+    } else {
+        (max / limit).log2().ceil().exp2()
+    }
+}
+
+/// Writes the light bake as one RGBA16F 3D texture, atomically: emission in RGB, extinction in
+/// A, each divided by its scale (key/value data `fogsmith.emission_scale`,
+/// `fogsmith.extinction_scale`; see [`half_scale`]); the rest of the layout as [`write_ktx2`].
+pub fn write_baked_ktx2(path: &Path, ev: &Volume, emission: &Volume3) -> Result<BakedKtx2Info, ExportError> {
+    let (bytes, info) = encode_baked_ktx2(path, ev, emission)?;
+    write_bytes_atomic(path, &bytes)?;
+    Ok(info)
+}
+
+/// The file [`write_baked_ktx2`] writes, in memory; `path` only names errors.
+pub fn encode_baked_ktx2(
+    path: &Path,
+    ev: &Volume,
+    emission: &Volume3,
+) -> Result<(Vec<u8>, BakedKtx2Info), ExportError> {
+    let grid = ev.grid;
+    if emission.grid != grid || ev.data.len() as u64 != grid.cell_count() || emission.data.len() != ev.data.len() {
+        return Err(ExportError::invalid(path, "the extinction and emission grids differ", "bake both on one grid"));
+    }
+    let bad = ev.data.iter().chain(emission.data.iter().flatten()).position(|v| !v.is_finite() || *v < 0.0);
+    if let Some(n) = bad {
+        return Err(ExportError::invalid(
+            path,
+            format!("value {n} of the bake is negative or not finite"),
+            "bake a scene whose extinction and lights are finite and >= 0",
+        ));
+    }
+    let extinction_scale = half_scale(ev.max_value().max(0.0));
+    let emission_scale = half_scale(emission.max_value());
+    let half = |v: f32| half::f16::from_f32(v).to_le_bytes();
+    let texels: Vec<u8> = ev
+        .data
+        .iter()
+        .zip(&emission.data)
+        .flat_map(|(&s, e)| {
+            [
+                half(e[0] / emission_scale),
+                half(e[1] / emission_scale),
+                half(e[2] / emission_scale),
+                half(s / extinction_scale),
+            ]
+        })
+        .flatten()
+        .collect();
+    let kv = vec![
+        ("fogsmith.emission_scale".into(), format!("{emission_scale}")),
+        ("fogsmith.extinction_scale".into(), format!("{extinction_scale}")),
+        ("fogsmith.quantity".into(), "emission W/(m3 sr) in RGB, extinction 1/m in A".into()),
+    ];
+    let out = container(&grid, VK_FORMAT_R16G16B16A16_SFLOAT, 2, &rgba16f_dfd(), kv, &texels);
+    let bytes = out.len() as u64;
+    Ok((out, BakedKtx2Info { emission_scale, extinction_scale, bytes }))
+}
+
+/// The basic data format descriptor of RGBA16F: four signed float samples of 16 bits.
+fn rgba16f_dfd() -> Vec<u8> {
+    let mut words: Vec<u32> = vec![24 + 16 * 4 + 4, 0, 2 | ((24 + 16 * 4) << 16), 1 | (1 << 8) | (1 << 16), 0, 8, 0];
+    for (c, channel) in [0u32, 1, 2, 15].into_iter().enumerate() {
+        words.extend([(c as u32 * 16) | (15 << 16) | ((channel | 0xC0) << 24), 0, 0xBF80_0000, 0x3F80_0000]);
+    }
+    words.iter().flat_map(|w| w.to_le_bytes()).collect()
 }
 
 /// The R8 texel of extinction `v` for `scale`: round(255 · v / scale), clamped to 0..=255.
@@ -226,6 +334,22 @@ pub fn fog_volume_snippet(volume: &Volume, medium: &Medium, info: &Ktx2Info, tex
         sc = fmt(albedo),
         g = fmt(medium.anisotropy),
         base = medium.base_extinction,
+    )
+}
+
+/// The note written beside a baked texture instead of the Bevy snippet: Bevy's `FogVolume`
+/// reads one density channel and lights it itself, so the bake needs the engine's own shader.
+pub fn baked_texture_note(info: &BakedKtx2Info) -> String {
+    format!(
+        "// A Fogsmith light bake: an RGBA16F 3D texture, texel (i, j, k) = cell (i, j, k).\n\
+         // RGB: emission in W/(m3 sr) = texel * {e}; A: extinction in 1/m = texel * {a}.\n\
+         // Render it as emission and absorption with no lights: along a view ray,\n\
+         // L += T * rgb / a * (1 - exp(-a * step)), T *= exp(-a * step).\n\
+         // Bevy's FogVolume reads one density channel and adds its own lighting, so it cannot\n\
+         // show the bake as it is; use a custom volume material.\n\
+         (emission_scale: {e}, extinction_scale: {a})\n",
+        e = fmt(info.emission_scale),
+        a = fmt(info.extinction_scale),
     )
 }
 

@@ -26,6 +26,7 @@
 
 pub mod exr;
 pub mod frame;
+pub mod godot;
 pub mod ktx;
 pub mod plan;
 pub mod sequence;

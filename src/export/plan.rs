@@ -6,15 +6,17 @@
 //! [`write_plan`] then writes every target from read-back data (the EV, the per-light
 //! optical depths, the rendered image) into a [`Staged`] set, which the caller commits.
 
-use super::exr::{write_atlas_exr_in_frame, write_render_exr, write_slices_exr, AtlasLayout};
+use super::exr::{write_atlas_exr_in_frame, write_baked_atlas_exr, write_render_exr, write_slices_exr, AtlasLayout};
 use super::frame::{Frame, Handedness};
-use super::ktx::{fog_volume_snippet, write_ktx2, Ktx2Format, Ktx2Info};
+use super::ktx::{baked_texture_note, fog_volume_snippet, write_baked_ktx2, write_ktx2, Ktx2Format, Ktx2Info};
 use super::sequence::FrameTime;
 use super::usd::{asset_path, write_usd, UsdField, UsdOptions};
-use super::vdb::{grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbOptions, VdbStats};
+use super::vdb::{
+    grids_from_volumes, write_vdb_with_progress, GridSelection, VdbCompression, VdbGrid, VdbOptions, VdbStats,
+};
 use super::{light_infos, Staged};
-use crate::gpu::Image;
-use crate::scene::{Project, Volume};
+use crate::gpu::{BakePhase, Image};
+use crate::scene::{Project, Volume, Volume3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -34,6 +36,8 @@ pub struct ExportSettings {
     pub ktx2_format: Ktx2Format,
     /// The rendered EXR as half floats.
     pub exr_half: bool,
+    /// Bake the lit fog's emission (physics.md §10) into the volume targets, with this phase.
+    pub bake_light: Option<BakePhase>,
 }
 
 impl Default for ExportSettings {
@@ -46,6 +50,7 @@ impl Default for ExportSettings {
             compression: VdbCompression::Zip,
             ktx2_format: Ktx2Format::R16f,
             exr_half: false,
+            bake_light: None,
         }
     }
 }
@@ -63,6 +68,9 @@ pub struct ExportPlan {
     pub png_render: Option<PathBuf>,
     pub exr_slices: Option<PathBuf>,
     pub exr_atlas: Option<PathBuf>,
+    /// A Godot 4 scene (`.tscn`) drawing the light bake; its shader, texture and import file
+    /// go beside it (see [`super::godot`]). Needs [`ExportSettings::bake_light`].
+    pub godot: Option<PathBuf>,
     pub settings: ExportSettings,
 }
 
@@ -97,6 +105,8 @@ pub struct ExportInputs<'a> {
     pub volumes: Option<(&'a Volume, &'a [Volume])>,
     /// The rendered image, for the render targets.
     pub image: Option<&'a Image>,
+    /// The baked emission, when the settings ask for a light bake.
+    pub emission: Option<&'a Volume3>,
     /// The render size the USD camera's aspect ratio follows.
     pub render_size: [u32; 2],
     /// The animation frame the data is of, recorded in the VDB's metadata; None for a still.
@@ -128,6 +138,8 @@ pub struct Written {
     /// The slices file and the quantities in it.
     pub exr_slices: Option<(PathBuf, usize)>,
     pub exr_atlas: Option<(PathBuf, AtlasLayout)>,
+    /// The Godot scene, its texture's layout and the shader's emission gain.
+    pub godot: Option<(PathBuf, AtlasLayout, f32)>,
 }
 
 /// The stage written, and what it refers to.
@@ -150,6 +162,7 @@ impl ExportPlan {
             && self.png_render.is_none()
             && self.exr_slices.is_none()
             && self.exr_atlas.is_none()
+            && self.godot.is_none()
     }
 
     /// The VDB written: the plan's, or the stage's name with `.vdb` when only a stage is asked for.
@@ -174,6 +187,16 @@ impl ExportPlan {
             || self.ktx2.is_some()
             || self.exr_slices.is_some()
             || self.exr_atlas.is_some()
+            || self.godot.is_some()
+    }
+
+    /// The files of a Godot scene: the scene, its shader, its texture and the texture's
+    /// import settings.
+    pub fn godot_files(tscn: &Path) -> [PathBuf; 4] {
+        let atlas = tscn.with_extension("exr");
+        let mut import = atlas.clone().into_os_string();
+        import.push(".import");
+        [tscn.to_path_buf(), tscn.with_extension("gdshader"), atlas, PathBuf::from(import)]
     }
 
     /// Every file the plan writes, in the order written.
@@ -185,6 +208,9 @@ impl ExportPlan {
         out.extend(
             [&self.exr_render, &self.png_render, &self.exr_slices, &self.exr_atlas].into_iter().flatten().cloned(),
         );
+        if let Some(t) = &self.godot {
+            out.extend(Self::godot_files(t));
+        }
         out
     }
 
@@ -237,7 +263,11 @@ pub fn write_plan(
         let t = Instant::now();
         let infos = light_infos(project);
         let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, l.in_frame(&frame))).collect();
-        let grids = grids_from_volumes(ev, &lights, s.grids);
+        let mut grids = grids_from_volumes(ev, &lights, s.grids);
+        if s.bake_light.is_some() {
+            let emission = inputs.emission.ok_or_else(|| missing("the baked emission"))?;
+            grids.push(VdbGrid::from_volume3("emission", emission));
+        }
         let opts = VdbOptions {
             compression: s.compression,
             half: s.half,
@@ -251,7 +281,10 @@ pub fn write_plan(
             .write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| steps.report("write VDB", f)))
             .map_err(ExportRunError::Failed)?;
         steps.finished(1.0);
-        fields = grids.iter().map(|g| UsdField { name: g.name.clone(), density: g.name == "density" }).collect();
+        fields = grids
+            .iter()
+            .map(|g| UsdField { name: g.name.clone(), density: g.name == "density", vector: g.components == 3 })
+            .collect();
         written.vdb = Some((path.clone(), stats, t.elapsed().as_secs_f64() * 1e3));
         written.vdb_fields = fields.clone();
     }
@@ -270,7 +303,20 @@ pub fn write_plan(
         let lights = project.lights.iter().filter(|l| !l.hidden).count();
         written.usd = Some(WrittenUsd { path: path.clone(), vdb_asset: opts.vdb_asset, fields: fields.len(), lights });
     }
-    if let Some(path) = &plan.ktx2 {
+    if let (Some(path), Some(_)) = (&plan.ktx2, s.bake_light) {
+        let (ev, _) = volumes()?;
+        let emission = inputs.emission.ok_or_else(|| missing("the baked emission"))?;
+        check()?;
+        steps.report("write KTX2", 0.0);
+        let info = staged.write(path, |p| write_baked_ktx2(p, ev, emission)).map_err(ExportRunError::Failed)?;
+        let snippet_path = ExportPlan::ktx2_snippet(path);
+        staged
+            .write(&snippet_path, |p| super::write_text(p, &baked_texture_note(&info)))
+            .map_err(ExportRunError::Failed)?;
+        steps.finished(2.0);
+        let info = Ktx2Info { format: s.ktx2_format, scale: info.emission_scale, bytes: info.bytes };
+        written.ktx2 = Some((path.clone(), info, snippet_path));
+    } else if let Some(path) = &plan.ktx2 {
         let (ev, _) = volumes()?;
         check()?;
         steps.report("write KTX2", 0.0);
@@ -315,13 +361,45 @@ pub fn write_plan(
         steps.finished(1.0);
         written.exr_slices = Some((path.clone(), layers.len()));
     }
-    if let Some(path) = &plan.exr_atlas {
+    if let (Some(path), Some(_)) = (&plan.exr_atlas, s.bake_light) {
+        let (ev, _) = volumes()?;
+        let emission = inputs.emission.ok_or_else(|| missing("the baked emission"))?;
+        check()?;
+        steps.report("write EXR atlas", 0.0);
+        let (layout, _) =
+            staged.write(path, |p| write_baked_atlas_exr(p, ev, emission, &frame)).map_err(ExportRunError::Failed)?;
+        steps.finished(1.0);
+        written.exr_atlas = Some((path.clone(), layout));
+    } else if let Some(path) = &plan.exr_atlas {
         let (ev, _) = volumes()?;
         check()?;
         steps.report("write EXR atlas", 0.0);
         let layout = staged.write(path, |p| write_atlas_exr_in_frame(p, ev, &frame)).map_err(ExportRunError::Failed)?;
         steps.finished(1.0);
         written.exr_atlas = Some((path.clone(), layout));
+    }
+    if let Some(tscn) = &plan.godot {
+        let (ev, _) = volumes()?;
+        let emission = inputs.emission.ok_or_else(|| {
+            ExportRunError::Failed(format!("{}: a Godot scene draws the light bake: turn the bake on", tscn.display()))
+        })?;
+        check()?;
+        steps.report("write Godot scene", 0.0);
+        let [tscn, shader_path, atlas, import] = ExportPlan::godot_files(tscn);
+        let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let (layout, scales) =
+            staged.write(&atlas, |p| write_baked_atlas_exr(p, ev, emission, &frame)).map_err(ExportRunError::Failed)?;
+        let gain = super::godot::emission_gain(emission.max_value());
+        let texts = [
+            (&import, super::godot::import_file(&layout, &name(&atlas))),
+            (&shader_path, super::godot::shader(&layout, scales, gain)),
+            (&tscn, super::godot::scene(&ev.grid, &name(&shader_path), &name(&atlas))),
+        ];
+        for (path, text) in texts {
+            staged.write(path, |p| super::write_text(p, &text)).map_err(ExportRunError::Failed)?;
+        }
+        steps.finished(4.0);
+        written.godot = Some((tscn, layout, gain));
     }
     check()?;
     Ok(written)

@@ -9,6 +9,7 @@
 //!   /Fog                      Volume, extent = the grid box; fogsmith:albedo, fogsmith:anisotropy,
 //!                             fogsmith:baseExtinction (1/m) as custom attributes
 //!     /density, /optical_depth_<i>, ...   OpenVDBAsset fields → the exported .vdb
+//!     /emission               with a light bake: the vec3s emission (fieldDataType float3)
 //!   /Light_<i>                SphereLight, treatAsPoint, normalize, radius 0
 //!   /Camera                   Camera (transform, focal length and apertures)
 //!   /Ground, /Box_<n>         Mesh with a UsdPreviewSurface material (diffuse albedo)
@@ -61,6 +62,8 @@ pub struct UsdField {
     pub name: String,
     /// True for a density (OpenVDB class fog volume), false for other quantities.
     pub density: bool,
+    /// A vec3s grid (the baked emission), else a float grid.
+    pub vector: bool,
 }
 
 /// What [`write_usd`] needs besides the project.
@@ -282,7 +285,7 @@ fn encode(path: &Path, frames: &[StageFrame], fps: Option<f32>, opts: &UsdOption
         out!("        def OpenVDBAsset \"{}\"", f.name);
         out!("        {{");
         out!("            token fieldClass = \"{}\"", if f.density { "fogVolume" } else { "unknown" });
-        out!("            token fieldDataType = \"float\"");
+        out!("            token fieldDataType = \"{}\"", if f.vector { "float3" } else { "float" });
         out!("            token fieldName = \"{}\"", f.name);
         attr(w, "            ", "asset filePath", frames, animated, true, |f| format!("@{}@", f.vdb_asset));
         out!("        }}");

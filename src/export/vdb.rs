@@ -6,7 +6,9 @@
 //! [`VdbOptions::half`] is set) per [`VdbGrid`]: usually `density` (the extinction EV, 1/m,
 //! grid class "fog volume") and per light `optical_depth_<i>` (T), optionally
 //! `transmittance_<i>` (exp(−T)), both of class "unknown" since they are not densities; see
-//! [`grids_from_volumes`].
+//! [`grids_from_volumes`]. A baked emission is a `Vec3SGrid` (`Tree_vec3s_5_4_3`, class
+//! "unknown", vector type "invariant"), stored like a float grid with three values per voxel
+//! and tile, and a background of three equal components.
 //!
 //! # File layout (OpenVDB file format 224, what OpenVDB 10 writes; all little-endian)
 //!
@@ -74,7 +76,7 @@
 use super::frame::Frame;
 use super::sequence::FrameTime;
 use super::{write_bytes_atomic, ExportError, LightInfo};
-use crate::scene::{GridSpec, Volume};
+use crate::scene::{GridSpec, Volume, Volume3};
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -195,9 +197,11 @@ pub struct VdbGrid<'a> {
     /// Grid name; unique within a file.
     pub name: String,
     pub spec: GridSpec,
-    /// Dense values, x fastest (as [`Volume::data`]).
+    /// Dense values, x fastest (as [`Volume::data`]), `components` per cell.
     pub values: Cow<'a, [f32]>,
-    /// Value of inactive voxels and of everything outside the tree.
+    /// 1: a float grid; 3: a vec3s grid (values interleaved per cell).
+    pub components: usize,
+    /// Value of inactive voxels and of everything outside the tree (every component).
     pub background: f32,
     pub class: GridClass,
     /// Extra metadata (light information...). `name`, `class`, `creator` and the `file_*`
@@ -212,9 +216,24 @@ impl<'a> VdbGrid<'a> {
             name: name.into(),
             spec: volume.grid,
             values: Cow::Borrowed(&volume.data),
+            components: 1,
             background: 0.0,
             class: GridClass::FogVolume,
             metadata: Vec::new(),
+        }
+    }
+
+    /// A vec3s grid viewing `volume` with background 0, class unknown and vector type
+    /// invariant (a colour, not a direction: transforms leave it as it is).
+    pub fn from_volume3(name: impl Into<String>, volume: &'a Volume3) -> Self {
+        Self {
+            name: name.into(),
+            spec: volume.grid,
+            values: Cow::Borrowed(volume.data.as_flattened()),
+            components: 3,
+            background: 0.0,
+            class: GridClass::Unknown,
+            metadata: vec![("vector_type".into(), MetaValue::String("invariant".into()))],
         }
     }
 }
@@ -292,6 +311,7 @@ pub fn grids_from_volumes<'a>(
                 name: format!("transmittance_{i}"),
                 spec: opv.grid,
                 values: Cow::Owned(values),
+                components: 1,
                 background: 1.0,
                 class: GridClass::Unknown,
                 metadata: meta,
@@ -377,10 +397,23 @@ fn encode_vdb_with_progress(
                 "give each grid a unique name",
             ));
         }
-        if g.values.len() as u64 != g.spec.cell_count() {
+        if g.components != 1 && g.components != 3 {
             return Err(ExportError::invalid(
                 path,
-                format!("grid {:?} has {} values for {} cells", g.name, g.values.len(), g.spec.cell_count()),
+                format!("grid {:?} has {} components per cell", g.name, g.components),
+                "write float (1) or vec3s (3) grids",
+            ));
+        }
+        if g.values.len() as u64 != g.spec.cell_count() * g.components as u64 {
+            return Err(ExportError::invalid(
+                path,
+                format!(
+                    "grid {:?} has {} values for {} cells of {} components",
+                    g.name,
+                    g.values.len(),
+                    g.spec.cell_count(),
+                    g.components
+                ),
                 "pass a volume that matches its grid",
             ));
         }
@@ -443,15 +476,16 @@ const LEAF_VOXELS: usize = 512;
 
 struct Leaf {
     mask: [u64; 8],
-    values: Box<[f32; LEAF_VOXELS]>,
+    /// `LEAF_VOXELS` voxels of the grid's components each.
+    values: Vec<f32>,
 }
 
 #[derive(Default)]
 struct Node4 {
     /// Child index (z fastest, 16³) → leaf.
     leaves: BTreeMap<u32, Leaf>,
-    /// Child index → active constant tile value.
-    tiles: BTreeMap<u32, f32>,
+    /// Child index → active constant tile value (the grid's components).
+    tiles: BTreeMap<u32, Vec<f32>>,
 }
 
 #[derive(Default)]
@@ -474,8 +508,10 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
     let (nx, ny, nz) = (r.x as i32, r.y as i32, r.z as i32);
     let mut tree = Tree { roots: BTreeMap::new(), active: 0, leaves: 0, tiles: 0, bbox: None };
     let bg = g.background;
-    // NaN differences compare false: NaN voxels are active.
-    let is_active = |v: f32| (v - bg).abs() > opts.threshold || (v - bg).is_nan();
+    let nc = g.components;
+    // NaN differences compare false: NaN voxels are active. A vector is active when any
+    // component is.
+    let is_active = |v: &[f32]| v.iter().any(|&c| (c - bg).abs() > opts.threshold || (c - bg).is_nan());
     let mut oz = 0;
     while oz < nz {
         let mut oy = 0;
@@ -483,7 +519,7 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
             let mut ox = 0;
             while ox < nx {
                 let mut mask = [0u64; 8];
-                let mut values = Box::new([bg; LEAF_VOXELS]);
+                let mut values = vec![bg; LEAF_VOXELS * nc];
                 let mut count = 0u32;
                 let mut lo = [i32::MAX; 3];
                 let mut hi = [i32::MIN; 3];
@@ -503,11 +539,12 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
                             if x >= nx {
                                 break;
                             }
-                            let v = g.values[row + x as usize];
+                            let at = (row + x as usize) * nc;
+                            let v = &g.values[at..at + nc];
                             if is_active(v) {
                                 let n = ((dx << 6) | (dy << 3) | dz) as usize;
                                 mask[n >> 6] |= 1 << (n & 63);
-                                values[n] = v;
+                                values[n * nc..(n + 1) * nc].copy_from_slice(v);
                                 count += 1;
                                 for (a, c) in [x, y, z].into_iter().enumerate() {
                                     lo[a] = lo[a].min(c);
@@ -530,9 +567,9 @@ fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
                     let i5 = (((ox & 4095) >> 7) << 10 | ((oy & 4095) >> 7) << 5 | ((oz & 4095) >> 7)) as u32;
                     let i4 = (((ox & 127) >> 3) << 8 | ((oy & 127) >> 3) << 4 | ((oz & 127) >> 3)) as u32;
                     let node4 = tree.roots.entry(origin5).or_default().children.entry(i5).or_default();
-                    let first = values[0];
-                    let constant =
-                        count as usize == LEAF_VOXELS && values.iter().all(|v| v.to_bits() == first.to_bits());
+                    let first = values[..nc].to_vec();
+                    let constant = count as usize == LEAF_VOXELS
+                        && values.chunks(nc).all(|v| v.iter().zip(&first).all(|(a, b)| a.to_bits() == b.to_bits()));
                     if opts.tiles && constant {
                         node4.tiles.insert(i4, first);
                         tree.tiles += 1;
@@ -564,7 +601,9 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
 
     // Descriptor with placeholder offsets.
     put_str(out, &g.name);
-    put_str(out, if half { "Tree_float_5_4_3_HalfFloat" } else { "Tree_float_5_4_3" });
+    let value_type = if g.components == 3 { "vec3s" } else { "float" };
+    let half_suffix = if half { "_HalfFloat" } else { "" };
+    put_str(out, &format!("Tree_{value_type}_5_4_3{half_suffix}"));
     put_str(out, "");
     let offsets_at = out.len();
     out.extend_from_slice(&[0u8; 24]);
@@ -606,7 +645,9 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
     // Topology.
     let bg_stored = if half { half_round(g.background) } else { g.background };
     out.extend_from_slice(&1i32.to_le_bytes());
-    out.extend_from_slice(&bg_stored.to_le_bytes());
+    for _ in 0..g.components {
+        out.extend_from_slice(&bg_stored.to_le_bytes());
+    }
     put_u32(out, 0); // root tiles
     put_u32(out, tree.roots.len() as u32);
     for (origin, n5) in &tree.roots {
@@ -631,7 +672,7 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
             }
             put_mask(out, &child_mask);
             put_mask(out, &value_mask);
-            let tile_values: Vec<f32> = n4.tiles.values().copied().collect();
+            let tile_values: Vec<f32> = n4.tiles.values().flatten().copied().collect();
             put_values(out, &tile_values, flags, half);
             for leaf in n4.leaves.values() {
                 put_mask(out, &leaf.mask);
@@ -641,7 +682,7 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
 
     // Buffers.
     let block_pos = out.len();
-    let mut active = Vec::with_capacity(LEAF_VOXELS);
+    let mut active = Vec::with_capacity(LEAF_VOXELS * g.components);
     for n5 in tree.roots.values() {
         for n4 in n5.children.values() {
             for leaf in n4.leaves.values() {
@@ -649,7 +690,7 @@ fn encode_grid(out: &mut Vec<u8>, g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn
                 active.clear();
                 for n in 0..LEAF_VOXELS {
                     if leaf.mask[n >> 6] >> (n & 63) & 1 == 1 {
-                        active.push(leaf.values[n]);
+                        active.extend_from_slice(&leaf.values[n * g.components..(n + 1) * g.components]);
                     }
                 }
                 put_values(out, &active, flags, half);

@@ -196,6 +196,17 @@ pub fn compute_pipeline(
     code: String,
     layout: &wgpu::BindGroupLayout,
 ) -> wgpu::ComputePipeline {
+    compute_pipeline_entry(device, label, code, layout, "main")
+}
+
+/// [`compute_pipeline`] with another entry point, for a stage that shares another's sources.
+pub fn compute_pipeline_entry(
+    device: &wgpu::Device,
+    label: &str,
+    code: String,
+    layout: &wgpu::BindGroupLayout,
+    entry: &str,
+) -> wgpu::ComputePipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(code.into()),
@@ -209,7 +220,7 @@ pub fn compute_pipeline(
         label: Some(label),
         layout: Some(&pipeline_layout),
         module: &module,
-        entry_point: Some("main"),
+        entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,
     })

@@ -11,6 +11,9 @@
 //! 3. **Ray march** (`shaders/march.wgsl`): single scattering along camera rays with
 //!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
 //!
+//! On request, the bake (`bake`, `shaders/bake.wgsl`) turns the EV and OPVs into each cell's
+//! emitted radiance through the march's own lookups, for engines without self-shadowing.
+//!
 //! Each pipeline's WGSL is assembled in `shaders` from the files in `shaders/`, after the
 //! constants Rust and WGSL share (`layout::shared_constants`).
 //!
@@ -21,6 +24,7 @@
 //! own. The stages (`inject`, `propagate`, `march`, `slice`) depend on the shared context and
 //! helpers (`layout`, `buffers`, `report`), never on the scheduler.
 
+mod bake;
 mod binning;
 mod budget;
 mod buffers;
@@ -46,6 +50,7 @@ mod shaders;
 mod slice;
 mod timer;
 
+pub use bake::BakePhase;
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};
 pub use error::GpuError;

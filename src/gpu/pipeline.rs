@@ -14,6 +14,7 @@
 //! `limits`, the budget arithmetic in `budget`, the GPU resources in `resources` and the
 //! readbacks in `outputs`.
 
+use super::bake::{BakeInputs, BakePhase, Baker};
 use super::binning;
 use super::budget::{ms, Clock, Rate, QUICK_SHARE};
 use super::buffers::storage_buffer;
@@ -33,7 +34,7 @@ use super::resources::GridResources;
 use super::slice::{Plane, SliceSource, Slicer};
 use super::timer::{self, StageTimer};
 use super::{GpuContext, GpuError};
-use crate::scene::{GridSpec, Project, Scheme, Volume};
+use crate::scene::{GridSpec, Project, Scheme, Volume, Volume3};
 use std::time::{Duration, Instant};
 
 /// Work in progress, dropped whenever its inputs change.
@@ -54,6 +55,8 @@ pub struct FogPipeline {
     propagator: Propagator,
     marcher: Marcher,
     slicer: Slicer,
+    /// Built on the first bake: most pipelines never bake.
+    baker: Option<Baker>,
     timer: Option<StageTimer>,
     grid: Option<GridResources>,
     quick: Option<ImageTarget>,
@@ -104,6 +107,7 @@ impl FogPipeline {
             propagator,
             marcher,
             slicer,
+            baker: None,
             timer,
             grid: None,
             quick: None,
@@ -704,6 +708,7 @@ impl FogPipeline {
             self.propagator = Propagator::new(device, self.stage_layout, self.sweep_cells);
             self.marcher = Marcher::new(device, self.stage_layout);
             self.slicer = Slicer::new(device, self.stage_layout);
+            self.baker = None;
             self.jobs = Jobs::default();
         }
         self.stage_layout
@@ -805,6 +810,47 @@ impl FogPipeline {
             (v, buf)
         });
         self.base_layer_generation += 1;
+    }
+
+    /// The radiance each cell emits, W·m⁻³·sr⁻¹ per channel (physics.md §10), baked from the
+    /// EV and OPVs of `project` after bringing them up to date as [`update`](Self::update)
+    /// does: the preview's own volumes and light rules, plus the surfaces' shadows.
+    pub fn bake_emission(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        phase: BakePhase,
+    ) -> Result<Volume3, GpuError> {
+        if !project.lights.iter().any(|l| !l.hidden) {
+            return Err(GpuError::Invalid(
+                "nothing to bake: the project has no visible light; add a light or unhide one".into(),
+            ));
+        }
+        self.update(project, request)?;
+        let frame = FrameInputs::new(project, request, &self.settings(project));
+        let baker = self.baker.get_or_insert_with(|| Baker::new(&self.ctx.device, self.stage_layout));
+        let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
+        let inputs = BakeInputs {
+            spec: g.spec,
+            grid_buf: &g.grid_buf,
+            ev_view: &g.ev_view,
+            lights_buf: &g.lights_buf,
+            opv: &g.opv[0],
+            surfaces: &frame.surfaces,
+            params: frame.march,
+        };
+        let scope = ErrorScope::push(&self.ctx.device);
+        let result = baker.bake(&self.ctx, &inputs, phase);
+        scope.pop("bake")?;
+        let emission = result?;
+        let bad = emission.data.iter().flatten().filter(|v| !v.is_finite()).count();
+        if bad > 0 {
+            return Err(GpuError::Invalid(format!(
+                "the baked emission has {bad} values that are not finite numbers; check the lights' intensities \
+                 and the medium for values beyond f32's range"
+            )));
+        }
+        Ok(emission)
     }
 
     fn grid(&self) -> Result<&GridResources, GpuError> {

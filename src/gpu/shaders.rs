@@ -115,6 +115,11 @@ pub fn march(opv: &OpvLayout) -> String {
     ])
 }
 
+/// The bake of each cell's emission: the march's sources and lookups, entry point `bake`.
+pub fn bake(opv: &OpvLayout) -> String {
+    march(opv) + "\n" + include_str!("../../shaders/bake.wgsl")
+}
+
 /// One plane of the EV or of a light's OPV.
 pub fn slice(opv: &OpvLayout) -> String {
     assemble(&[&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")])
@@ -139,6 +144,7 @@ mod tests {
             ("propagate_analytic", propagate_analytic(&opv)),
             ("propagate_directional", propagate_directional(&opv)),
             ("march", march(&opv)),
+            ("bake", bake(&opv)),
             ("slice", slice(&opv)),
         ];
         for (cells, filtered) in [(1, false), (8, true)] {

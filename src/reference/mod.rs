@@ -11,11 +11,13 @@
 //! - [`optical_depth_volume`], [`optical_depth_cells`]: exact optical-depth volumes (OPVs).
 //! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
 //!   (§4) with exact transmittance.
+//! - [`render_emission`]: emission–absorption renders of baked density and emission (§10).
 //! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
 //! - [`surface_glow`]: Sun et al.'s surface term by hemisphere quadrature (§9).
 //! - [`lights`]: directional lights' optical depths and the height fog's closed form (§9).
 //! - [`noise`]: the medium's fractal noise on the particles, by the GPU's own hash.
 
+mod emission;
 mod grid;
 pub mod lights;
 pub mod noise;
@@ -24,6 +26,7 @@ mod render;
 pub mod sun;
 pub mod surface_glow;
 
+pub use emission::{render_emission, BakedGrid64};
 pub use grid::{clip_to_box, clipped_optical_depth, GridMedium64};
 pub use render::{
     camera_ray64, default_step, in_scatter_adaptive, radiance_along_ray, render_reference, render_reference_with,

@@ -25,7 +25,7 @@ pub use validate::{
     ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_HEIGHT_FALLOFF, MAX_INTENSITY, MAX_NOISE_AMPLITUDE,
     MAX_RESOLUTION_DEFAULT,
 };
-pub use volume::Volume;
+pub use volume::{Volume, Volume3};
 
 use glam::{UVec3, Vec3};
 use serde::{Deserialize, Serialize};

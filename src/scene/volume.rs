@@ -28,3 +28,25 @@ impl Volume {
         self.data.iter().copied().fold(f32::NEG_INFINITY, f32::max)
     }
 }
+
+/// Dense RGB values at cell centres of a [`GridSpec`], x fastest, then y, then z: the baked
+/// emission (W·m⁻³·sr⁻¹ per channel).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Volume3 {
+    pub grid: GridSpec,
+    pub data: Vec<[f32; 3]>,
+}
+
+impl Volume3 {
+    pub fn new(grid: GridSpec, data: Vec<[f32; 3]>) -> Self {
+        assert_eq!(data.len() as u64, grid.cell_count(), "volume data does not match its grid");
+        Self { grid, data }
+    }
+    pub fn get(&self, i: u32, j: u32, k: u32) -> [f32; 3] {
+        self.data[self.grid.index(i, j, k)]
+    }
+    /// The largest component of any cell.
+    pub fn max_value(&self) -> f32 {
+        self.data.iter().flatten().copied().fold(0.0, f32::max)
+    }
+}
