@@ -18,6 +18,9 @@
 //!   to preview latency and time to convergence; run on request only.
 //! - `animation`: frame sequences of the cloud demo, one kind of motion each, baked in one
 //!   pipeline against cold bakes of every frame (see `animation`); run on request only.
+//! - `bake`: the light bake on each demo, its time, the error of its emission–absorption
+//!   render against the lit render per phase mode, output sizes and texture quantisation
+//!   (see `bake`); run on request only.
 
 mod animation;
 mod bake;
