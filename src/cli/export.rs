@@ -10,7 +10,8 @@ use crate::export::plan::{
     write_plan, ExportInputs, ExportPlan, ExportProblem, ExportRunError, ExportSettings, Written,
 };
 use crate::export::sequence::{suggest_pattern, FramePattern, FrameSet, FrameTime, SequenceError};
-use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdOptions};
+use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdField, UsdOptions};
+use crate::farm::check::{file_state, write_sidecar, FileState};
 use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
 use std::path::PathBuf;
@@ -71,6 +72,11 @@ pub struct ExportArgs {
     /// KTX2 texel format: r16f (the extinction in 1/m) or r8 (times the scale it records).
     #[arg(long, value_enum, default_value_t = Ktx2Format::R16f)]
     pub ktx2_format: Ktx2Format,
+    /// Skip each frame whose files are all complete (their checksum sidecars match, or they
+    /// read back), and write a NAME.crc32 sidecar beside every file written: rerunning an
+    /// interrupted command bakes only what is missing or damaged.
+    #[arg(long)]
+    pub resume: bool,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -204,6 +210,25 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     for (k, (&number, plan)) in frames.iter().zip(&plans).enumerate() {
         let started = std::time::Instant::now();
         let project = still(&session.project, number);
+        if args.resume && plan.files().iter().all(|f| file_state(f) == FileState::Done) {
+            if let (Some(vdb), Some(number)) = (plan.vdb_path(), number) {
+                if fields.is_empty() {
+                    fields = crate::export::vdb_read::list_vdb_grids(&vdb)?
+                        .into_iter()
+                        .map(|g| UsdField { density: g.name == "density", name: g.name })
+                        .collect();
+                }
+                stage_frames.push((number, vdb, project));
+            }
+            if !args.json {
+                bar.suspend(|| eprintln!("frame {}: complete, skipped", number.unwrap_or(0)));
+            }
+            let mut summary = serde_json::Map::new();
+            summary.insert("frame".into(), serde_json::json!(number));
+            summary.insert("skipped".into(), serde_json::json!(true));
+            summaries.push(summary);
+            continue;
+        }
         bar.frame(k, frames.len(), number);
         let report = session.bake(&project, &mut |p| bar.pipeline(p))?;
         // Every file goes beside its target first and replaces it only once all of the frame's are written.
@@ -231,6 +256,11 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         };
         check()?;
         staged.commit()?;
+        if args.resume {
+            for file in plan.files() {
+                write_sidecar(&file).map_err(|e| format!("{}: writing its checksum: {e}", file.display()))?;
+            }
+        }
         let mut summary = summarize(&written, &project, frame, &mut notes);
         summary.insert("timings_ms".into(), serde_json::json!(report.timings_ms));
         if set.is_some() {
@@ -272,6 +302,9 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         staged.write(usd, |p| write_usd_sequence(p, &stage, fps.unwrap_or(24.0), &opts))?;
         check()?;
         staged.commit()?;
+        if args.resume {
+            write_sidecar(usd).map_err(|e| format!("{}: writing its checksum: {e}", usd.display()))?;
+        }
         out.insert(
             "usd".into(),
             serde_json::json!({"path": usd, "frames": set.len(), "fields": opts.fields.len(), "frame": frame.to_string()}),
