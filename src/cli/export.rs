@@ -11,7 +11,7 @@ use crate::export::plan::{
 };
 use crate::export::sequence::{suggest_pattern, FramePattern, FrameSet, FrameTime, SequenceError};
 use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdField, UsdOptions};
-use crate::farm::check::{file_state, write_sidecar, FileState};
+use crate::farm::check::{file_state, remove_leftovers, write_sidecar, FileState};
 use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
 use std::path::PathBuf;
@@ -228,6 +228,9 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
             summary.insert("skipped".into(), serde_json::json!(true));
             summaries.push(summary);
             continue;
+        }
+        if args.resume {
+            plan.files().iter().for_each(|f| remove_leftovers(f));
         }
         bar.frame(k, frames.len(), number);
         let report = session.bake(&project, &mut |p| bar.pipeline(p))?;

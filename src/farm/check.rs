@@ -38,6 +38,25 @@ pub fn write_sidecar(path: &Path) -> std::io::Result<()> {
     std::fs::rename(&temp, &target)
 }
 
+/// Removes the temporaries a killed export left beside `target` (staged copies and
+/// half-written sidecars), before the frame is written again.
+pub fn remove_leftovers(target: &Path) {
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let (Some(stem), Some(name)) = (target.file_stem(), target.file_name()) else { return };
+    let staged = format!(".{}.fogsmith-partial", stem.to_string_lossy());
+    let sidecar = format!("{}.crc32.partial", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let n = entry.file_name().to_string_lossy().into_owned();
+        if n.starts_with(&staged) || n.starts_with(&sidecar) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// The state of the file at `path`.
 pub fn file_state(path: &Path) -> FileState {
     let bytes = match std::fs::read(path) {
