@@ -126,9 +126,16 @@ fn openjd_bundle_checks_and_runs_bit_equal_to_a_local_export() {
     let dir = tempfile::tempdir().unwrap();
     let (project, local) = project_and_local_export(dir.path());
     let written = dir.path().join("written");
-    ok(fogsmith(&["farm", "openjd", s(&project), "--frames", FRAMES, "--chunk", "3", "--out", s(&written)]), "farm openjd");
+    ok(
+        fogsmith(&["farm", "openjd", s(&project), "--frames", FRAMES, "--chunk", "3", "--out", s(&written)]),
+        "farm openjd",
+    );
     let template = std::fs::read_to_string(written.join("template.yaml")).unwrap();
-    assert!(template.contains("type: CHUNK[INT]") && template.contains("default: \"1-4\"") && template.contains("default: 3"));
+    assert!(
+        template.contains("type: CHUNK[INT]")
+            && template.contains("default: \"1-4\"")
+            && template.contains("default: 3")
+    );
     assert!(!template.contains(s(dir.path())), "the template names no absolute path:\n{template}");
     // The job runs wherever the bundle is copied.
     let bundle = dir.path().join("moved");
@@ -160,7 +167,10 @@ fn a_killed_task_runs_again_to_a_complete_sequence() {
     let dir = tempfile::tempdir().unwrap();
     let (project, local) = project_and_local_export(dir.path());
     let bundle = dir.path().join("job");
-    ok(fogsmith(&["farm", "openjd", s(&project), "--frames", FRAMES, "--chunk", "4", "--out", s(&bundle)]), "farm openjd");
+    ok(
+        fogsmith(&["farm", "openjd", s(&project), "--frames", FRAMES, "--chunk", "4", "--out", s(&bundle)]),
+        "farm openjd",
+    );
     let out = bundle.join("out");
     // The one task's command line, as a user would run it by hand, from the bundle.
     let task = [
@@ -175,7 +185,8 @@ fn a_killed_task_runs_again_to_a_complete_sequence() {
         "--resume",
         "--quiet",
     ];
-    let mut child = Command::new(bin()).args(task).current_dir(&bundle).stderr(std::process::Stdio::null()).spawn().unwrap();
+    let mut child =
+        Command::new(bin()).args(task).current_dir(&bundle).stderr(std::process::Stdio::null()).spawn().unwrap();
     let started = Instant::now();
     while !out.join("fog.0001.exr.crc32").exists() {
         assert!(child.try_wait().unwrap().is_none(), "the task ended before it could be killed");
@@ -203,10 +214,8 @@ fn a_killed_task_runs_again_to_a_complete_sequence() {
 
     let modified = |f: &i64| std::fs::metadata(out.join(format!("fog.{f:04}.vdb"))).unwrap().modified().unwrap();
     let before: Vec<_> = done[1..].iter().map(modified).collect();
-    let rerun = ok(
-        Command::new(bin()).args(task).arg("--json").current_dir(&bundle).output().unwrap(),
-        "the task run again",
-    );
+    let rerun =
+        ok(Command::new(bin()).args(task).arg("--json").current_dir(&bundle).output().unwrap(), "the task run again");
     let summary: Value = serde_json::from_slice(&rerun.stdout).unwrap();
     let skipped: Vec<i64> = summary["frames"]
         .as_array()
@@ -251,11 +260,8 @@ fn bad_jobs_are_refused_before_any_file_is_written() {
     save_project(&still, &p).unwrap();
     let lost = dir.path().join("lost.ron");
     let mut p = animated();
-    p.base_volume = Some(fogsmith::scene::BaseVolume {
-        path: "caches/base.vdb".into(),
-        grid: "density".into(),
-        scale: 1.0,
-    });
+    p.base_volume =
+        Some(fogsmith::scene::BaseVolume { path: "caches/base.vdb".into(), grid: "density".into(), scale: 1.0 });
     save_project(&lost, &p).unwrap();
     let out = dir.path().join("job");
     let cases: [(&Path, &[&str], &str); 6] = [
@@ -341,7 +347,8 @@ impl Cluster {
         for sub in ["state", "spool", "log"] {
             std::fs::create_dir(d.join(sub)).unwrap();
         }
-        let key: Vec<u8> = (0..1024u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8 ^ std::process::id() as u8).collect();
+        let key: Vec<u8> =
+            (0..1024u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8 ^ std::process::id() as u8).collect();
         std::fs::write(d.join("munge.key"), key).unwrap();
         sh(&format!("chmod 400 {}/munge.key", s(d)), &[]);
         let socket = d.join("munge.sock");
@@ -425,7 +432,19 @@ fn slurm_job_array_runs_bit_equal_to_a_local_export() {
     let (project, local) = project_and_local_export(dir.path());
     let bundle = dir.path().join("job");
     ok(
-        fogsmith(&["farm", "slurm", s(&project), "--frames", FRAMES, "--chunk", "2", "--cpus", "1", "--out", s(&bundle)]),
+        fogsmith(&[
+            "farm",
+            "slurm",
+            s(&project),
+            "--frames",
+            FRAMES,
+            "--chunk",
+            "2",
+            "--cpus",
+            "1",
+            "--out",
+            s(&bundle),
+        ]),
         "farm slurm",
     );
     let script = std::fs::read_to_string(bundle.join("frames.sbatch")).unwrap();
@@ -436,7 +455,8 @@ fn slurm_job_array_runs_bit_equal_to_a_local_export() {
         &format!("{}/submit.sh", s(&bundle)),
         &[("SLURM_CONF", &cluster.conf), ("FOGSMITH", Path::new(bin())), ("XDG_RUNTIME_DIR", &runtime)],
     );
-    let ids: Vec<&str> = submitted.split_whitespace().filter(|w| w.chars().all(|c| c.is_ascii_digit() || c == ';')).collect();
+    let ids: Vec<&str> =
+        submitted.split_whitespace().filter(|w| w.chars().all(|c| c.is_ascii_digit() || c == ';')).collect();
     let [array, stage] = ids[..] else { panic!("submit.sh printed {submitted:?}") };
     let array = array.trim_end_matches(';');
     let stage = stage.trim_end_matches(';');
@@ -447,8 +467,16 @@ fn slurm_job_array_runs_bit_equal_to_a_local_export() {
             break;
         }
         let logs = || sh(&format!("tail -n 20 {}/logs/*.log || true", s(&bundle)), &[]);
-        assert!(!["FAILED", "CANCELLED", "TIMEOUT", "OUT_OF_MEMORY"].contains(&state.as_str()), "stage job {state}:\n{}", logs());
-        assert!(started.elapsed() < Duration::from_secs(240), "the Slurm jobs did not finish (stage {state}):\n{}", logs());
+        assert!(
+            !["FAILED", "CANCELLED", "TIMEOUT", "OUT_OF_MEMORY"].contains(&state.as_str()),
+            "stage job {state}:\n{}",
+            logs()
+        );
+        assert!(
+            started.elapsed() < Duration::from_secs(240),
+            "the Slurm jobs did not finish (stage {state}):\n{}",
+            logs()
+        );
         std::thread::sleep(Duration::from_millis(500));
     }
     for k in 0..2 {

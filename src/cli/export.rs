@@ -1,6 +1,8 @@
 //! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files, for
 //! one frame or for each frame of `--frames` (one pipeline bakes them in order, each frame's
 //! files are in place before the next frame starts, and one USD stage refers to them all).
+//! With `--resume` it skips the frames whose files are complete (see [`crate::farm::check`]),
+//! which is what makes a render-farm task safe to run again.
 
 use super::progress::{check, interrupted, Bar, Cancelled};
 use super::{frames, open, still, BakeArgs};
@@ -11,9 +13,9 @@ use crate::export::plan::{
 };
 use crate::export::sequence::{suggest_pattern, FramePattern, FrameSet, FrameTime, SequenceError};
 use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdField, UsdOptions};
-use crate::farm::check::{file_state, remove_leftovers, write_sidecar, FileState};
 use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
+use crate::farm::check::{file_state, remove_leftovers, write_sidecar, FileState};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

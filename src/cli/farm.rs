@@ -167,7 +167,8 @@ fn write_bundle(args: &JobArgs) -> Result<FarmJob, Box<dyn std::error::Error>> {
         }
         _ => {
             if std::fs::canonicalize(&args.project).ok() != std::fs::canonicalize(&target).ok() {
-                std::fs::copy(&args.project, &target).map_err(|e| format!("copying {}: {e}", args.project.display()))?;
+                std::fs::copy(&args.project, &target)
+                    .map_err(|e| format!("copying {}: {e}", args.project.display()))?;
             }
         }
     }
@@ -221,7 +222,14 @@ fn status(bundle: &Path, json: bool) -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     }
     let list = |frames: &[i32]| if frames.is_empty() { "none".to_string() } else { farm::ranges_text(frames) };
-    println!("{} frames {}: {} done, {} missing, {} damaged", job.name, job.frames, done.len(), missing.len(), damaged.len());
+    println!(
+        "{} frames {}: {} done, {} missing, {} damaged",
+        job.name,
+        job.frames,
+        done.len(),
+        missing.len(),
+        damaged.len()
+    );
     println!("done: {}", list(&done));
     println!("missing: {}", list(&missing));
     for (frame, problems) in &damaged {

@@ -821,9 +821,7 @@ fn put_meta(out: &mut Vec<u8>, name: &str, v: &MetaValue) {
 /// file's identity for OpenVDB's caches, which changes with its content, while the same grids
 /// give the same file bit for bit (a farm task's frame equals a local export's).
 fn content_uuid(content: &[u8]) -> String {
-    let fnv = |seed: u64| {
-        content.iter().fold(seed, |h, &b| (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01B3))
-    };
+    let fnv = |seed: u64| content.iter().fold(seed, |h, &b| (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01B3));
     let a = fnv(0xCBF2_9CE4_8422_2325);
     let b = fnv(0x9E37_79B9_7F4A_7C15);
     let b = (b & 0x3FFF_FFFF_FFFF_FFFF) | 0x8000_0000_0000_0000;

@@ -193,6 +193,14 @@ mod tests {
     }
 
     #[test]
+    fn memory_grows_with_cells_times_lights() {
+        let mut p = Project::default();
+        p.grid.resolution = glam::UVec3::splat(256);
+        p.lights = vec![crate::scene::Light::new(glam::Vec3::ONE, 1.0, glam::Vec3::ONE); 8];
+        assert_eq!(task_memory_mib(&p, 1920, 1080), 3490);
+    }
+
+    #[test]
     fn shell_quoting_keeps_patterns_literal() {
         assert_eq!(shell_quote("out/fog.####.vdb"), "'out/fog.####.vdb'");
         assert_eq!(shell_quote("1-10"), "1-10");

@@ -109,7 +109,8 @@ steps:
       onRun:
 {stage_action}"#,
         name = q(&format!("Fogsmith {} frames {{{{Param.Frames}}}}", job.name)),
-        description = q(&format!("Bakes {} frame by frame with fogsmith export (written by fogsmith farm openjd).", job.project)),
+        description =
+            q(&format!("Bakes {} frame by frame with fogsmith export (written by fogsmith farm openjd).", job.project)),
         frames = q(&job.frames),
         chunk = job.chunk,
         output = q(&job.output),
