@@ -301,6 +301,15 @@ fn bad_frames_and_paths_are_refused_with_the_fix() {
     assert!(err.contains("one stage holds every frame"), "{err}");
     let err = stderr_of(&run(&["verify", s(&project), "--frame", "9", "--quiet"]));
     assert!(err.contains("--frame 9: frame 9 is outside the project's animation range 1-5"), "{err}");
+    let bench_out = tempfile::tempdir().unwrap();
+    let bench = |scene: &str, frame: &str| {
+        let args = ["bench", "--suite", "opv", "--scene", scene, "--frame", frame, "--quiet", "--out"];
+        stderr_of(&fogsmith().args(args).arg(bench_out.path()).output().unwrap())
+    };
+    let err = bench("cornell", "3");
+    assert!(err.contains("--frame 3: no animated demo among --scene cornell; name one of street-wind"), "{err}");
+    let err = bench("street-wind", "49");
+    assert!(err.contains("--frame 49: outside the demo street-wind's animation range 1-48"), "{err}");
     // Nothing was written by any refused command.
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(left, vec![std::ffi::OsString::from("anim.ron")]);

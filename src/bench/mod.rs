@@ -41,7 +41,7 @@ pub struct BenchOptions {
     pub scenes: Vec<String>,
     /// Scheme labels of the propagation suite (`sweep8r`, `exact`, …); empty for all.
     pub schemes: Vec<String>,
-    /// The frame of an animated demo the propagation, march and scaling suites bake.
+    /// The frame at which animated demos are baked (`--frame`); their first without it.
     pub frame: Option<i32>,
 }
 

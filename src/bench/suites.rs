@@ -60,6 +60,9 @@ impl Context {
                 known.join(", ")
             )));
         }
+        if let Some(f) = opts.frame {
+            check_frame(f, &opts.scenes)?;
+        }
         Ok(Self {
             gpu: FogPipeline::new(GpuContext::new_headless()?),
             quick: opts.quick,
@@ -70,29 +73,13 @@ impl Context {
         })
     }
 
-    /// The demo `name` at `--frame` (an animated demo's first frame without it).
+    /// The demo `name`; an animated one at `--frame`, or at its first frame.
     pub(super) fn demo(&self, name: &str) -> Result<Project, BenchError> {
         let p = demo(name)?;
-        match (self.frame, p.animation) {
-            (None, None) => Ok(p),
-            (None, Some(a)) => Ok(p.at_frame(a.start)),
-            (Some(f), Some(a)) if a.frames().contains(&f) => Ok(p.at_frame(f)),
-            (Some(f), Some(a)) => Err(BenchError::Option(format!(
-                "--frame {f}: outside the demo {name}'s animation range {}-{}",
-                a.start, a.end
-            ))),
-            (Some(f), None) => {
-                let animated: Vec<&str> = crate::demos::DEMOS
-                    .iter()
-                    .filter(|(n, _)| demo(n).is_ok_and(|d| d.animation.is_some()))
-                    .map(|(n, _)| *n)
-                    .collect();
-                Err(BenchError::Option(format!(
-                    "--frame {f}: the demo {name} has no animation; choose an animated demo with --scene ({})",
-                    animated.join(", ")
-                )))
-            }
-        }
+        Ok(match p.animation {
+            Some(a) => p.at_frame(self.frame.unwrap_or(a.start)),
+            None => p,
+        })
     }
 
     /// Bakes and renders `project` from scratch.
@@ -106,6 +93,30 @@ impl Context {
         let request = FrameRequest { width, height, scheme: project.propagation.scheme, force: false };
         Ok(self.gpu.update(project, &request)?)
     }
+}
+
+/// `--frame f` needs `--scene` to name an animated demo, and f within each animated one's range.
+fn check_frame(f: i32, scenes: &[String]) -> Result<(), BenchError> {
+    let mut animated = Vec::new();
+    for (name, _) in crate::demos::DEMOS {
+        if let Some(a) = demo(name)?.animation {
+            if scenes.iter().any(|s| s == name) && !a.frames().contains(&f) {
+                return Err(BenchError::Option(format!(
+                    "--frame {f}: outside the demo {name}'s animation range {}-{}",
+                    a.start, a.end
+                )));
+            }
+            animated.push(name);
+        }
+    }
+    if !scenes.iter().any(|s| animated.contains(&s.as_str())) {
+        return Err(BenchError::Option(format!(
+            "--frame {f}: no animated demo among --scene {}; name one of {}",
+            if scenes.is_empty() { "(none given)".to_string() } else { scenes.join(",") },
+            animated.join(", ")
+        )));
+    }
+    Ok(())
 }
 
 /// The demo without its noise: the exact optical depth of noisy particles is an adaptive

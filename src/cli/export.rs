@@ -266,7 +266,12 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
                 write_sidecar(&file).map_err(|e| format!("{}: writing its checksum: {e}", file.display()))?;
             }
         }
-        let mut summary = summarize(&written, &project, frame, &mut notes);
+        // A sequence says what each frame wrote as it goes.
+        let mut file_notes = Vec::new();
+        let mut summary = summarize(&written, &project, frame, &mut file_notes);
+        if set.is_none() {
+            notes.append(&mut file_notes);
+        }
         summary.insert("timings_ms".into(), serde_json::json!(report.timings_ms));
         if set.is_some() {
             summary.insert("frame".into(), serde_json::json!(number));

@@ -114,8 +114,8 @@ enum Command {
         /// (default: all of giroud, sweep4, sweep4r, sweep8, sweep8r, exact and analytic).
         #[arg(long, value_delimiter = ',')]
         scheme: Vec<String>,
-        /// The frame of an animated demo that the propagation, march and scaling suites bake
-        /// (default: its first).
+        /// The frame at which the animated demos named by --scene are baked by the suites that
+        /// take --scene (default: each one's first frame).
         #[arg(long, allow_hyphen_values = true)]
         frame: Option<i32>,
         /// Print the records as JSON on stdout (progress lines go to stderr).
