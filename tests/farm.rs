@@ -156,6 +156,15 @@ fn openjd_bundle_checks_and_runs_bit_equal_to_a_local_export() {
     let v = status(&bundle);
     assert_eq!(v["done"], serde_json::json!([1, 2, 3, 4]), "{v}");
     assert_eq!(v["stage"], "done", "{v}");
+
+    // Other frame lists, chunk sizes and output spellings pass the check too.
+    for (frames, chunk, output) in [("1,3-4", "1", "out/fog_%04d"), ("2-6", "5", "cache/fog.$F4.vdb")] {
+        let other = dir.path().join(format!("other-{chunk}"));
+        let args = ["farm", "openjd", s(&project), "--frames", frames, "--chunk", chunk, "--output", output];
+        ok(fogsmith(&[&args[..], &["--out", s(&other)]].concat()), "farm openjd");
+        let check = Command::new(&openjd).args(["check", s(&other.join("template.yaml"))]).output().unwrap();
+        ok(check, &format!("openjd check of {args:?}"));
+    }
 }
 
 /// A task killed halfway leaves complete frames only; `farm status` reports them done and
