@@ -141,7 +141,12 @@ fn write_bundle(args: &JobArgs) -> Result<FarmJob, Box<dyn std::error::Error>> {
     let name = args.project.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "fog".into());
     let file = args.project.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene.ron".into());
     let job = FarmJob {
-        name: name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect(),
+        // Open Job Description limits a job's name; the scheduler's queues show the start.
+        name: name
+            .chars()
+            .take(48)
+            .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+            .collect(),
         project: file.clone(),
         frames: farm::ranges_text(set.frames()),
         chunk: args.chunk,
