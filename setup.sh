@@ -16,6 +16,8 @@ PACKAGES=(
   pkg-config
   libxkbcommon-x11-0    # winit on X11
   libx11-xcb1
+  slurm-wlm             # for the tests only: slurmctld, slurmd and sbatch for a single-node cluster
+  munge                 # Slurm's authentication daemon, started by the same test
 )
 
 missing=()
@@ -40,8 +42,8 @@ echo "setup.sh: system packages ready (${#missing[@]} installed now)."
 # Test-only validators from PyPI, in a git-ignored virtual environment inside the project
 # (never needed to run Fogsmith: `./setup.sh --no-validators` skips them): Pixar's usd-core
 # checks the USD export, Blender as a Python module (bpy 4.5, for Debian's Python 3.11)
-# imports it, and OpenEXR's own bindings read the EXR exports. Each package is installed
-# only when the venv cannot import it yet.
+# imports it, OpenEXR's own bindings read the EXR exports, and openjd-cli checks and runs the
+# render-farm job bundles. Each package is installed only when the venv cannot import it yet.
 if [ "${1:-}" = "--no-validators" ]; then
   exit 0
 fi
@@ -53,6 +55,7 @@ fi
 need=()
 "$VENV/bin/python" -c "from pxr import Usd, UsdVol, UsdLux, UsdValidation" 2>/dev/null || need+=("usd-core==26.11")
 "$VENV/bin/python" -c "import OpenEXR; OpenEXR.File" 2>/dev/null || need+=("openexr==3.5.3")
+"$VENV/bin/python" -c "import openjd.cli" 2>/dev/null || need+=("openjd-cli==0.8.0")
 "$VENV/bin/python" -c "import bpy, sys; sys.exit(0 if bpy.app.version[:2] == (4, 5) else 1)" 2>/dev/null || need+=("bpy==4.5.*")
 if [ ${#need[@]} -gt 0 ]; then
   echo "setup.sh: installing ${need[*]} into $VENV (bpy is a ~370 MB download)"

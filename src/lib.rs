@@ -7,6 +7,7 @@
 //! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 //! - [`editor`]: the interactive editor window (eframe + egui_dock).
 //! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
+//! - [`farm`]: render-farm jobs (Open Job Description, Slurm) that split a sequence into tasks.
 //! - [`stress`]: the numerical stress matrix behind `fogsmith stress`.
 //! - [`sun_table`]: Sun et al.'s F function and the table the GPU reads.
 //! - [`surface_table`]: Sun et al.'s surface term (fog glow on diffuse surfaces) and its table.
@@ -17,6 +18,7 @@ pub mod cli;
 pub mod demos;
 pub mod editor;
 pub mod export;
+pub mod farm;
 pub mod gpu;
 pub mod measure;
 pub mod output;

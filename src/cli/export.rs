@@ -1,6 +1,8 @@
 //! `fogsmith export`: bake a project on the GPU and write VDB / EXR / USD / KTX2 files, for
 //! one frame or for each frame of `--frames` (one pipeline bakes them in order, each frame's
 //! files are in place before the next frame starts, and one USD stage refers to them all).
+//! With `--resume` it skips the frames whose files are complete (see [`crate::farm::check`]),
+//! which is what makes a render-farm task safe to run again.
 
 use super::progress::{check, interrupted, Bar, Cancelled};
 use super::{frames, open, still, BakeArgs};
@@ -10,9 +12,10 @@ use crate::export::plan::{
     write_plan, ExportInputs, ExportPlan, ExportProblem, ExportRunError, ExportSettings, Written,
 };
 use crate::export::sequence::{suggest_pattern, FramePattern, FrameSet, FrameTime, SequenceError};
-use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdOptions};
+use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdField, UsdOptions};
 use crate::export::vdb::{GridSelection, VdbCompression};
 use crate::export::Staged;
+use crate::farm::check::{file_state, remove_leftovers, write_sidecar, FileState};
 use crate::gpu::BakePhase;
 use std::path::PathBuf;
 
@@ -85,6 +88,11 @@ pub struct ExportArgs {
     /// plus its fog shader (NAME.gdshader) and texture (NAME.exr, with NAME.exr.import).
     #[arg(long)]
     pub godot: Option<PathBuf>,
+    /// Skip each frame whose files are all complete (their checksum sidecars match, or they
+    /// read back), and write a NAME.crc32 sidecar beside every file written: rerunning an
+    /// interrupted command bakes only what is missing or damaged.
+    #[arg(long)]
+    pub resume: bool,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -242,6 +250,32 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     for (k, (&number, plan)) in frames.iter().zip(&plans).enumerate() {
         let started = std::time::Instant::now();
         let project = still(&session.project, number);
+        if args.resume && plan.files().iter().all(|f| file_state(f) == FileState::Done) {
+            if let (Some(vdb), Some(number)) = (plan.vdb_path(), number) {
+                if fields.is_empty() {
+                    fields = crate::export::vdb_read::list_vdb_grids(&vdb)?
+                        .into_iter()
+                        .map(|g| UsdField {
+                            density: g.name == "density",
+                            vector: g.tree_type.contains("vec3"),
+                            name: g.name,
+                        })
+                        .collect();
+                }
+                stage_frames.push((number, vdb, project));
+            }
+            if !args.json {
+                bar.suspend(|| eprintln!("frame {}: complete, skipped", number.unwrap_or(0)));
+            }
+            let mut summary = serde_json::Map::new();
+            summary.insert("frame".into(), serde_json::json!(number));
+            summary.insert("skipped".into(), serde_json::json!(true));
+            summaries.push(summary);
+            continue;
+        }
+        if args.resume {
+            plan.files().iter().for_each(|f| remove_leftovers(f));
+        }
         bar.frame(k, frames.len(), number);
         let report = session.bake(&project, &mut |p| bar.pipeline(p))?;
         // Every file goes beside its target first and replaces it only once all of the frame's are written.
@@ -286,6 +320,11 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         };
         check()?;
         staged.commit()?;
+        if args.resume {
+            for file in plan.files() {
+                write_sidecar(&file).map_err(|e| format!("{}: writing its checksum: {e}", file.display()))?;
+            }
+        }
         // A sequence says what each frame wrote as it goes.
         let mut file_notes = Vec::new();
         let mut summary = summarize(&written, &project, frame, bake_summary, &mut file_notes);
@@ -332,6 +371,9 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         staged.write(usd, |p| write_usd_sequence(p, &stage, fps.unwrap_or(24.0), &opts))?;
         check()?;
         staged.commit()?;
+        if args.resume {
+            write_sidecar(usd).map_err(|e| format!("{}: writing its checksum: {e}", usd.display()))?;
+        }
         out.insert(
             "usd".into(),
             serde_json::json!({"path": usd, "frames": set.len(), "fields": opts.fields.len(), "frame": frame.to_string()}),

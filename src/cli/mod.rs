@@ -1,5 +1,5 @@
-//! Command-line interface: the editor (no subcommand), headless rendering, export,
-//! verification and adapter information.
+//! Command-line interface: the editor (no subcommand), headless rendering, export, render-farm
+//! jobs, verification and adapter information.
 
 use crate::export::sequence::{FramePattern, FrameSet};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
@@ -10,6 +10,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 mod export;
+mod farm;
 pub mod progress;
 mod stress;
 mod verify;
@@ -123,6 +124,12 @@ enum Command {
         /// No progress bar on stderr (bars appear only when stderr is a terminal).
         #[arg(long)]
         quiet: bool,
+    },
+    /// Split a sequence into tasks for a render farm: an Open Job Description bundle or a
+    /// Slurm job array, and the state of a job's frames.
+    Farm {
+        #[command(subcommand)]
+        command: farm::FarmCommand,
     },
     /// Print the GPU adapter Fogsmith would use, its limits and memory, and with a project
     /// the GPU memory its baked resources use.
@@ -339,6 +346,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         }
         Some(Command::Render { bake, output, json }) => render(&bake, &output, json),
         Some(Command::Export(args)) => export::run(args),
+        Some(Command::Farm { command }) => farm::run(command),
         Some(Command::Stress { quick, json, quiet }) => stress::run(quick, json, quiet),
         Some(Command::Bench { quick, out, suite, resolution, scene, scheme, frame, json, quiet }) => {
             if let Some(bad) = resolution.iter().find(|&&r| r == 0 || r > 1024) {

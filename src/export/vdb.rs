@@ -441,7 +441,9 @@ fn encode_vdb_with_progress(
     put_u32(&mut out, 10);
     put_u32(&mut out, 0);
     out.push(1); // grid offsets follow each descriptor
-    out.extend_from_slice(make_uuid().as_bytes());
+    let uuid_at = out.len();
+    // Filled in from the content once the file is encoded.
+    out.extend_from_slice(&[b'0'; 36]);
     // File-level metadata, sorted by name.
     let mut file_meta: BTreeMap<&str, MetaValue> = frame_metadata(opts).into_iter().collect();
     file_meta.insert("creator", MetaValue::String("fogsmith".into()));
@@ -466,6 +468,8 @@ fn encode_vdb_with_progress(
         stats.grids.push(s);
     }
     stats.bytes = out.len() as u64;
+    let uuid = content_uuid(&out[uuid_at + 36..]);
+    out[uuid_at..uuid_at + 36].copy_from_slice(uuid.as_bytes());
     Ok((out, stats))
 }
 
@@ -854,26 +858,13 @@ fn put_meta(out: &mut Vec<u8>, name: &str, v: &MetaValue) {
     out.extend_from_slice(&b);
 }
 
-/// A random-looking version-4 UUID from the clock, the process id and a counter (the file's
-/// identity for caches; it need not be cryptographically random).
-fn make_uuid() -> String {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let nanos =
-        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
-    let mut x = nanos
-        ^ (std::process::id() as u64).rotate_left(32)
-        ^ COUNTER.fetch_add(1, Ordering::Relaxed).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    let mut next = || {
-        // splitmix64
-        x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = x;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
-    let a = next();
-    let b = next();
+/// A version-4-shaped UUID derived from the file's bytes after it (FNV-1a, two seeds): the
+/// file's identity for OpenVDB's caches, which changes with its content, while the same grids
+/// give the same file bit for bit (a farm task's frame equals a local export's).
+fn content_uuid(content: &[u8]) -> String {
+    let fnv = |seed: u64| content.iter().fold(seed, |h, &b| (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01B3));
+    let a = fnv(0xCBF2_9CE4_8422_2325);
+    let b = fnv(0x9E37_79B9_7F4A_7C15);
     let b = (b & 0x3FFF_FFFF_FFFF_FFFF) | 0x8000_0000_0000_0000;
     let a = (a & 0xFFFF_FFFF_FFFF_0FFF) | 0x0000_0000_0000_4000;
     format!(
@@ -902,11 +893,12 @@ mod tests {
     }
 
     #[test]
-    fn uuid_looks_like_a_uuid_and_differs() {
-        let a = make_uuid();
-        let b = make_uuid();
+    fn uuid_looks_like_a_uuid_and_follows_the_content() {
+        let a = content_uuid(b"grids");
+        let b = content_uuid(b"grids!");
         assert_eq!(a.len(), 36);
         assert_ne!(a, b);
+        assert_eq!(a, content_uuid(b"grids"));
         assert_eq!(a.as_bytes()[14], b'4');
     }
 

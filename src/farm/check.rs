@@ -1,0 +1,127 @@
+//! Whether an output file is complete: its checksum sidecar (`NAME.crc32`, written after the
+//! file is in place) when there is one, else the file read back by its own format.
+//!
+//! A farm task reruns after a failure or preemption; it must skip exactly the frames whose
+//! files are whole. Exports already move files into place only once written, so a killed task
+//! leaves no half-written target, but a file can still be truncated later (a full disk, a
+//! copy cut short), and the sidecar catches that without parsing the file.
+
+use std::path::{Path, PathBuf};
+
+/// What is found at an output path.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FileState {
+    Done,
+    Missing,
+    /// The file is there but truncated or unreadable; the reason says which.
+    Damaged(String),
+}
+
+/// The sidecar of `path`: `fog.0001.vdb` → `fog.0001.vdb.crc32`.
+pub fn sidecar(path: &Path) -> PathBuf {
+    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+    name.push(".crc32");
+    path.with_file_name(name)
+}
+
+fn sidecar_text(bytes: &[u8]) -> String {
+    format!("crc32 {:08x} bytes {}\n", crc32fast::hash(bytes), bytes.len())
+}
+
+/// Writes the sidecar of `path` from the file as it is now (through a temporary file, so a
+/// sidecar is never half written).
+pub fn write_sidecar(path: &Path) -> std::io::Result<()> {
+    let bytes = std::fs::read(path)?;
+    let target = sidecar(path);
+    let temp = target.with_extension("crc32.partial");
+    std::fs::write(&temp, sidecar_text(&bytes))?;
+    std::fs::rename(&temp, &target)
+}
+
+/// Removes the temporaries a killed export left beside `target` (staged copies and
+/// half-written sidecars), before the frame is written again.
+pub fn remove_leftovers(target: &Path) {
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let (Some(stem), Some(name)) = (target.file_stem(), target.file_name()) else { return };
+    let staged = format!(".{}.fogsmith-partial", stem.to_string_lossy());
+    let sidecar = format!("{}.crc32.partial", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let n = entry.file_name().to_string_lossy().into_owned();
+        if n.starts_with(&staged) || n.starts_with(&sidecar) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// The state of the file at `path`.
+pub fn file_state(path: &Path) -> FileState {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return FileState::Missing,
+        Err(e) => return FileState::Damaged(format!("cannot be read: {e}")),
+    };
+    if let Ok(expected) = std::fs::read_to_string(sidecar(path)) {
+        let size = expected.split_whitespace().nth(3).and_then(|s| s.parse::<usize>().ok());
+        return if sidecar_text(&bytes) == expected {
+            FileState::Done
+        } else if size.is_some_and(|n| bytes.len() < n) {
+            FileState::Damaged(format!("truncated: {} of {} bytes", bytes.len(), size.unwrap_or(0)))
+        } else {
+            FileState::Damaged(format!("its checksum differs from {}", sidecar(path).display()))
+        };
+    }
+    match read_back(path, &bytes) {
+        Ok(()) => FileState::Done,
+        Err(e) => FileState::Damaged(format!("does not read back: {e}")),
+    }
+}
+
+/// Parses the file by its extension: every grid of a VDB, every layer of an EXR, a PNG's
+/// pixels, a USD stage's text.
+fn read_back(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    if bytes.is_empty() {
+        return Err("the file is empty".into());
+    }
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("vdb") => {
+            let grids = crate::export::vdb_read::list_vdb_grids(path).map_err(|e| e.to_string())?;
+            for g in &grids {
+                crate::export::vdb_read::read_vdb_grid_from_bytes(path, bytes, Some(&g.name))
+                    .map_err(|e| e.to_string())?;
+            }
+            Ok(())
+        }
+        Some("exr") => exr::prelude::read_all_data_from_file(path).map(drop).map_err(|e| e.to_string()),
+        Some("png") => image::load_from_memory(bytes).map(drop).map_err(|e| e.to_string()),
+        Some("usda") => match std::str::from_utf8(bytes) {
+            Ok(text) if text.starts_with("#usda") && text.matches('{').count() == text.matches('}').count() => Ok(()),
+            _ => Err("not a complete USD text stage".into()),
+        },
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sidecar_tells_a_whole_file_from_a_truncated_or_altered_one() {
+        let dir = std::env::temp_dir().join(format!("fogsmith-check-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.bin");
+        assert_eq!(file_state(&path), FileState::Missing);
+        std::fs::write(&path, b"0123456789").unwrap();
+        write_sidecar(&path).unwrap();
+        assert_eq!(file_state(&path), FileState::Done);
+        std::fs::write(&path, b"01234").unwrap();
+        assert_eq!(file_state(&path), FileState::Damaged("truncated: 5 of 10 bytes".into()));
+        std::fs::write(&path, b"0123456780").unwrap();
+        assert!(matches!(file_state(&path), FileState::Damaged(m) if m.contains("checksum differs")));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
