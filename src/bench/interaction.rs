@@ -1,6 +1,8 @@
 //! `bench --suite interaction`: the editor as an artist meets it. Drives the real editor
 //! (egui_kittest on the real pipeline and device, every frame painted) with scripted input on
-//! every demo (or those `--scene` names), timed by the wall clock:
+//! every demo and a scene of 10⁵ small particles, `large` (or those `--scene` names), timed
+//! by the wall clock:
+//! - 2 s without input, once the preview has converged (idle frames);
 //! - a 40-dab paint stroke over 2 s;
 //! - a 1 s drag of a light (Select tool);
 //! - 5 wheel steps of the Scale tool on a selection;
@@ -225,9 +227,16 @@ fn percentiles(v: &[f64]) -> [f64; 4] {
     [at(0.5), at(0.95), at(0.99), s[s.len() - 1]]
 }
 
-/// Runs the script on demo `scene` with the preview in `quality`.
+/// The scene name of 10⁵ small particles (`scale`'s scene on a 64³ grid, 2 lights).
+pub const LARGE_SCENE: &str = "large";
+
+/// Runs the script on demo `scene` (or [`LARGE_SCENE`]) with the preview in `quality`.
 pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
-    let project = crate::demos::demo(scene)?;
+    let project = if scene == LARGE_SCENE {
+        super::scale::small_particle_scene(100_000, 2, 64)
+    } else {
+        crate::demos::demo(scene)?
+    };
     let start = StartProject { project, path: None, name: format!("{scene}.ron"), error: None };
     let h = Harness::builder()
         // The window size whose viewport is about 840×455 points in the default layout.
@@ -260,6 +269,14 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
     let mut records = Vec::new();
     let centre = rect.center();
     let across = |t: f32| centre + Vec2::new((t - 0.5) * rect.width() * 0.5, (t - 0.5) * rect.height() * 0.15);
+
+    // Idle: frames with nothing to do but show the converged image.
+    d.begin();
+    let idle = Instant::now();
+    while idle.elapsed() < Duration::from_secs(2) {
+        d.frame(None)?;
+    }
+    records.push(d.record("idle", quality, log)?);
 
     // A paint stroke: 40 dabs over 2 s.
     d.h.state_mut().set_tool(Tool::Paint);

@@ -3,7 +3,7 @@
 
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::output::write_image;
-use crate::scene::{load_project, Project, Scheme};
+use crate::scene::{load_project_with, Project, Scheme};
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -165,7 +165,9 @@ pub struct Baked {
 
 /// Loads the project (and its VDB base layer), opens the GPU and runs the whole pipeline.
 pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
-    let mut project = load_project(&args.project)?;
+    let mut bar = progress::Bar::new(args.quiet);
+    let mut project =
+        load_project_with(&args.project, &mut |step, fraction| bar.stage(&format!("load: {step}"), fraction))?;
     if let Some(refine) = args.sweep_refine {
         project.propagation.sweep_refine = refine;
     }
@@ -200,7 +202,6 @@ pub fn bake(args: &BakeArgs) -> Result<Baked, Box<dyn std::error::Error>> {
     pipeline.check_limits(&project, request.width, request.height)?;
     let layer = crate::export::load_base_layer(&project, Some(&args.project))?;
     pipeline.set_base_layer(layer);
-    let mut bar = progress::Bar::new(args.quiet);
     let report = match pipeline
         .update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p))
     {

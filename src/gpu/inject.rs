@@ -212,6 +212,18 @@ impl Injector {
         }
     }
 
+    /// Fewest bricks worth one call: the alignment on the adapter; on the host a layer of
+    /// bricks, since each host call walks the particles of its bricks' layers and a margin of
+    /// layers around them (see `host_sums`), which many small calls would walk again and again.
+    pub fn min_bricks(ctx: &GpuContext, job: &InjectJob, grid: &GridSpec) -> usize {
+        if job.host() {
+            let dims = binning::brick_dims(grid);
+            (dims.x * dims.y) as usize
+        } else {
+            Self::chunk_align(ctx, job)
+        }
+    }
+
     /// Particle evaluations plus cells of the next `count` bricks: the unit of their cost.
     pub fn units(job: &InjectJob, _grid: &GridSpec, count: usize) -> u64 {
         let end = (job.next + count).min(job.bricks.len());
