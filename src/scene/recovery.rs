@@ -242,9 +242,12 @@ mod tests {
     #[test]
     fn many_particles_recover_through_a_sidecar() {
         let dir = tempfile::tempdir().unwrap();
-        let mut p = Project::default();
-        p.particles =
-            (0..SIDECAR_MIN_PARTICLES).map(|i| Particle::new(Vec3::splat(i as f32 * 1e-4), 0.5, 2.0)).collect();
+        let mut p = Project {
+            particles: (0..SIDECAR_MIN_PARTICLES)
+                .map(|i| Particle::new(Vec3::splat(i as f32 * 1e-4), 0.5, 2.0))
+                .collect(),
+            ..Project::default()
+        };
         p.ensure_unique_ids();
         let path = recovery_path(dir.path(), None);
         write_recovery(&path, None, &p).unwrap();

@@ -112,7 +112,7 @@ pub fn decode(bytes: &[u8], expected: &ParticleFile) -> Result<Vec<Particle>, St
     }
     let names_bytes = u64_at(bytes, 24);
     let want = (HEADER as u64)
-        .checked_add(count.checked_mul(RECORD as u64).unwrap_or(u64::MAX))
+        .checked_add(count.saturating_mul(RECORD as u64))
         .and_then(|n| n.checked_add(names_bytes))
         .unwrap_or(u64::MAX);
     if bytes.len() as u64 != want {
