@@ -236,11 +236,7 @@ pub const LARGE_SCENE: &str = "large";
 /// Runs the script on demo `scene` (or [`LARGE_SCENE`]) with the preview in `quality`.
 pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
     let large = scene == LARGE_SCENE;
-    let project = if large {
-        super::scale::small_particle_scene(100_000, 2, 64)
-    } else {
-        crate::demos::demo(scene)?
-    };
+    let project = if large { super::scale::small_particle_scene(100_000, 2, 64) } else { crate::demos::demo(scene)? };
     let start = StartProject { project, path: None, name: format!("{scene}.ron"), error: None };
     let h = Harness::builder()
         // The window size whose viewport is about 840×455 points in the default layout.

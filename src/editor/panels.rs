@@ -198,7 +198,9 @@ fn drag_vec3(ui: &mut Ui, value: Vec3, speed: f64, unit: &str, tip: &str) -> Opt
     ui.horizontal(|ui| {
         for (axis, label) in ["x", "y", "z"].iter().enumerate() {
             ui.label(*label);
-            if let Some((v, id)) = drag(ui, value[axis], speed, f32::MIN..=f32::MAX, unit, tip) {
+            // Within the coordinates a project may hold: an edit is valid as it enters.
+            let limit = crate::scene::MAX_COORDINATE;
+            if let Some((v, id)) = drag(ui, value[axis], speed, -limit..=limit, unit, tip) {
                 let mut w = value;
                 w[axis] = v;
                 out = Some((w, id));

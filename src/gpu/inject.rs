@@ -212,13 +212,12 @@ impl Injector {
         }
     }
 
-    /// Fewest bricks worth one call: the alignment on the adapter; on the host a layer of
-    /// bricks, since each host call walks the particles of its bricks' layers and a margin of
-    /// layers around them (see `host_sums`), which many small calls would walk again and again.
+    /// Fewest bricks worth one call: the alignment on the adapter; on the host a row of
+    /// bricks, since each host call walks the particles within a margin of bricks around its
+    /// own (see `host_sums`), which calls of a brick or two would walk again and again.
     pub fn min_bricks(ctx: &GpuContext, job: &InjectJob, grid: &GridSpec) -> usize {
         if job.host() {
-            let dims = binning::brick_dims(grid);
-            (dims.x * dims.y) as usize
+            binning::brick_dims(grid).x as usize
         } else {
             Self::chunk_align(ctx, job)
         }
