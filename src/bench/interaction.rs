@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 /// Longest wait for the preview to converge after an interaction (four times this on the
 /// large scene, whose march steps finely through the whole box).
-const CONVERGE_LIMIT: Duration = Duration::from_secs(30);
+const CONVERGE_LIMIT: Duration = Duration::from_secs(60);
 
 struct Driver {
     h: Harness<'static, EditorApp>,
