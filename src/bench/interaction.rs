@@ -1,6 +1,8 @@
 //! `bench --suite interaction`: the editor as an artist meets it. Drives the real editor
 //! (egui_kittest on the real pipeline and device, every frame painted) with scripted input on
-//! every demo (or those `--scene` names), timed by the wall clock:
+//! every demo and a scene of 10⁵ small particles, `large` (or those `--scene` names), timed
+//! by the wall clock:
+//! - 2 s without input, once the preview has converged (idle frames);
 //! - a 40-dab paint stroke over 2 s;
 //! - a 1 s drag of a light (Select tool);
 //! - 5 wheel steps of the Scale tool on a selection;
@@ -25,8 +27,9 @@ use egui_kittest::Harness;
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
-/// Longest wait for the preview to converge after an interaction.
-const CONVERGE_LIMIT: Duration = Duration::from_secs(30);
+/// Longest wait for the preview to converge after an interaction (four times this on the
+/// large scene, whose march steps finely through the whole box).
+const CONVERGE_LIMIT: Duration = Duration::from_secs(60);
 
 struct Driver {
     h: Harness<'static, EditorApp>,
@@ -42,6 +45,7 @@ struct Driver {
     settle_frames: Vec<f64>,
     settle_pipeline: Vec<f64>,
     scene: String,
+    converge_limit: Duration,
 }
 
 impl Driver {
@@ -83,10 +87,10 @@ impl Driver {
         let (frames, pipeline) = (self.frames.len(), self.pipeline.len());
         let start = Instant::now();
         while !self.converged() {
-            if start.elapsed() > CONVERGE_LIMIT {
+            if start.elapsed() > self.converge_limit {
                 return Err(BenchError::Editor(format!(
                     "the preview did not converge within {} s",
-                    CONVERGE_LIMIT.as_secs()
+                    self.converge_limit.as_secs()
                 )));
             }
             self.frame(None)?;
@@ -228,9 +232,14 @@ fn percentiles(v: &[f64]) -> [f64; 4] {
     [at(0.5), at(0.95), at(0.99), s[s.len() - 1]]
 }
 
-/// Runs the script on demo `scene` with the preview in `quality`.
+/// The scene name of 10⁵ small particles (`scale`'s scene on a 64³ grid, 2 lights), run
+/// with the preview at ¼ of the viewport's pixels.
+pub const LARGE_SCENE: &str = "large";
+
+/// Runs the script on demo `scene` (or [`LARGE_SCENE`]) with the preview in `quality`.
 pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
-    let project = crate::demos::demo(scene)?;
+    let large = scene == LARGE_SCENE;
+    let project = if large { super::scale::small_particle_scene(100_000, 2, 64) } else { crate::demos::demo(scene)? };
     let start = StartProject { project, path: None, name: format!("{scene}.ron"), error: None };
     let h = Harness::builder()
         // The window size whose viewport is about 840×455 points in the default layout.
@@ -239,6 +248,9 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         .build_eframe(move |cc| {
             let mut app = EditorApp::new(cc, start, EditorOptions::default());
             app.set_quality(quality);
+            if large {
+                app.set_preview_scale(crate::editor::app::PreviewScale::Quarter);
+            }
             app
         });
     let mut d = Driver {
@@ -250,6 +262,7 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         settle_frames: Vec::new(),
         settle_pipeline: Vec::new(),
         scene: scene.to_owned(),
+        converge_limit: if large { CONVERGE_LIMIT * 4 } else { CONVERGE_LIMIT },
     };
     // The Timeline is driven by its commands here; closed, it leaves the viewport the size of
     // the earlier records.
@@ -266,6 +279,14 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
     let mut records = Vec::new();
     let centre = rect.center();
     let across = |t: f32| centre + Vec2::new((t - 0.5) * rect.width() * 0.5, (t - 0.5) * rect.height() * 0.15);
+
+    // Idle: frames with nothing to do but show the converged image.
+    d.begin();
+    let idle = Instant::now();
+    while idle.elapsed() < Duration::from_secs(2) {
+        d.frame(None)?;
+    }
+    records.push(d.record("idle", quality, log)?);
 
     // A paint stroke: 40 dabs over 2 s.
     d.h.state_mut().set_tool(Tool::Paint);

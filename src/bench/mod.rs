@@ -151,12 +151,18 @@ fn run_suite(
             // Blocking (every frame renders to convergence) is the editor before the frame budget.
             let modes = if ctx.quick { vec![Quality::Balanced] } else { vec![Quality::Balanced, Quality::Full] };
             let scenes: Vec<String> = if ctx.scenes.is_empty() {
-                crate::demos::DEMOS.iter().map(|(name, _)| name.to_string()).collect()
+                crate::demos::DEMOS
+                    .iter()
+                    .map(|(name, _)| name.to_string())
+                    .chain([interaction::LARGE_SCENE.into()])
+                    .collect()
             } else {
                 ctx.scenes.clone()
             };
             for scene in &scenes {
-                for &quality in &modes {
+                // The large scene in the budgeted preview only: blocking frames there take seconds.
+                let large = scene == interaction::LARGE_SCENE;
+                for &quality in modes.iter().filter(|&&q| !large || q == Quality::Balanced) {
                     out.extend(interaction::run(scene, quality, log)?);
                 }
             }

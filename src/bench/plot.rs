@@ -222,6 +222,23 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
                     |r| (num(r, "lights"), stage(r, "propagate")),
                 ),
             )?;
+            let mut files: Series = Vec::new();
+            for (key, label) in [
+                ("write_s", "write"),
+                ("load_s", "load"),
+                ("render_s", "render as the CLI does"),
+                ("stage_s", "stage times of that render"),
+                ("save_s", "save"),
+                ("ron_write_s", "all in RON: write"),
+                ("ron_parse_s", "all in RON: parse"),
+            ] {
+                files.extend(group(
+                    records,
+                    |r| is(r, "files").then(|| label.to_string()),
+                    |r| (num(r, "particles"), num(r, key)),
+                ));
+            }
+            loglog(&dir.join("scale_files.png"), "Through files: 128³ grid, 2 lights", "particles", "seconds", &files)?;
             let mut mem = group(
                 records,
                 |r| is(r, "grid").then(|| "GPU resources, peak".to_string()),

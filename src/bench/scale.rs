@@ -2,7 +2,10 @@
 //! up to the sizes one storage binding used to refuse (a million small particles, 256³
 //! grids with many lights). Each case bakes from scratch and records the stage times, the
 //! GPU memory the pipeline's resources reached and the process's peak resident memory, then
-//! fits the growth exponents by least squares on log–log axes.
+//! fits the growth exponents by least squares on log–log axes. The file cases time what a
+//! user's path adds around the bake: writing, loading, rendering as `fogsmith render` does
+//! (sliced for its progress bar) and saving a project of 10⁴ to 10⁶ particles, with the
+//! plain RON text of the same project for comparison.
 
 use super::suites::{loglog_slope, Context};
 use super::BenchError;
@@ -101,7 +104,87 @@ fn mib(v: &Value, key: &str) -> f64 {
     v[key].as_f64().unwrap_or(f64::NAN) / (1u64 << 20) as f64
 }
 
+/// Seconds since `t`.
+fn secs(t: std::time::Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+/// The total size in bytes of the project file at `path` and its particle sidecars.
+fn project_bytes(path: &std::path::Path) -> u64 {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = path.parent().map(std::fs::read_dir);
+    let sidecars: u64 = dir
+        .and_then(Result::ok)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| crate::scene::sidecar::is_sidecar_of(&name, &e.file_name().to_string_lossy()))
+        .filter_map(|e| e.metadata().ok().map(|m| m.len()))
+        .sum();
+    std::fs::metadata(path).map_or(0, |m| m.len()) + sidecars
+}
+
+/// The file cases (see the module doc), on a 128³ grid with 2 lights like a user's scene.
+fn files(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+    use crate::scene::{load_project, parse_project, save_project};
+    let counts: &[usize] = if ctx.quick { &[10_000, 100_000] } else { &[10_000, 100_000, 1_000_000] };
+    let dir = std::env::temp_dir().join(format!("fogsmith-scale-files-{}", std::process::id()));
+    let write_err = |e: std::io::Error| BenchError::Write { path: dir.clone(), message: e.to_string() };
+    std::fs::create_dir_all(&dir).map_err(write_err)?;
+    let (w, h) = (96, 54);
+    for &n in counts {
+        let mut p = small_particle_scene(n, 2, 128);
+        p.ensure_unique_ids();
+        let path = dir.join(format!("scale-{n}.ron"));
+        // The whole project as RON text, as files held it before particle sidecars.
+        let t = std::time::Instant::now();
+        let text = crate::scene::io::to_ron_string(&p)?;
+        let ron_write = secs(t);
+        let t = std::time::Instant::now();
+        let parsed = parse_project(&text, &path)?;
+        let ron_parse = secs(t);
+        drop(parsed);
+        let t = std::time::Instant::now();
+        save_project(&path, &p)?;
+        let write = secs(t);
+        let bytes = project_bytes(&path);
+        let t = std::time::Instant::now();
+        let loaded = load_project(&path)?;
+        let load = secs(t);
+        // As `fogsmith render`: load, a fresh pipeline, the bake in 100 ms slices, readback.
+        let t = std::time::Instant::now();
+        let project = load_project(&path)?;
+        let mut gpu = crate::gpu::FogPipeline::new(ctx.gpu.context().clone());
+        let on_host = gpu.inject_on_host(&project);
+        let request =
+            crate::gpu::FrameRequest { width: w, height: h, ..crate::gpu::FrameRequest::for_project(&project) };
+        let r = gpu.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |_| true)?;
+        gpu.read_image()?;
+        let render = secs(t);
+        let stages = (r.timings_ms.inject + r.timings_ms.propagate + r.timings_ms.march) / 1e3;
+        let t = std::time::Instant::now();
+        save_project(&path, &loaded)?;
+        let save = secs(t);
+        log(&format!(
+            "scale files {n:>8} particles  write {write:.2} s  load {load:.2} s  render {render:.2} s (stages {stages:.2} s, {:.2}×)  save {save:.2} s  ({:.1} MB)  RON alone: write {ron_write:.2} s, parse {ron_parse:.2} s ({:.1} MB)",
+            render / stages.max(1e-9),
+            bytes as f64 / 1e6,
+            text.len() as f64 / 1e6
+        ));
+        out.push(json!({
+            "suite": "scale", "case": "files", "particles": n, "resolution": 128, "lights": 2,
+            "write_s": write, "load_s": load, "render_s": render, "stage_s": stages, "save_s": save,
+            "stage_ms": {"inject": r.timings_ms.inject, "propagate": r.timings_ms.propagate, "march": r.timings_ms.march},
+            "inject_path": if on_host { "host" } else { "adapter" },
+            "file_bytes": bytes, "ron_bytes": text.len(), "ron_write_s": ron_write, "ron_parse_s": ron_parse,
+        }));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
+
 pub fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+    files(ctx, out, log)?;
     let quick = ctx.quick;
     let (w, h) = (96, 54);
     let fit = |out: &mut Vec<Value>, log: &mut dyn FnMut(&str), case: &str, what: &str, points: &[(f64, f64)]| {

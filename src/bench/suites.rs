@@ -49,10 +49,13 @@ pub struct Context {
 
 impl Context {
     pub fn new(opts: &super::BenchOptions) -> Result<Self, BenchError> {
-        if let Some(bad) = opts.scenes.iter().find(|s| !crate::demos::DEMOS.iter().any(|(name, _)| name == s)) {
-            let known: Vec<&str> = crate::demos::DEMOS.iter().map(|(name, _)| *name).collect();
+        let large = super::interaction::LARGE_SCENE;
+        if let Some(bad) =
+            opts.scenes.iter().find(|s| *s != large && !crate::demos::DEMOS.iter().any(|(name, _)| name == s))
+        {
+            let known: Vec<&str> = crate::demos::DEMOS.iter().map(|(name, _)| *name).chain([large]).collect();
             return Err(BenchError::Option(format!(
-                "--scene {bad}: not a bundled demo; use one of {}",
+                "--scene {bad}: not a bundled demo or `{large}` (10⁵ particles, interaction only); use one of {}",
                 known.join(", ")
             )));
         }

@@ -4,7 +4,7 @@
 use crate::export::sequence::{FramePattern, FrameSet};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
 use crate::output::write_image;
-use crate::scene::{load_project, Project, Scheme};
+use crate::scene::{load_project_with, Project, Scheme};
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -196,7 +196,10 @@ pub struct Session {
 
 /// Opens the GPU and loads the project and its VDB base layer; nothing is baked yet.
 pub fn open(args: &BakeArgs) -> Result<Session, Box<dyn std::error::Error>> {
-    let mut project = load_project(&args.project)?;
+    let mut bar = progress::Bar::new(args.quiet);
+    let mut project =
+        load_project_with(&args.project, &mut |step, fraction| bar.stage(&format!("load: {step}"), fraction))?;
+    bar.finish();
     if let Some(refine) = args.sweep_refine {
         project.propagation.sweep_refine = refine;
     }

@@ -3,7 +3,7 @@
 use crate::gpu::{FogPipeline, FrameRequest, GpuContext};
 use crate::measure::{ev_error_with, image_error, opv_errors_with, sample_cells, EV_REL_THRESHOLD};
 use crate::reference::{render_reference_with, Medium64, RefRenderOptions};
-use crate::scene::{load_project, Scheme};
+use crate::scene::{load_project_with, Scheme};
 use std::path::Path;
 use std::time::Instant;
 
@@ -16,7 +16,8 @@ pub fn run(
     json: bool,
     quiet: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let project = load_project(path)?;
+    let mut bar = super::progress::Bar::new(quiet);
+    let project = load_project_with(path, &mut |step, fraction| bar.stage(&format!("load: {step}"), fraction))?;
     // One frame of an animated project: --frame, else its first.
     let (frames, _) = super::frames(&project, path, frame.map(|f| f.to_string()).as_deref(), "--frame")?;
     let project = super::still(&project, frames[0]);
@@ -37,7 +38,6 @@ pub fn run(
     let layer = crate::export::load_base_layer(&project, Some(path))?;
     let exact = Medium64::for_project(&project, layer.as_ref());
     gpu.set_base_layer(layer);
-    let mut bar = super::progress::Bar::new(quiet);
     let report =
         match gpu.update_with(&project, &request, std::time::Duration::from_millis(100), &mut |p| bar.pipeline(p)) {
             Err(crate::gpu::GpuError::Cancelled) => return Err(super::progress::Cancelled.into()),

@@ -27,6 +27,7 @@ mod export_memory;
 mod file_actions;
 pub mod files;
 pub mod gizmo;
+mod history;
 mod import;
 mod jobs;
 mod layout;

@@ -26,13 +26,54 @@ pub(crate) fn outliner(state: &mut EditorState, ui: &mut Ui) {
         }
     });
     egui::CollapsingHeader::new(format!("Particles ({np})")).default_open(true).show(ui, |ui| {
+        let rows = if np >= FILTER_FROM { particle_filter(state, ui) } else { None };
+        let count = rows.as_ref().map_or(np, |r| r.len());
         let row_h = ui.spacing().interact_size.y;
-        egui::ScrollArea::vertical().auto_shrink([false, false]).show_rows(ui, row_h, np, |ui, range| {
-            for i in range {
-                row(state, ui, Hit::Particle(i));
+        // Only the rows in view are laid out, however many particles there are.
+        egui::ScrollArea::vertical().auto_shrink([false, false]).show_rows(ui, row_h, count, |ui, range| {
+            for k in range {
+                row(state, ui, Hit::Particle(rows.as_ref().map_or(k, |r| r[k])));
             }
         });
     });
+}
+
+/// Particle lists from this long get a filter above them.
+const FILTER_FROM: usize = 1000;
+
+/// The filter row of a long particle list and the particles it keeps (None: no filter).
+/// The matches are kept for the project's state and the text: finding them reads every
+/// particle's label.
+fn particle_filter(state: &EditorState, ui: &mut Ui) -> Option<std::sync::Arc<Vec<usize>>> {
+    type Matches = (super::session::Version, String, std::sync::Arc<Vec<usize>>);
+    let id = ui.id().with("particle-filter");
+    let mut text: String = ui.data_mut(|d| d.get_temp(id)).unwrap_or_default();
+    ui.horizontal(|ui| {
+        ui.label("Filter");
+        ui.text_edit_singleline(&mut text)
+            .on_hover_text("Show only the particles whose label (\"Particle #12\" or its name) contains this text");
+    });
+    ui.data_mut(|d| d.insert_temp(id, text.clone()));
+    let needle = text.trim().to_lowercase();
+    if needle.is_empty() {
+        return None;
+    }
+    let version = state.content_version();
+    let project = state.session.project();
+    let cached: Option<Matches> = ui.data_mut(|d| d.get_temp(id.with("matches")));
+    let rows = match cached.filter(|(v, t, _)| *v == version && *t == needle) {
+        Some((_, _, rows)) => rows,
+        None => {
+            let rows: Vec<usize> = (0..project.particles.len())
+                .filter(|&i| project.particle_label(i).to_lowercase().contains(&needle))
+                .collect();
+            let rows = std::sync::Arc::new(rows);
+            ui.data_mut(|d| d.insert_temp::<Matches>(id.with("matches"), (version, needle, rows.clone())));
+            rows
+        }
+    };
+    ui.label(format!("{} of {} shown", rows.len(), project.particles.len()));
+    Some(rows)
 }
 
 fn item_name(project: &Project, hit: Hit) -> (String, bool) {
@@ -158,7 +199,9 @@ fn drag_vec3(ui: &mut Ui, value: Vec3, speed: f64, unit: &str, tip: &str) -> Opt
     ui.horizontal(|ui| {
         for (axis, label) in ["x", "y", "z"].iter().enumerate() {
             ui.label(*label);
-            if let Some((v, id)) = drag(ui, value[axis], speed, f32::MIN..=f32::MAX, unit, tip) {
+            // Within the coordinates a project may hold: an edit is valid as it enters.
+            let limit = crate::scene::MAX_COORDINATE;
+            if let Some((v, id)) = drag(ui, value[axis], speed, -limit..=limit, unit, tip) {
                 let mut w = value;
                 w[axis] = v;
                 out = Some((w, id));

@@ -13,10 +13,11 @@
 //! are not animated are edited as in a still.
 //!
 //! Nothing here draws or touches the GPU, so every edit the editor can make is testable
-//! without a window. Undo keeps whole-project snapshots: simple, and cheap enough for the
-//! scene sizes the editor targets (a snapshot of 100 000 particles is a few MB; the history
-//! is bounded by step count and by total particles held).
+//! without a window. Undo keeps each step's project without its particles, and the particles
+//! as what the step changed (see `history`), so a step costs what it touched however large
+//! the scene; the history is bounded by step count and by total particles held.
 
+use super::history::Stored;
 use crate::scene::animation::{Animation, Channel, Interp, KeyValue, Object};
 use crate::scene::{Light, Particle, Project};
 use glam::Vec3;
@@ -64,8 +65,12 @@ pub type EditTag = u64;
 /// An edit that starts a new undo step whatever came before.
 pub const NEW_STEP: EditTag = 0;
 
+/// One undo or redo step: `project` holds no particles, `particles` holds them (see
+/// `history`) relative to the neighbouring state (the next newer one for undo steps, the
+/// next older one for redo steps).
 struct Snapshot {
     project: Project,
+    particles: Stored,
     selection: Selection,
     generation: u64,
 }
@@ -172,6 +177,7 @@ impl Session {
             }
         }
         self.open_tag = None;
+        self.compress_top();
     }
 
     /// Whether a coalesced edit (a stroke, a drag) is in progress.
@@ -182,6 +188,19 @@ impl Session {
     /// Ends the current coalesced edit: the next edit starts a new undo step.
     pub fn end_edit(&mut self) {
         self.open_tag = None;
+        self.compress_top();
+    }
+
+    /// Shrinks the last undo step to what it changed, once no edit can extend it.
+    fn compress_top(&mut self) {
+        if let Some(s) = self.undo.last_mut() {
+            s.particles.compress(&self.project.particles);
+        }
+    }
+
+    /// Particles held by the undo and redo steps (a step holds what it changed).
+    pub fn history_particles(&self) -> usize {
+        self.undo.iter().chain(&self.redo).map(|s| s.particles.held()).sum()
     }
 
     /// Mutable access for an edit. A new undo step is recorded unless `tag` continues the
@@ -489,15 +508,17 @@ impl Session {
     }
 
     fn push_undo(&mut self) {
+        self.compress_top();
         self.undo.push(Snapshot {
-            project: self.project.clone(),
+            project: self.project.without_particles(),
+            particles: Stored::Full(self.project.particles.clone()),
             selection: self.selection.clone(),
             generation: self.generation,
         });
         self.redo.clear();
-        let mut total: usize = self.undo.iter().map(|s| s.project.particles.len()).sum();
+        let mut total: usize = self.undo.iter().map(|s| s.particles.held()).sum();
         while self.undo.len() > MAX_UNDO_STEPS || (total > MAX_UNDO_PARTICLES && self.undo.len() > 1) {
-            total -= self.undo.remove(0).project.particles.len();
+            total -= self.undo.remove(0).particles.held();
         }
     }
 
@@ -513,12 +534,18 @@ impl Session {
 
     /// What Undo would take back, named by ids ("Delete Particle #24"); None with nothing to undo.
     pub fn undo_label(&self) -> Option<String> {
-        self.undo.last().map(|s| describe_change(&s.project, &self.project))
+        self.undo.last().map(|s| {
+            let (before, after) = s.particles.sides(&self.project.particles);
+            describe(&s.project, &self.project, &before, &after)
+        })
     }
 
     /// What Redo would bring back.
     pub fn redo_label(&self) -> Option<String> {
-        self.redo.last().map(|s| describe_change(&self.project, &s.project))
+        self.redo.last().map(|s| {
+            let (after, before) = s.particles.sides(&self.project.particles);
+            describe(&self.project, &s.project, &before, &after)
+        })
     }
 
     /// Restores the state before the last edit; the camera stays where the user put it.
@@ -541,6 +568,8 @@ impl Session {
     fn swap_in(&mut self, mut s: Snapshot) -> Snapshot {
         self.open_tag = None;
         s.project.camera = self.project.camera;
+        s.project.particles = std::mem::take(&mut self.project.particles);
+        let particles = s.particles.restore(&mut s.project.particles);
         let project = std::mem::replace(&mut self.project, s.project);
         let selection = std::mem::replace(&mut self.selection, s.selection);
         let generation = std::mem::replace(&mut self.generation, s.generation);
@@ -555,7 +584,7 @@ impl Session {
         if self.project.animation.is_some() {
             self.bump_view_generation();
         }
-        Snapshot { project, selection, generation }
+        Snapshot { project, particles, selection, generation }
     }
 
     fn sanitize_selection(&mut self) {
@@ -724,6 +753,12 @@ impl Session {
 /// An undo step in words, from the objects whose ids appear, disappear or change between
 /// `before` and `after`, and the settings that change.
 pub fn describe_change(before: &Project, after: &Project) -> String {
+    describe(before, after, &before.particles, &after.particles)
+}
+
+/// [`describe_change`] with the particles that differ given apart (the projects' own
+/// particles are not read): those of `before`, then those of `after`.
+fn describe(before: &Project, after: &Project, before_particles: &[Particle], after_particles: &[Particle]) -> String {
     use std::collections::HashMap;
     fn ids_text(kind: &str, ids: &[u32]) -> String {
         let mut ids = ids.to_vec();
@@ -741,7 +776,7 @@ pub fn describe_change(before: &Project, after: &Project) -> String {
         let changed = b.iter().filter(|x| old.get(&id(x)).is_some_and(|o| *o != *x)).map(&id).collect();
         [added, removed, changed]
     }
-    let mut particles = diff(&before.particles, &after.particles, |p| p.id);
+    let mut particles = diff(before_particles, after_particles, |p| p.id);
     let mut lights = diff(&before.lights, &after.lights, |l| l.id);
     let (keys, keyed) = describe_keys(before, after);
     // A keyed value's change is the key's.

@@ -125,7 +125,19 @@ fn viewport_message(painter: &egui::Painter, rect: Rect, text: &str, colour: Col
 
 /// A warning row while particles reach outside the grid box, with "Fit grid to particles".
 fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
-    let crossing = state.session.project().particles_crossing_grid().len();
+    thread_local! {
+        /// The count for one state of the project: counting visits every particle.
+        static CROSSING: std::cell::Cell<Option<(super::session::Version, usize)>> = const { std::cell::Cell::new(None) };
+    }
+    let version = state.content_version();
+    let crossing = match CROSSING.get() {
+        Some((v, n)) if v == version => n,
+        _ => {
+            let n = state.session.project().particles_crossing_grid().len();
+            CROSSING.set(Some((version, n)));
+            n
+        }
+    };
     if crossing == 0 {
         return;
     }
@@ -774,9 +786,14 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
     }
     let outline = Line::new(1.0, Color32::from_rgba_unmultiplied(200, 220, 255, 45));
     let draw_all = state.view.outline_all && project.particles.len() <= MAX_OUTLINES;
-    for (i, p) in project.particles.iter().enumerate() {
-        let selected = state.session.selection.particles.contains(&i);
-        if p.hidden || !(draw_all || selected) {
+    let selection = &state.session.selection.particles;
+    // Without every outline, only the selection is visited, not the whole scene each frame.
+    let shown: Box<dyn Iterator<Item = usize>> =
+        if draw_all { Box::new(0..project.particles.len()) } else { Box::new(selection.iter().copied()) };
+    for i in shown {
+        let Some(p) = project.particles.get(i) else { continue };
+        let selected = !draw_all || selection.contains(&i);
+        if p.hidden {
             continue;
         }
         if let Some((s, z)) = vp.project(p.center) {

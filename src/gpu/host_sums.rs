@@ -114,18 +114,26 @@ impl Setup<'_> {
             lo = lo.min(self.brick(b));
             hi = hi.max(self.brick(b));
         }
-        // Keys are z-major: the particles within `margin` brick layers of these bricks'.
-        let layer = self.dims.x * self.dims.y;
-        let from = lo.z.saturating_sub(ordered.margin) * layer;
-        let to = (hi.z + ordered.margin + 1).min(self.dims.z) * layer;
-        let start = ordered.keys.partition_point(|&k| k < from);
-        let end = ordered.keys.partition_point(|&k| k < to);
+        // Keys are x + y·dx + z·dx·dy: the particles within `margin` bricks of these bricks
+        // on every axis are, row by row, runs of consecutive keys, visited in key order.
+        let m = ordered.margin;
+        let near_lo = lo.saturating_sub(UVec3::splat(m));
+        let near_hi = (hi + m).min(self.dims - 1);
         let cells_lo = lo * BRICK;
         let cells_hi = ((hi + 1) * BRICK).min(self.res) - 1;
         let mut tables = Tables::default();
         let mut evaluated = 0;
-        for p in &ordered.particles[start..end] {
-            evaluated += self.add(p, cells_lo, cells_hi, first, own.len() as u32, &mut tables, out);
+        let mut at = 0;
+        for z in near_lo.z..=near_hi.z {
+            for y in near_lo.y..=near_hi.y {
+                let row = self.dims.x * (y + self.dims.y * z);
+                at += ordered.keys[at..].partition_point(|&k| k < row + near_lo.x);
+                let end = at + ordered.keys[at..].partition_point(|&k| k <= row + near_hi.x);
+                for p in &ordered.particles[at..end] {
+                    evaluated += self.add(p, cells_lo, cells_hi, first, own.len() as u32, &mut tables, out);
+                }
+                at = end;
+            }
         }
         evaluated
     }

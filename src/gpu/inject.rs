@@ -212,6 +212,17 @@ impl Injector {
         }
     }
 
+    /// Fewest bricks worth one call: the alignment on the adapter; on the host a row of
+    /// bricks, since each host call walks the particles within a margin of bricks around its
+    /// own (see `host_sums`), which calls of a brick or two would walk again and again.
+    pub fn min_bricks(ctx: &GpuContext, job: &InjectJob, grid: &GridSpec) -> usize {
+        if job.host() {
+            binning::brick_dims(grid).x as usize
+        } else {
+            Self::chunk_align(ctx, job)
+        }
+    }
+
     /// Particle evaluations plus cells of the next `count` bricks: the unit of their cost.
     pub fn units(job: &InjectJob, _grid: &GridSpec, count: usize) -> u64 {
         let end = (job.next + count).min(job.bricks.len());

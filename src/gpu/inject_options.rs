@@ -15,6 +15,22 @@ use crate::scene::{GridSpec, Project};
 /// (`fogsmith bench --suite scale` measures both on its largest particle cases).
 pub const HOST_MIN_ENTRIES_PER_BRICK: u64 = 8;
 
+/// The smallest box holding the centres of every cell of `bricks` (linear brick indices).
+fn cell_centre_box(grid: &GridSpec, bricks: &[u32]) -> (glam::Vec3, glam::Vec3) {
+    let dims = binning::brick_dims(grid);
+    let (mut lo, mut hi) = (glam::UVec3::MAX, glam::UVec3::ZERO);
+    for &b in bricks {
+        let at = glam::UVec3::new(b % dims.x, (b / dims.x) % dims.y, b / (dims.x * dims.y));
+        lo = lo.min(at * binning::BRICK);
+        hi = hi.max(((at + 1) * binning::BRICK).min(grid.resolution) - 1);
+    }
+    if bricks.is_empty() {
+        return (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
+    }
+    let centre = |c: glam::UVec3| grid.min + (c.as_vec3() + 0.5) * grid.cell_size();
+    (centre(lo), centre(hi))
+}
+
 /// Where injection sums the particles' gaussians into each cell.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InjectPath {
@@ -73,8 +89,19 @@ impl InjectOptions {
             .then(|| BinCounts::new(grid, &project.particles, binning::BRICK, false))
             .filter(|counts| self.host_pays(grid, counts));
         if let Some(counts) = brick_counts {
-            // The host lists nothing.
-            let ordered = host_sums::order(grid, particles, |p| p.cutoff2.sqrt());
+            // The host lists nothing. Only particles that reach the dirty bricks add to them:
+            // a dab orders its neighbourhood, not the scene (in the same relative order, so
+            // every sum is the same bit for bit).
+            let (lo, hi) = cell_centre_box(grid, &bricks);
+            let near: Vec<ParticleGpu> = particles
+                .into_iter()
+                .filter(|p| {
+                    let reach = glam::Vec3::splat(p.cutoff2.sqrt() * 1.001) + grid.cell_size();
+                    let c = glam::Vec3::from_array(p.center);
+                    (c + reach).cmpge(lo).all() && (c - reach).cmple(hi).all()
+                })
+                .collect();
+            let ordered = host_sums::order(grid, near, |p| p.cutoff2.sqrt());
             let job = Injector::begin(grid, Vec::new(), Vec::new(), counts, bricks, max_items, Some(ordered));
             return (job, None);
         }

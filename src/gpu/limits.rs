@@ -211,9 +211,11 @@ impl Capacity<'_> {
         Ok(())
     }
 
-    /// Refuses an invalid project or request, or one the adapter cannot hold.
+    /// Refuses an invalid request, or a project the adapter cannot hold. The particles and
+    /// tracks are trusted: they were validated where they entered (loading, importing,
+    /// editing), and checking them here would scan every particle on every call.
     pub fn check_request(&self, project: &Project, request: &FrameRequest) -> Result<(), GpuError> {
-        project.validate(self.ctx.max_grid_edge()).map_err(|e| GpuError::Invalid(e.to_string()))?;
+        project.validate_settings(self.ctx.max_grid_edge()).map_err(|e| GpuError::Invalid(e.to_string()))?;
         for (name, v) in [("width", request.width), ("height", request.height)] {
             if v == 0 || v > 16384 {
                 return Err(GpuError::Invalid(format!("the frame {name} must be within 1..=16384 pixels, got {v}")));

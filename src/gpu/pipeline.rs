@@ -535,7 +535,7 @@ impl FogPipeline {
         let (Some(g), Some((job, _))) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
         let rate = self.rates[timer::INJECT as usize];
         let budget_units = rate.units_in(left_ms);
-        let mut count = Injector::chunk_align(&self.ctx, job);
+        let mut count = Injector::min_bricks(&self.ctx, job, &g.spec);
         while job.next + count < job.bricks.len() && Injector::units(job, &g.spec, count * 2) <= budget_units {
             count *= 2;
         }

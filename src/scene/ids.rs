@@ -18,7 +18,12 @@ pub struct NextIds {
 }
 
 /// The first of `ids` that occurs twice, as (first index, second index).
-pub(crate) fn first_duplicate(ids: impl Iterator<Item = u32>) -> Option<(usize, usize)> {
+pub(crate) fn first_duplicate(ids: impl Iterator<Item = u32> + Clone) -> Option<(usize, usize)> {
+    // Ids in ascending order, as the editor and version-1 files number them, cannot repeat.
+    let mut last = None;
+    if ids.clone().all(|id| last.replace(id).is_none_or(|l| l < id)) {
+        return None;
+    }
     let mut seen = std::collections::HashMap::new();
     for (i, id) in ids.enumerate() {
         if let Some(&first) = seen.get(&id) {

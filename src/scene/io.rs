@@ -1,10 +1,14 @@
 //! Loading and saving projects as RON.
 //!
-//! Loading reports syntax errors and invalid values with the file, line and column.
+//! Loading reports syntax errors and invalid values with the file, line and column, and
+//! validates the project once: what the pipeline and the editor then hold is trusted.
 //! Saving is atomic: the text goes to a temporary file in the same directory, is flushed
 //! to disk, the previous file is kept as `<name>.bak`, and only then is the temporary file
-//! renamed over the destination, so a crash never leaves a half-written project.
+//! renamed over the destination, so a crash never leaves a half-written project. Projects
+//! with many particles keep them in a binary sidecar (see [`sidecar`](super::sidecar)),
+//! written before the RON that names it.
 
+use super::sidecar::{self, ParticleFile, SIDECAR_MIN_PARTICLES, SIDECAR_PROJECT_VERSION};
 use super::{validate::ValidationError, Project, MAX_RESOLUTION_DEFAULT, PROJECT_VERSION};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -20,18 +24,34 @@ pub enum ProjectError {
     Invalid { path: PathBuf, line: usize, col: usize, error: ValidationError },
     #[error("could not serialise the project: {0}")]
     Serialize(String),
+    /// The particle sidecar a project file names is missing, damaged or invalid.
+    #[error("{path}: {message}")]
+    Sidecar { path: PathBuf, message: String },
 }
 
 /// Reads, parses and validates a project file.
 pub fn load_project(path: &Path) -> Result<Project, ProjectError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Io { path: path.to_owned(), source })?;
-    parse_project(&text, path)
+    load_project_with(path, &mut |_, _| {})
 }
 
-/// Parses and validates project text; `origin` names the source in error messages.
+/// [`load_project`], telling `progress` each step's name and the fraction of the load
+/// done before it.
+pub fn load_project_with(path: &Path, progress: &mut dyn FnMut(&str, f64)) -> Result<Project, ProjectError> {
+    progress("reading", 0.0);
+    let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Io { path: path.to_owned(), source })?;
+    parse_project_with(&text, path, progress)
+}
+
+/// Parses and validates project text; `origin` names the source in error messages, and a
+/// particle sidecar is read from its directory.
 pub fn parse_project(text: &str, origin: &Path) -> Result<Project, ProjectError> {
+    parse_project_with(text, origin, &mut |_, _| {})
+}
+
+fn parse_project_with(text: &str, origin: &Path, progress: &mut dyn FnMut(&str, f64)) -> Result<Project, ProjectError> {
+    progress("parsing", 0.1);
     let options = ron::Options::default();
-    let project: Project = options.from_str(text).map_err(|e| ProjectError::Syntax {
+    let mut project: Project = options.from_str(text).map_err(|e| ProjectError::Syntax {
         path: origin.to_owned(),
         line: e.position.line,
         col: e.position.col,
@@ -41,8 +61,46 @@ pub fn parse_project(text: &str, origin: &Path) -> Result<Project, ProjectError>
         let (line, col) = locate_field(text, &error.field).unwrap_or((1, 1));
         ProjectError::Invalid { path: origin.to_owned(), line, col, error }
     };
-    let project = migrate(project).map_err(invalid)?;
-    project.validate(MAX_RESOLUTION_DEFAULT).map_err(invalid)?;
+    let sidecar = match project.particle_file.take() {
+        Some(file) => {
+            if !project.particles.is_empty() {
+                return Err(invalid(ValidationError {
+                    field: "particle_file".into(),
+                    problem: "the project lists particles and also names a particle file; keep one of them".into(),
+                }));
+            }
+            progress("reading particles", 0.5);
+            let at = origin.parent().unwrap_or(Path::new("")).join(&file.file);
+            let bytes = std::fs::read(&at).map_err(|source| ProjectError::Sidecar {
+                path: at.clone(),
+                message: format!(
+                    "cannot read the particles of {} ({source}); keep this file beside the project, or open the project's .bak",
+                    origin.display()
+                ),
+            })?;
+            project.particles =
+                sidecar::decode(&bytes, &file).map_err(|message| ProjectError::Sidecar { path: at.clone(), message })?;
+            Some(at)
+        }
+        None if project.version == SIDECAR_PROJECT_VERSION => {
+            return Err(invalid(ValidationError {
+                field: "version".into(),
+                problem: format!(
+                    "version {SIDECAR_PROJECT_VERSION} keeps the particles in a file named by particle_file, which is missing; restore that line or load the .bak"
+                ),
+            }))
+        }
+        None => None,
+    };
+    progress("validating", 0.8);
+    let located = |error: ValidationError| match &sidecar {
+        Some(at) if error.field.starts_with("particles[") => {
+            ProjectError::Sidecar { path: at.clone(), message: error.to_string() }
+        }
+        _ => invalid(error),
+    };
+    let project = migrate(project).map_err(located)?;
+    project.validate(MAX_RESOLUTION_DEFAULT).map_err(located)?;
     Ok(project)
 }
 
@@ -73,7 +131,7 @@ fn migrate(mut project: Project) -> Result<Project, ValidationError> {
             }
             project.next_id = super::NextIds { particle: project.particles.len() as u32, light: project.lights.len() as u32 };
         }
-        2 | PROJECT_VERSION => {
+        2 | PROJECT_VERSION | SIDECAR_PROJECT_VERSION => {
             if let Some((a, b)) = super::ids::first_duplicate(project.particles.iter().map(|p| p.id)) {
                 let msg = format!("id {} is already used by particles[{a}]; give every particle its own id", project.particles[b].id);
                 return Err(field(&format!("particles[{b}].id"), msg));
@@ -102,7 +160,9 @@ pub fn to_ron_string(project: &Project) -> Result<String, ProjectError> {
     Ok(format!("Project{body}\n"))
 }
 
-/// Saves atomically, keeping the previous version as `<path>.bak`.
+/// Saves atomically, keeping the previous version as `<path>.bak`. With
+/// [`SIDECAR_MIN_PARTICLES`] particles or more, they go to a sidecar written first; the
+/// sidecars that neither the new file nor the `.bak` name are removed after the rename.
 pub fn save_project(path: &Path, project: &Project) -> Result<(), ProjectError> {
     if project.version != PROJECT_VERSION {
         return Err(ProjectError::Serialize(format!(
@@ -120,8 +180,52 @@ pub fn save_project(path: &Path, project: &Project) -> Result<(), ProjectError> 
         unique.ensure_unique_ids();
         project = &unique;
     }
-    let text = to_ron_string(project)?;
-    write_atomic(path, text.as_bytes(), true).map_err(|source| ProjectError::Io { path: path.to_owned(), source })
+    let io = |at: &Path| {
+        let at = at.to_owned();
+        move |source| ProjectError::Io { path: at, source }
+    };
+    // The sidecar the current file names: it becomes the .bak's.
+    let previous = std::fs::read_to_string(path).ok().and_then(|t| sidecar::named_in(&t));
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    let written = if project.particles.len() >= SIDECAR_MIN_PARTICLES {
+        let (bytes, crc32) = sidecar::encode(&project.particles);
+        let file = sidecar::sidecar_name(path, crc32);
+        write_atomic(&dir.join(&file), &bytes, false).map_err(io(&dir.join(&file)))?;
+        let head = Project {
+            version: SIDECAR_PROJECT_VERSION,
+            particle_file: Some(ParticleFile { file: file.clone(), count: project.particles.len() as u64, crc32 }),
+            ..project.without_particles()
+        };
+        let result = to_ron_string(&head).and_then(|text| write_atomic(path, text.as_bytes(), true).map_err(io(path)));
+        if let Err(e) = result {
+            if previous.as_ref() != Some(&file) {
+                let _ = std::fs::remove_file(dir.join(&file));
+            }
+            return Err(e);
+        }
+        Some(file)
+    } else {
+        let text = to_ron_string(project)?;
+        write_atomic(path, text.as_bytes(), true).map_err(io(path))?;
+        None
+    };
+    remove_stale_sidecars(path, &dir, [written, previous]);
+    Ok(())
+}
+
+/// Removes the sidecars of the project file `path` other than `keep`.
+pub(crate) fn remove_stale_sidecars(path: &Path, dir: &Path, keep: [Option<PathBuf>; 2]) {
+    let Some(name) = path.file_name().map(|n| n.to_string_lossy().into_owned()) else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        if sidecar::is_sidecar_of(&name, &file) && !keep.iter().flatten().any(|k| k.as_os_str() == file.as_str()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 /// Writes `bytes` to `path` through a temporary sibling file and a rename; with `backup`,

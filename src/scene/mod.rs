@@ -13,17 +13,18 @@ mod ids;
 pub mod io;
 mod light_edit;
 pub mod recovery;
+pub mod sidecar;
 mod validate;
 mod volume;
 
 pub use animation::{Animation, Channel, Interp, Key, KeyError, KeyValue, Object, Prop, Track, ValueKind};
 pub use fit::{FitKeep, SUPPORT_FRACTION};
 pub use ids::NextIds;
-pub use io::{load_project, parse_project, save_project, ProjectError};
+pub use io::{load_project, load_project_with, parse_project, save_project, ProjectError};
 pub use light_edit::{LightKindChoice, DEFAULT_SPOT_ANGLE_DEG, DEFAULT_SPOT_BLEND};
 pub use validate::{
-    ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_HEIGHT_FALLOFF, MAX_INTENSITY, MAX_NOISE_AMPLITUDE,
-    MAX_RESOLUTION_DEFAULT,
+    validations_on_this_thread, ValidationError, MAX_COORDINATE, MAX_EXTINCTION, MAX_HEIGHT_FALLOFF, MAX_INTENSITY,
+    MAX_NOISE_AMPLITUDE, MAX_RESOLUTION_DEFAULT,
 };
 pub use volume::{Volume, Volume3};
 
@@ -64,6 +65,10 @@ pub struct Project {
     /// Keyframe tracks, one per animated value (see [`animation`]). Default none.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub tracks: Vec<Track>,
+    /// Where a file's particles are when they are not in its RON (see [`sidecar`]): written
+    /// by saving, consumed by loading, so always None in a loaded project.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub particle_file: Option<sidecar::ParticleFile>,
 }
 
 /// A VDB density grid used as a base layer of the extinction volume.
@@ -97,6 +102,45 @@ impl BaseVolume {
     }
 }
 
+impl Project {
+    /// A copy of everything but the particles, without touching them: what saving writes
+    /// into the RON when the particles go to a sidecar, and what undo keeps per step.
+    pub fn without_particles(&self) -> Project {
+        let Project {
+            version,
+            grid,
+            medium,
+            particles: _,
+            lights,
+            camera,
+            render,
+            propagation,
+            surfaces,
+            base_volume,
+            next_id,
+            animation,
+            tracks,
+            particle_file,
+        } = self;
+        Project {
+            version: *version,
+            grid: *grid,
+            medium: *medium,
+            particles: Vec::new(),
+            lights: lights.clone(),
+            camera: *camera,
+            render: *render,
+            propagation: *propagation,
+            surfaces: surfaces.clone(),
+            base_volume: base_volume.clone(),
+            next_id: *next_id,
+            animation: *animation,
+            tracks: tracks.clone(),
+            particle_file: particle_file.clone(),
+        }
+    }
+}
+
 impl Default for Project {
     fn default() -> Self {
         Self {
@@ -113,6 +157,7 @@ impl Default for Project {
             next_id: NextIds::default(),
             animation: None,
             tracks: Vec::new(),
+            particle_file: None,
         }
     }
 }

@@ -7,9 +7,11 @@
 //! Files live in `$FOGSMITH_STATE_DIR`, else `$XDG_STATE_HOME/fogsmith/recovery`, else
 //! `~/.local/state/fogsmith/recovery`. Each is named after the project it protects (a hash
 //! of its path, or of the process id for an untitled project), so several editors never
-//! overwrite each other's.
+//! overwrite each other's. Many particles go to a sidecar beside the file, as in a saved
+//! project (see [`sidecar`](super::sidecar)).
 
-use super::io::{write_atomic, ProjectError};
+use super::io::{remove_stale_sidecars, write_atomic, ProjectError};
+use super::sidecar::{self, ParticleFile, SIDECAR_MIN_PARTICLES};
 use super::Project;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -55,10 +57,37 @@ pub fn write_recovery(path: &Path, original: Option<&Path>, project: &Project) -
         std::fs::create_dir_all(dir).map_err(io_err)?;
     }
     let saved_unix = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-    let rec = Recovery { original: original.map(Path::to_path_buf), saved_unix, project: project.clone() };
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let (project, written) = if project.particles.len() >= SIDECAR_MIN_PARTICLES {
+        let (bytes, crc32) = sidecar::encode(&project.particles);
+        let file = sidecar::sidecar_name(path, crc32);
+        write_atomic(&dir.join(&file), &bytes, false)
+            .map_err(|source| ProjectError::Io { path: dir.join(&file), source })?;
+        let count = project.particles.len() as u64;
+        let head = Project {
+            particle_file: Some(ParticleFile { file: file.clone(), count, crc32 }),
+            ..project.without_particles()
+        };
+        (head, Some(file))
+    } else {
+        (project.clone(), None)
+    };
+    let rec = Recovery { original: original.map(Path::to_path_buf), saved_unix, project };
     let text = ron::ser::to_string_pretty(&rec, ron::ser::PrettyConfig::new())
         .map_err(|e| ProjectError::Serialize(e.to_string()))?;
-    write_atomic(path, text.as_bytes(), false).map_err(io_err)
+    write_atomic(path, text.as_bytes(), false).map_err(io_err)?;
+    remove_stale_sidecars(path, dir, [written, None]);
+    Ok(())
+}
+
+/// Reads the particles of a recovery file's project from its sidecar, if it names one.
+fn read_particles(path: &Path, rec: &mut Recovery) -> Result<(), ProjectError> {
+    let Some(file) = rec.project.particle_file.take() else { return Ok(()) };
+    let at = path.parent().unwrap_or(Path::new("")).join(&file.file);
+    let bytes = std::fs::read(&at).map_err(|source| ProjectError::Io { path: at.clone(), source })?;
+    rec.project.particles =
+        sidecar::decode(&bytes, &file).map_err(|message| ProjectError::Sidecar { path: at.clone(), message })?;
+    Ok(())
 }
 
 /// Every readable recovery file in `dir` with its path, newest first. Unreadable ones are
@@ -72,12 +101,13 @@ pub fn find_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectErr
         .map(|path| {
             let text =
                 std::fs::read_to_string(&path).map_err(|source| ProjectError::Io { path: path.clone(), source })?;
-            let rec: Recovery = ron::from_str(&text).map_err(|e| ProjectError::Syntax {
+            let mut rec: Recovery = ron::from_str(&text).map_err(|e| ProjectError::Syntax {
                 path: path.clone(),
                 line: e.position.line,
                 col: e.position.col,
                 message: e.code.to_string(),
             })?;
+            read_particles(&path, &mut rec)?;
             Ok((path, rec))
         })
         .collect();
@@ -87,6 +117,7 @@ pub fn find_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectErr
 
 /// Removes a recovery file once its work is saved or deliberately discarded.
 pub fn remove_recovery(path: &Path) -> Result<(), ProjectError> {
+    remove_stale_sidecars(path, path.parent().unwrap_or(Path::new("")), [None, None]);
     match std::fs::remove_file(path) {
         Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
             Err(ProjectError::Io { path: path.to_owned(), source: e })
@@ -207,6 +238,26 @@ mod tests {
     use super::*;
     use crate::scene::Particle;
     use glam::Vec3;
+
+    #[test]
+    fn many_particles_recover_through_a_sidecar() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut p = Project {
+            particles: (0..SIDECAR_MIN_PARTICLES)
+                .map(|i| Particle::new(Vec3::splat(i as f32 * 1e-4), 0.5, 2.0))
+                .collect(),
+            ..Project::default()
+        };
+        p.ensure_unique_ids();
+        let path = recovery_path(dir.path(), None);
+        write_recovery(&path, None, &p).unwrap();
+        p.particles[7].radius = 0.25;
+        write_recovery(&path, None, &p).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "the file and its newest sidecar");
+        assert_eq!(find_recoveries(dir.path())[0].as_ref().unwrap().1.project, p);
+        remove_recovery(&path).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "both go");
+    }
 
     #[test]
     fn write_find_remove() {

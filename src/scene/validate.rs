@@ -22,6 +22,28 @@ pub struct ValidationError {
     pub problem: String,
 }
 
+thread_local! {
+    static VALIDATIONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many full validations ([`Project::validate`]) this thread has run: lets tests check
+/// that a load validates once and that per-frame paths validate nothing.
+pub fn validations_on_this_thread() -> u64 {
+    VALIDATIONS.with(|n| n.get())
+}
+
+/// Whether a particle passes every check of [`Project::validate_particles`].
+fn particle_ok(p: &super::Particle) -> bool {
+    p.center.is_finite()
+        && p.center.abs().max_element() <= MAX_COORDINATE
+        && p.radius.is_finite()
+        && p.radius > 0.0
+        && p.radius <= MAX_COORDINATE
+        && p.density.is_finite()
+        && p.density >= 0.0
+        && p.density <= MAX_EXTINCTION
+}
+
 fn err(field: impl Into<String>, problem: impl Into<String>) -> ValidationError {
     ValidationError { field: field.into(), problem: problem.into() }
 }
@@ -151,8 +173,26 @@ impl GridSpec {
 }
 
 impl Project {
-    /// Checks every field; `max_resolution` is the largest grid edge allowed.
+    /// Checks every field; `max_resolution` is the largest grid edge allowed. Counted by
+    /// [`validations_on_this_thread`].
     pub fn validate(&self, max_resolution: u32) -> Result<(), ValidationError> {
+        VALIDATIONS.with(|n| n.set(n.get() + 1));
+        self.validate_head(max_resolution)?;
+        self.validate_particles()?;
+        self.validate_tail()?;
+        self.validate_animation()
+    }
+
+    /// The checks the pipeline repeats on every call: every field but the particles and the
+    /// animation tracks, which loading, importing and editing validate where they enter.
+    /// Costs a few comparisons per light and surface, nothing next to a frame.
+    pub fn validate_settings(&self, max_resolution: u32) -> Result<(), ValidationError> {
+        self.validate_head(max_resolution)?;
+        self.validate_tail()
+    }
+
+    /// Version, grid and medium.
+    fn validate_head(&self, max_resolution: u32) -> Result<(), ValidationError> {
         if self.version == 0 || self.version > super::PROJECT_VERSION {
             return Err(err(
                 "version",
@@ -215,7 +255,16 @@ impl Project {
             position("medium.noise.velocity", n.velocity)?;
             position("medium.noise.offset", n.offset)?;
         }
+        Ok(())
+    }
+
+    /// Every particle's centre, radius and density. A particle in range costs a few
+    /// comparisons; the field names of the message are built only for the one that fails.
+    pub fn validate_particles(&self) -> Result<(), ValidationError> {
         for (i, p) in self.particles.iter().enumerate() {
+            if particle_ok(p) {
+                continue;
+            }
             position(&format!("particles[{i}].center"), p.center)?;
             finite(&format!("particles[{i}].radius"), p.radius)?;
             if p.radius <= 0.0 {
@@ -229,6 +278,11 @@ impl Project {
             }
             extinction(&format!("particles[{i}].density"), p.density)?;
         }
+        Ok(())
+    }
+
+    /// Lights, camera, render settings, surfaces, base volume and propagation.
+    fn validate_tail(&self) -> Result<(), ValidationError> {
         for (i, l) in self.lights.iter().enumerate() {
             position(&format!("lights[{i}].position"), l.position)?;
             at_least(&format!("lights[{i}].intensity"), l.intensity, 0.0)?;
@@ -344,7 +398,7 @@ impl Project {
                 format!("must be within {:e}..={} (default {default:e}), got {tolerance}", range.start(), range.end()),
             ));
         }
-        self.validate_animation()
+        Ok(())
     }
 
     /// The frame range and the tracks: each on an existing object and a value it has, one
