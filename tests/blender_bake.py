@@ -13,6 +13,7 @@ import json
 import sys
 import time
 
+import blender_common
 import bpy
 import numpy as np
 
@@ -51,46 +52,14 @@ mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
 vol.data.materials.clear()
 vol.data.materials.append(mat)
 
-m = vol.data.grids["density"].matrix_object
-half_voxel = [0.5 * (m[r][0] + m[r][1] + m[r][2]) for r in range(3)]
-vol.location = [vol.location[r] - half_voxel[r] for r in range(3)]
+blender_common.centre_voxels(vol)
 
 scene.camera = [o for o in scene.objects if o.type == "CAMERA"][0]
-world = bpy.data.worlds.new("Black")
-world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-scene.world = world
+blender_common.black_world(scene)
 
-scene.render.engine = "CYCLES"
-c = scene.cycles
-c.device = "CPU"
-c.samples = samples
-c.seed = seed
-c.use_denoising = False
-c.use_adaptive_sampling = False
-c.max_bounces = 1
-c.volume_bounces = 0
-c.diffuse_bounces = 0
-c.glossy_bounces = 0
-c.transmission_bounces = 0
-c.transparent_max_bounces = 8
-c.sample_clamp_direct = 0.0
-c.sample_clamp_indirect = 0.0
-c.pixel_filter_type = "BOX"
-c.filter_width = 1.0
-scene.render.resolution_x = width
-scene.render.resolution_y = height
-scene.render.resolution_percentage = 100
-scene.render.film_transparent = False
-scene.view_settings.view_transform = "Standard"
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_depth = "32"
-scene.render.filepath = out + ".exr"
-
+blender_common.single_scattering(scene, samples, seed, width, height)
 t = time.time()
-bpy.ops.render.render(write_still=True)
+px = blender_common.render_rgb(scene, out, width, height)
 seconds = time.time() - t
-img = bpy.data.images.load(out + ".exr")
-px = np.array(img.pixels[:], dtype=np.float32).reshape(height, width, 4)[::-1, :, :3]
 np.ascontiguousarray(px).tofile(out)
 print(json.dumps({"seconds": seconds, "mean": float(px.mean()), "grids": names}))

@@ -11,12 +11,12 @@
 //! tests/bake.rs bounds).
 
 mod common;
-use common::Rng;
+use common::{root, venv_python, Rng};
 
 use exr::prelude::*;
 use fogsmith::scene::{Camera, GridSpec, Light, LightKind, Medium, Particle, Project};
 use glam::{UVec3, Vec3};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 const W: usize = 64;
@@ -29,21 +29,6 @@ const STRENGTH: f64 = 1.0;
 /// own emission–absorption render of the same bake (`reference::render_emission`) may hold the
 /// renderers' different voxel interpolation and volume sampling: measured 2 % (printed).
 const RMSE_ALLOWANCE: f64 = 0.03;
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn venv_python() -> PathBuf {
-    let py = root().join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", "import bpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    assert!(
-        ok,
-        "this test needs Blender's bpy 4.5 in the project's test venv ({}), which is missing: run ./setup.sh",
-        py.display()
-    );
-    py
-}
 
 /// A cloud of gaussians inside a grid off the origin, a point light and a spot outside it,
 /// a camera from a random side, random albedo and g; no base fog, no surfaces.
@@ -112,7 +97,7 @@ fn read_f32_rgb(path: &Path) -> Vec<[f32; 3]> {
 
 #[test]
 fn cycles_renders_the_bake_like_the_lit_scene() {
-    let py = venv_python();
+    let py = venv_python("bpy");
     fogsmith::cli::ensure_runtime_dir();
     let bin = env!("CARGO_BIN_EXE_fogsmith");
     let tmp = tempfile::tempdir().unwrap();

@@ -10,32 +10,17 @@
 //! interpolation of the voxels.
 
 mod common;
-use common::Rng;
+use common::{root, venv_python, Rng};
 
 use exr::prelude::*;
 use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
 use glam::{UVec3, Vec3};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 const W: usize = 64;
 const H: usize = 48;
 const SAMPLES: u32 = 128;
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn venv_python() -> PathBuf {
-    let py = root().join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", "import bpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    assert!(
-        ok,
-        "this test needs Blender's bpy 4.5 in the project's test venv ({}), which is missing: run ./setup.sh",
-        py.display()
-    );
-    py
-}
 
 /// A cloud of gaussians well inside a grid off the origin, lights outside the cloud, a camera
 /// looking at it from a random side; no base fog and no surfaces (a stage's volume ends at
@@ -133,7 +118,7 @@ fn blocks(img: &[[f32; 3]], r: usize) -> Vec<f64> {
 
 #[test]
 fn cycles_renders_the_exported_scene_like_fogsmith() {
-    let py = venv_python();
+    let py = venv_python("bpy");
     fogsmith::cli::ensure_runtime_dir();
     let bin = env!("CARGO_BIN_EXE_fogsmith");
     let tmp = tempfile::tempdir().unwrap();

@@ -11,6 +11,7 @@ RGB float32, rows top to bottom). The volume is set up as in tests/blender_rende
 import json
 import sys
 
+import blender_common
 import bpy
 import numpy as np
 from pxr import Usd
@@ -46,10 +47,7 @@ vol.data.materials.clear()
 vol.data.materials.append(mat)
 
 scene.frame_set(start)
-vol.data.grids.load()
-m = vol.data.grids["density"].matrix_object
-half_voxel = [0.5 * (m[r][0] + m[r][1] + m[r][2]) for r in range(3)]
-vol.location = [vol.location[r] - half_voxel[r] for r in range(3)]
+blender_common.centre_voxels(vol)
 
 for o in scene.objects:
     if o.type == "LIGHT":
@@ -76,42 +74,14 @@ for f in range(start, end + 1):
             out["lights"].setdefault(o.name, []).append(list(o.matrix_world.translation))
     out["camera"].append(list(scene.camera.matrix_world.translation))
 
-world = bpy.data.worlds.new("Black")
-world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-scene.world = world
-scene.render.engine = "CYCLES"
-c = scene.cycles
-c.device = "CPU"
-c.samples = samples
-c.seed = 1
-c.use_denoising = False
-c.use_adaptive_sampling = False
-c.max_bounces = 1
-c.volume_bounces = 0
-c.diffuse_bounces = 0
-c.glossy_bounces = 0
-c.transmission_bounces = 0
-c.transparent_max_bounces = 8
-c.sample_clamp_direct = 0.0
-c.sample_clamp_indirect = 0.0
-c.pixel_filter_type = "BOX"
-c.filter_width = 1.0
-scene.render.resolution_x = width
-scene.render.resolution_y = height
-scene.render.resolution_percentage = 100
-scene.view_settings.view_transform = "Standard"
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_depth = "32"
+blender_common.black_world(scene)
+blender_common.single_scattering(scene, samples, 1, width, height)
 for f in render_frames:
     scene.frame_set(f)
     vol.data.grids.load()
     out["shown"][str(f)] = bpy.path.abspath(vol.data.grids.frame_filepath)
     path = f"{prefix}{f}"
-    scene.render.filepath = path + ".exr"
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(path + ".exr")
-    px = np.array(img.pixels[:], dtype=np.float32).reshape(height, width, 4)[::-1, :, :3]
+    px = blender_common.render_rgb(scene, path, width, height)
     np.ascontiguousarray(px).tofile(path + ".f32")
     out["renders"][str(f)] = float(px.mean())
 print(json.dumps(out))

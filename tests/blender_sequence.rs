@@ -5,6 +5,9 @@
 //! keyed, and Cycles renders frames 1 and 4 within 5 % in mean of `fogsmith render --frames`
 //! of the same frames.
 
+mod common;
+use common::{root, venv_python};
+
 use fogsmith::scene::animation::{Animation, Channel, Interp, Key, KeyValue, Object, Prop, Track};
 use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
 use glam::{UVec3, Vec3};
@@ -14,21 +17,6 @@ use std::process::Command;
 
 const W: usize = 48;
 const H: usize = 36;
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn venv_python() -> PathBuf {
-    let py = root().join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", "import bpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    assert!(
-        ok,
-        "this test needs Blender's bpy 4.5 in the project's test venv ({}), which is missing: run ./setup.sh",
-        py.display()
-    );
-    py
-}
 
 fn ramp(on: Channel, a: Vec3, b: Vec3) -> Track {
     let key = |frame, v| Key { frame, value: KeyValue::Vec3(v), interp: Interp::Linear };
@@ -99,7 +87,7 @@ fn close(a: &Value, b: [f64; 3], what: &str) {
 
 #[test]
 fn blender_imports_the_animated_stage_and_cycles_matches_each_frame() {
-    let py = venv_python();
+    let py = venv_python("bpy");
     fogsmith::cli::ensure_runtime_dir();
     let bin = env!("CARGO_BIN_EXE_fogsmith");
     let tmp = tempfile::tempdir().unwrap();

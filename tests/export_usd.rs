@@ -3,7 +3,7 @@
 //! test-only venv (./setup.sh); and the `fogsmith export --usd` command end to end.
 
 mod common;
-use common::Rng;
+use common::{root, venv_python, Rng};
 
 use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use fogsmith::export::usd::{asset_path, write_usd, UsdField, UsdOptions, GROUND_HALF_SIZE};
@@ -14,26 +14,6 @@ use glam::{UVec3, Vec3};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The venv's Python, which must import `module`: a missing venv fails the test loudly.
-fn venv_python(module: &str) -> PathBuf {
-    let py = root().join(".venv/bin/python");
-    let ok = Command::new(&py)
-        .args(["-c", &format!("import {module}")])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    assert!(
-        ok,
-        "these tests need `{module}` in the project's test venv ({}), which is missing: run ./setup.sh",
-        py.display()
-    );
-    py
-}
 
 /// Runs a checker script on the stages and returns one JSON object per stage.
 fn run_checker(module: &str, script: &str, stages: &[PathBuf]) -> Vec<Value> {

@@ -4,6 +4,7 @@
 //! error a bad frame list or output path gets.
 
 mod common;
+use common::{root, venv_python};
 
 use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop, Track};
 use fogsmith::scene::{io::save_project, Project};
@@ -14,10 +15,6 @@ use std::process::Command;
 
 fn fogsmith() -> Command {
     Command::new(env!("CARGO_BIN_EXE_fogsmith"))
-}
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
 /// Grid cells per axis: 4³ bricks of injection, so a moved particle touches only some.
@@ -348,9 +345,7 @@ fn animated_usd_stage_and_vdb_sequence_in_usd_and_openvdb() {
     for p in &vdbs {
         assert!(p.exists(), "{} missing: {v}", p.display());
     }
-    let py = root().join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", "import pxr"]).output().map(|o| o.status.success()).unwrap_or(false);
-    assert!(ok, "this test needs usd-core in the project's test venv ({}): run ./setup.sh", py.display());
+    let py = venv_python("pxr");
     let out = Command::new(&py).arg(root().join("tests/usd_sequence_check.py")).arg(&stage).output().unwrap();
     assert!(out.status.success(), "usd_sequence_check.py: {}", String::from_utf8_lossy(&out.stderr));
     let u: Value = serde_json::from_slice(&out.stdout).unwrap();

@@ -75,3 +75,25 @@ impl Rng {
         }
     }
 }
+
+/// The project's root folder.
+pub fn root() -> &'static std::path::Path {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The test venv's Python (./setup.sh), which must import `module`: a missing venv or
+/// module fails the test loudly, naming what is missing and the fix.
+pub fn venv_python(module: &str) -> std::path::PathBuf {
+    let py = root().join(".venv/bin/python");
+    let ok = std::process::Command::new(&py)
+        .args(["-c", &format!("import {module}")])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    assert!(
+        ok,
+        "this test needs `{module}` in the project's test venv ({}), which is missing: run ./setup.sh",
+        py.display()
+    );
+    py
+}
