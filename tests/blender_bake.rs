@@ -11,12 +11,10 @@
 //! tests/bake.rs bounds).
 
 mod common;
-use common::{root, venv_python, Rng};
+use common::{read_exr_rgb, read_f32_rgb, root, run_ok, venv_python, Rng};
 
-use exr::prelude::*;
 use fogsmith::scene::{Camera, GridSpec, Light, LightKind, Medium, Particle, Project};
 use glam::{UVec3, Vec3};
-use std::path::Path;
 use std::process::Command;
 
 const W: usize = 64;
@@ -64,37 +62,6 @@ fn random_scene(seed: u64) -> Project {
     p
 }
 
-fn run(cmd: &mut Command, what: &str) -> String {
-    let out = cmd.output().unwrap_or_else(|e| panic!("{what}: {e}"));
-    assert!(
-        out.status.success(),
-        "{what} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn read_exr_rgb(path: &Path) -> Vec<[f32; 3]> {
-    let image = read_all_flat_layers_from_file(path).unwrap();
-    let layer = &image.layer_data[0];
-    let ch = |name: &str| -> Vec<f32> {
-        let c = layer.channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
-        c.sample_data.values_as_f32().collect()
-    };
-    let (r, g, b) = (ch("R"), ch("G"), ch("B"));
-    (0..W * H).map(|n| [r[n], g[n], b[n]]).collect()
-}
-
-fn read_f32_rgb(path: &Path) -> Vec<[f32; 3]> {
-    let bytes = std::fs::read(path).unwrap();
-    assert_eq!(bytes.len(), W * H * 12, "{}", path.display());
-    bytes
-        .chunks_exact(12)
-        .map(|c| [0, 1, 2].map(|i| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap())))
-        .collect()
-}
-
 #[test]
 fn cycles_renders_the_bake_like_the_lit_scene() {
     let py = venv_python("bpy");
@@ -110,7 +77,7 @@ fn cycles_renders_the_bake_like_the_lit_scene() {
         let usd = dir.join(format!("s{seed}.usda"));
         let exr = dir.join(format!("s{seed}.exr"));
         let ron_s = ron.to_str().unwrap();
-        run(
+        run_ok(
             Command::new(bin).args(["export", ron_s, "--quiet", "--bake-light", "--bake-phase", "camera"]).args([
                 "--preset",
                 "blender",
@@ -123,15 +90,15 @@ fn cycles_renders_the_bake_like_the_lit_scene() {
             ]),
             "fogsmith export",
         );
-        run(
+        run_ok(
             Command::new(bin).args(["render", ron_s, "-o", exr.to_str().unwrap(), "--width", &w, "--height", &h]),
             "fogsmith render",
         );
-        let fog = read_exr_rgb(&exr);
+        let fog = read_exr_rgb(&exr, W, H);
         let mut cycles = Vec::new();
         for s in [1, 2] {
             let out = dir.join(format!("s{seed}_cycles{s}.f32"));
-            let log = run(
+            let log = run_ok(
                 Command::new(&py).arg(root().join("tests/blender_bake.py")).args([
                     usd.to_str().unwrap(),
                     out.to_str().unwrap(),
@@ -144,7 +111,7 @@ fn cycles_renders_the_bake_like_the_lit_scene() {
                 "Cycles render",
             );
             eprintln!("seed {seed} cycles {s}: {}", log.lines().last().unwrap_or(""));
-            cycles.push(read_f32_rgb(&out));
+            cycles.push(read_f32_rgb(&out, W, H));
         }
         let px = |img: &[[f32; 3]], i: usize| img[i].iter().map(|&v| v as f64).sum::<f64>() / 3.0;
         let n = (W * H) as f64;

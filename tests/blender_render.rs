@@ -10,12 +10,10 @@
 //! interpolation of the voxels.
 
 mod common;
-use common::{root, venv_python, Rng};
+use common::{read_exr_rgb, read_f32_rgb, root, run_ok, venv_python, Rng};
 
-use exr::prelude::*;
 use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
 use glam::{UVec3, Vec3};
-use std::path::Path;
 use std::process::Command;
 
 const W: usize = 64;
@@ -60,44 +58,6 @@ fn random_scene(seed: u64) -> Project {
     p
 }
 
-fn run(cmd: &mut Command, what: &str) -> String {
-    let out = cmd.output().unwrap_or_else(|e| panic!("{what}: {e}"));
-    assert!(
-        out.status.success(),
-        "{what} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// Linear RGB of Fogsmith's EXR render, rows top to bottom.
-fn read_exr_rgb(path: &Path) -> Vec<[f32; 3]> {
-    let image = read_all_flat_layers_from_file(path).unwrap();
-    let layer = &image.layer_data[0];
-    assert_eq!((layer.size.0, layer.size.1), (W, H));
-    let ch = |name: &str| -> Vec<f32> {
-        let c = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == name)
-            .unwrap_or_else(|| panic!("no channel {name}"));
-        c.sample_data.values_as_f32().collect()
-    };
-    let (r, g, b) = (ch("R"), ch("G"), ch("B"));
-    (0..W * H).map(|n| [r[n], g[n], b[n]]).collect()
-}
-
-fn read_f32_rgb(path: &Path) -> Vec<[f32; 3]> {
-    let bytes = std::fs::read(path).unwrap();
-    assert_eq!(bytes.len(), W * H * 12, "{}", path.display());
-    bytes
-        .chunks_exact(12)
-        .map(|c| [0, 1, 2].map(|i| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap())))
-        .collect()
-}
-
 /// Luminance-like sum of the channels, box-smoothed over `r`×`r` blocks (noise averages out,
 /// the smooth fog does not).
 fn blocks(img: &[[f32; 3]], r: usize) -> Vec<f64> {
@@ -130,7 +90,7 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
         let usd = dir.join(format!("s{seed}.usda"));
         let exr = dir.join(format!("s{seed}.exr"));
         let (w, h) = (W.to_string(), H.to_string());
-        run(
+        run_ok(
             Command::new(bin).args([
                 "export",
                 ron.to_str().unwrap(),
@@ -145,7 +105,7 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
             ]),
             "fogsmith export",
         );
-        run(
+        run_ok(
             Command::new(bin).args([
                 "render",
                 ron.to_str().unwrap(),
@@ -160,12 +120,12 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
             ]),
             "fogsmith render",
         );
-        let fog = read_exr_rgb(&exr);
+        let fog = read_exr_rgb(&exr, W, H);
         let mut cycles = Vec::new();
         for s in [1, 2] {
             let out = dir.join(format!("s{seed}_cycles{s}.f32"));
             let script = root().join("tests/blender_render.py");
-            let log = run(
+            let log = run_ok(
                 Command::new(&py).arg(script).args([
                     usd.to_str().unwrap(),
                     out.to_str().unwrap(),
@@ -177,7 +137,7 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
                 "Cycles render",
             );
             eprintln!("seed {seed} cycles {s}: {}", log.lines().last().unwrap_or(""));
-            cycles.push(read_f32_rgb(&out));
+            cycles.push(read_f32_rgb(&out, W, H));
         }
         for img in [&fog, &cycles[0], &cycles[1]] {
             assert!(img.iter().flatten().all(|v| v.is_finite() && *v >= 0.0), "seed {seed}: NaN or negative radiance");

@@ -6,7 +6,7 @@
 //! of the same frames.
 
 mod common;
-use common::{root, venv_python};
+use common::{root, run_ok, venv_python};
 
 use fogsmith::scene::animation::{Animation, Channel, Interp, Key, KeyValue, Object, Prop, Track};
 use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
@@ -50,17 +50,6 @@ fn scene() -> Project {
     p
 }
 
-fn run(cmd: &mut Command, what: &str) -> String {
-    let out = cmd.output().unwrap_or_else(|e| panic!("{what}: {e}"));
-    assert!(
-        out.status.success(),
-        "{what} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
 fn exr_mean(path: &Path) -> f64 {
     use exr::prelude::*;
     let image = read_all_flat_layers_from_file(path).unwrap();
@@ -99,12 +88,15 @@ fn blender_imports_the_animated_stage_and_cycles_matches_each_frame() {
     let (w, h) = (W.to_string(), H.to_string());
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let common = ["--frames", "1-4", "--width", &w, "--height", &h];
-    run(Command::new(bin).args(["export", &s(&ron), "--preset", "blender", "--usd", &s(&usd)]).args(common), "export");
+    run_ok(
+        Command::new(bin).args(["export", &s(&ron), "--preset", "blender", "--usd", &s(&usd)]).args(common),
+        "export",
+    );
     let exr = dir.join("fog.####.exr");
-    run(Command::new(bin).args(["render", &s(&ron), "-o", &s(&exr), "--scheme", "exact"]).args(common), "render");
+    run_ok(Command::new(bin).args(["render", &s(&ron), "-o", &s(&exr), "--scheme", "exact"]).args(common), "render");
 
     let prefix = dir.join("cycles_");
-    let stdout = run(
+    let stdout = run_ok(
         Command::new(&py).arg(root().join("tests/blender_sequence.py")).args([
             s(&usd),
             s(&prefix),
