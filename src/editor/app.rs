@@ -209,6 +209,10 @@ impl EditorApp {
     pub fn messages(&self) -> Vec<(bool, String)> {
         self.state.toasts.iter().map(|t| (t.error, t.text.clone())).collect()
     }
+    /// The preview image on show as linear HDR radiance (lit, or "as baked").
+    pub fn shown_preview(&self) -> Option<Result<crate::gpu::Image, crate::gpu::GpuError>> {
+        self.state.gpu.as_ref().map(|g| g.shown_image())
+    }
     /// Where the preview stands: what it shows and what is left to refine.
     pub fn preview_status(&self) -> Option<PreviewStatus> {
         self.state.preview_status()

@@ -32,6 +32,19 @@ pub enum Quality {
     /// Every frame waits for the converged full-resolution image (the window freezes while
     /// it renders; for screenshots and comparisons).
     Full,
+    /// What an engine shows of the light bake with this phase mode: the emission–absorption
+    /// render of the baked density and emission, with no lights (waits like `Full`).
+    AsBaked(crate::gpu::BakePhase),
+}
+
+impl Quality {
+    /// The bake's phase mode in the "as baked" preview; None for the lit preview.
+    pub fn as_baked(self) -> Option<crate::gpu::BakePhase> {
+        match self {
+            Quality::AsBaked(phase) => Some(phase),
+            Quality::Balanced | Quality::Full => None,
+        }
+    }
 }
 
 /// Preview pixels per screen pixel: a coarser preview renders in a fraction of the time
@@ -133,6 +146,8 @@ pub(crate) struct GpuView {
     pub(super) last_frame: u64,
     /// The project state the image on show was rendered from.
     pub(super) shown: Option<Version>,
+    /// The phase mode of the "as baked" image on show; None while the lit preview shows.
+    pub(super) as_baked: Option<crate::gpu::BakePhase>,
     /// Animation: the frame the baked optical depths belong to, and the frames of the image
     /// on show (its fog's, its shadows').
     pub(super) frames: ShownFrames,

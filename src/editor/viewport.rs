@@ -224,16 +224,23 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
     });
     ui.horizontal_wrapped(|ui| {
         use super::state::Quality;
+        use crate::gpu::BakePhase;
         egui::ComboBox::new("quality", "preview")
             .selected_text(match state.view.quality {
                 Quality::Balanced => "live",
                 Quality::Full => "wait for full",
+                Quality::AsBaked(BakePhase::Isotropic) => "as baked (isotropic)",
+                Quality::AsBaked(BakePhase::Camera) => "as baked (camera)",
             })
             .show_ui(ui, |ui| {
                 ui.selectable_value(&mut state.view.quality, Quality::Balanced, "live")
                     .on_hover_text("Each frame shows the edit at once (coarser, shadows may lag), then refines to full resolution over the next frames");
                 ui.selectable_value(&mut state.view.quality, Quality::Full, "wait for full")
                     .on_hover_text("Every frame waits for the full-resolution image with fresh shadows (the window pauses; seconds per edit on software adapters)");
+                ui.selectable_value(&mut state.view.quality, Quality::AsBaked(BakePhase::Isotropic), "as baked (isotropic)")
+                    .on_hover_text("What an engine shows of the light bake with the isotropic phase: baked density and emission, no lights (for g ≠ 0 the view's phase is lost)");
+                ui.selectable_value(&mut state.view.quality, Quality::AsBaked(BakePhase::Camera), "as baked (camera)")
+                    .on_hover_text("What an engine shows of the light bake with the camera's phase: exact for this camera only");
             })
             .response
             .on_hover_text("How the preview trades responsiveness for finished frames");
