@@ -323,7 +323,11 @@ fn the_as_baked_preview_switches_on_and_back_to_the_lit_one() {
     let iso = shown(&h);
     assert_eq!((iso.width, iso.height), (lit.width, lit.height));
     let differ = |a: &fogsmith::gpu::Image, b: &fogsmith::gpu::Image| {
-        a.rgba.iter().zip(&b.rgba).filter(|(p, q)| (0..3).any(|c| (p[c] - q[c]).abs() > 1e-3 * q[c].abs().max(1e-3))).count()
+        a.rgba
+            .iter()
+            .zip(&b.rgba)
+            .filter(|(p, q)| (0..3).any(|c| (p[c] - q[c]).abs() > 1e-3 * q[c].abs().max(1e-3)))
+            .count()
     };
     assert!(iso.rgba.iter().any(|p| p[0] > 0.0), "the bake's render is black");
     assert!(differ(&iso, &lit) > lit.rgba.len() / 10, "the as-baked image must not be the lit one");

@@ -119,6 +119,7 @@ impl EditorApp {
                 show_gizmo: persisted.show_gizmo.unwrap_or(true),
                 brush_point: None,
                 fog_ev: None,
+                pick_index: None,
             },
             jobs: Jobs::new(),
             recovery: RecoveryState::default(),

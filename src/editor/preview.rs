@@ -143,7 +143,13 @@ impl GpuView {
     }
 
     /// Bakes `project` and shows its emission–absorption render.
-    fn render_as_baked(&mut self, project: &Project, request: &FrameRequest, key: PreviewKey, phase: BakePhase) -> bool {
+    fn render_as_baked(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        key: PreviewKey,
+        phase: BakePhase,
+    ) -> bool {
         let started = Instant::now();
         let result = self.pipeline.render_as_baked(project, request, phase);
         self.update_ms = started.elapsed().as_secs_f64() * 1e3;

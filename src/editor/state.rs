@@ -353,6 +353,8 @@ pub(crate) struct ViewState {
     pub brush_point: Option<glam::Vec3>,
     /// The pipeline's EV read back for painting at the fog's depth.
     pub fog_ev: Option<FogEv>,
+    /// Particle bins for picking and box selection, and the content they were built from.
+    pub pick_index: Option<(Version, std::sync::Arc<super::pick_index::ParticleIndex>)>,
 }
 
 /// `--screenshot` and `--measure-fps` progress.
@@ -447,6 +449,24 @@ impl EditorState {
     /// The project as it stands: keys caches of whatever depends on it.
     pub(crate) fn version(&self) -> Version {
         Version { epoch: self.epoch, generation: self.session.generation() }
+    }
+
+    /// Particle bins for picking and box selection in large scenes (None in small ones, where
+    /// the scan is as quick), built once per content generation.
+    pub(crate) fn particle_index(&mut self) -> Option<std::sync::Arc<super::pick_index::ParticleIndex>> {
+        let particles = &self.session.project().particles;
+        if particles.len() < super::pick_index::INDEX_FROM {
+            return None;
+        }
+        let version = self.content_version();
+        match &self.view.pick_index {
+            Some((v, index)) if *v == version && index.fits(particles) => Some(index.clone()),
+            _ => {
+                let index = std::sync::Arc::new(super::pick_index::ParticleIndex::build(particles));
+                self.view.pick_index = Some((version, index.clone()));
+                Some(index)
+            }
+        }
     }
 
     /// [`Self::version`] by content only (camera moves leave it alone).

@@ -501,9 +501,10 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
             return;
         }
     }
+    let index = state.particle_index();
     let project = state.session.project();
     state.view.gesture = match state.view.tool {
-        Tool::Select => match tools::pick(project, vp, pos) {
+        Tool::Select => match tools::pick_with(project, index.as_deref(), vp, pos) {
             Some(hit) => {
                 let selected = match hit {
                     Hit::Particle(i) => state.session.selection.particles.contains(&i),
@@ -548,7 +549,7 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
         Tool::Light => {
             // Press on a light: drag it. Press on empty space: add a light there (a drag
             // then places it).
-            let hit = tools::pick(project, vp, pos);
+            let hit = tools::pick_with(project, index.as_deref(), vp, pos);
             let point = tools::working_plane_point(project, vp, pos);
             let tag = state.session.new_tag();
             let light = match hit {
@@ -687,7 +688,8 @@ fn finish_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2
     if let (Some(Gesture::Box { start }), Some(end)) = (&state.view.gesture, pos) {
         let r = Rect::from_two_pos(*start, end);
         if r.area() > 4.0 {
-            let (particles, lights) = tools::box_select(state.session.project(), vp, r);
+            let index = state.particle_index();
+            let (particles, lights) = tools::box_select_with(state.session.project(), index.as_deref(), vp, r);
             if !(modifiers.shift || modifiers.command) {
                 state.session.selection.clear();
             }

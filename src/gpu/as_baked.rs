@@ -58,8 +58,7 @@ impl AsBakedRenderer {
             &[Slot::Uniform, Slot::Uniform, Slot::Texture3d],
             extra,
         );
-        let pipeline =
-            compute_pipeline_entry(device, "as baked", super::shaders::as_baked(&opv), &layout, "as_baked");
+        let pipeline = compute_pipeline_entry(device, "as baked", super::shaders::as_baked(&opv), &layout, "as_baked");
         Self { layout, pipeline }
     }
 
