@@ -46,10 +46,7 @@ fn random_view(rng: &mut Rng) -> ViewProjection {
 }
 
 fn project_with(particles: Vec<Particle>) -> Project {
-    let mut p = Project::default();
-    p.particles = particles;
-    p.lights.clear();
-    p
+    Project { particles, lights: Vec::new(), ..Default::default() }
 }
 
 #[test]

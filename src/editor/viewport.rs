@@ -501,7 +501,8 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
             return;
         }
     }
-    let index = state.particle_index();
+    // Only a selection uses the particle picked; other tools keep the scan.
+    let index = if state.view.tool == Tool::Select { state.particle_index() } else { None };
     let project = state.session.project();
     state.view.gesture = match state.view.tool {
         Tool::Select => match tools::pick_with(project, index.as_deref(), vp, pos) {
@@ -549,7 +550,7 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
         Tool::Light => {
             // Press on a light: drag it. Press on empty space: add a light there (a drag
             // then places it).
-            let hit = tools::pick_with(project, index.as_deref(), vp, pos);
+            let hit = tools::pick(project, vp, pos);
             let point = tools::working_plane_point(project, vp, pos);
             let tag = state.session.new_tag();
             let light = match hit {
