@@ -301,6 +301,44 @@ fn the_preview_resolution_follows_its_control() {
     assert_eq!((image.width, image.height), (half[0], half[1]), "the preview renders at the chosen resolution");
 }
 
+/// Picks `choice` in the viewport's preview menu and lets the preview render.
+fn choose_preview(h: &mut Harness<'_, EditorApp>, choice: &str) {
+    h.get_by_label("preview").click();
+    h.run_steps(2);
+    h.get_by_label(choice).click();
+    h.run_steps(3);
+    assert_eq!(h.state().gpu_error(), None, "{choice}");
+}
+
+/// "as baked" in the preview menu shows the bake as an engine draws it (no lights), which is
+/// not the lit preview; the camera mode differs from the isotropic one where g ≠ 0; going back
+/// to the lit preview shows its image again, bit for bit.
+#[test]
+fn the_as_baked_preview_switches_on_and_back_to_the_lit_one() {
+    let mut h = harness(demo());
+    assert!(h.state().session().project().medium.anisotropy != 0.0, "the demo must have g ≠ 0");
+    let shown = |h: &Harness<'_, EditorApp>| h.state().shown_preview().expect("a preview").expect("readback");
+    let lit = shown(&h);
+    choose_preview(&mut h, "as baked (isotropic)");
+    let iso = shown(&h);
+    assert_eq!((iso.width, iso.height), (lit.width, lit.height));
+    let differ = |a: &fogsmith::gpu::Image, b: &fogsmith::gpu::Image| {
+        a.rgba
+            .iter()
+            .zip(&b.rgba)
+            .filter(|(p, q)| (0..3).any(|c| (p[c] - q[c]).abs() > 1e-3 * q[c].abs().max(1e-3)))
+            .count()
+    };
+    assert!(iso.rgba.iter().any(|p| p[0] > 0.0), "the bake's render is black");
+    assert!(differ(&iso, &lit) > lit.rgba.len() / 10, "the as-baked image must not be the lit one");
+    choose_preview(&mut h, "as baked (camera)");
+    let camera = shown(&h);
+    assert!(differ(&camera, &iso) > lit.rgba.len() / 10, "for g ≠ 0 the camera bake differs from the isotropic one");
+    choose_preview(&mut h, "wait for full");
+    let back = shown(&h);
+    assert!(back.rgba == lit.rgba, "the lit preview must come back bit for bit");
+}
+
 #[test]
 fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
     let dir = tempfile::tempdir().expect("temp dir");

@@ -252,3 +252,54 @@ fn editor_frames_and_strokes_validate_nothing() {
     assert!(h.state().session().project().particles.len() > 20_000, "the stroke painted");
     assert_eq!(validations_on_this_thread(), before, "frames and a stroke ran no full validation");
 }
+
+/// In a large scene clicks go through the particle bins: each click on a particle selects
+/// what the full scan picks there, the nearest particle under the pointer.
+#[test]
+fn clicks_in_a_large_scene_select_what_the_scan_picks() {
+    use fogsmith::editor::tools::{pick, Hit};
+    use fogsmith::editor::view::ViewProjection;
+    fogsmith::cli::ensure_runtime_dir();
+    let project = scene(20_000);
+    let start = StartProject { project, path: None, name: "large.ron".into(), error: None };
+    let mut h = Harness::builder()
+        .with_size(Vec2::new(1280.0, 800.0))
+        .wgpu_setup(fogsmith::editor::wgpu_setup())
+        .build_eframe(|cc| {
+            let mut app = EditorApp::new(cc, start, EditorOptions::default());
+            app.set_quality(Quality::Balanced);
+            app.set_preview_scale(PreviewScale::Quarter);
+            app
+        });
+    h.run_steps(3);
+    h.state_mut().set_tool(Tool::Select);
+    let rect = h.state().viewport_rect().expect("the viewport is shown");
+    let project = h.state().session().project().clone();
+    let view = ViewProjection::new(&project.camera, rect);
+    let mut picked = 0;
+    for i in (0..20_000).step_by(1999) {
+        let Some((pos, _)) = view.project(project.particles[i].center).filter(|(s, _)| rect.shrink(8.0).contains(*s))
+        else {
+            continue;
+        };
+        let expected = match pick(&project, &view, pos) {
+            Some(Hit::Particle(j)) => BTreeSet::from([j]),
+            _ => BTreeSet::new(),
+        };
+        h.state_mut().session_mut().selection.clear();
+        h.step();
+        h.hover_at(pos);
+        for pressed in [true, false] {
+            h.event(egui::Event::PointerButton {
+                pos,
+                button: PointerButton::Primary,
+                pressed,
+                modifiers: Default::default(),
+            });
+            h.step();
+        }
+        assert_eq!(h.state().session().selection.particles, expected, "click on particle {i} at {pos:?}");
+        picked += !expected.is_empty() as usize;
+    }
+    assert!(picked >= 5, "only {picked} clicks picked a particle");
+}

@@ -119,6 +119,7 @@ impl EditorApp {
                 show_gizmo: persisted.show_gizmo.unwrap_or(true),
                 brush_point: None,
                 fog_ev: None,
+                pick_index: None,
             },
             jobs: Jobs::new(),
             recovery: RecoveryState::default(),
@@ -208,6 +209,10 @@ impl EditorApp {
     /// Messages currently shown (errors and notices).
     pub fn messages(&self) -> Vec<(bool, String)> {
         self.state.toasts.iter().map(|t| (t.error, t.text.clone())).collect()
+    }
+    /// The preview image on show as linear HDR radiance (lit, or "as baked").
+    pub fn shown_preview(&self) -> Option<Result<crate::gpu::Image, crate::gpu::GpuError>> {
+        self.state.gpu.as_ref().map(|g| g.shown_image())
     }
     /// Where the preview stands: what it shows and what is left to refine.
     pub fn preview_status(&self) -> Option<PreviewStatus> {

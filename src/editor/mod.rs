@@ -33,6 +33,7 @@ mod jobs;
 mod layout;
 mod menus;
 mod panels;
+pub mod pick_index;
 mod preview;
 mod recovery;
 mod scripted;

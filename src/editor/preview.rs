@@ -4,7 +4,7 @@
 
 use super::session::Version;
 use super::state::{BaseKey, EditorState, FogEv, GpuView, PreviewKey, Quality, ShownFrames};
-use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext, Progress};
+use crate::gpu::{BakePhase, FogPipeline, FrameReport, FrameRequest, GpuContext, Progress};
 use crate::scene::Project;
 use eframe::egui_wgpu::{self, wgpu};
 use std::path::Path;
@@ -76,6 +76,7 @@ impl GpuView {
             frame_ms: None,
             last_frame: u64::MAX,
             shown: None,
+            as_baked: None,
             frames: ShownFrames::default(),
         }
     }
@@ -86,8 +87,8 @@ impl GpuView {
     }
 
     /// Advances the pipeline towards `project` (the still of animation frame `frame`, if
-    /// any) at `size` pixels within `budget` (None: to convergence); returns whether a new
-    /// image is on show.
+    /// any) at `size` pixels within `budget` (None: to convergence), or renders its bake as
+    /// an engine shows it (`as_baked`, to convergence); returns whether a new image is on show.
     fn render(
         &mut self,
         project: &Project,
@@ -95,14 +96,19 @@ impl GpuView {
         version: Version,
         size: [u32; 2],
         budget: Option<Duration>,
+        as_baked: Option<BakePhase>,
     ) -> bool {
         let key = PreviewKey { version, size };
-        if self.converged == Some(key) {
+        if self.converged == Some(key) && self.as_baked == as_baked {
             return false;
         }
         self.converged = None;
         let request =
             FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
+        if let Some(phase) = as_baked {
+            return self.render_as_baked(project, &request, key, phase);
+        }
+        let switched_back = self.as_baked.take().is_some();
         let started = Instant::now();
         let result = self.pipeline.advance(project, &request, budget);
         self.update_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -124,27 +130,73 @@ impl GpuView {
         if progress.converged() {
             self.converged = Some(key);
         }
-        if !progress.new_image {
+        // Back from "as baked": the lit image the pipeline holds shows again.
+        if !progress.new_image && !switched_back {
             return false;
         }
         self.renders += 1;
         self.shown = Some(version);
         if let Some((view, shown)) = self.pipeline.display_view() {
-            let mut renderer = self.render_state.renderer.write();
-            let device = &self.render_state.device;
-            match self.texture {
-                None => {
-                    let id = renderer.register_native_texture(device, view, wgpu::FilterMode::Linear);
-                    self.texture = Some((id, shown));
-                }
-                Some((id, _)) => {
-                    // Quick and full images live in different textures.
-                    renderer.update_egui_texture_from_wgpu_texture(device, view, wgpu::FilterMode::Linear, id);
-                    self.texture = Some((id, shown));
-                }
-            }
+            show_texture(&self.render_state, &mut self.texture, view, shown);
         }
         true
+    }
+
+    /// Bakes `project` and shows its emission–absorption render.
+    fn render_as_baked(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        key: PreviewKey,
+        phase: BakePhase,
+    ) -> bool {
+        let started = Instant::now();
+        let result = self.pipeline.render_as_baked(project, request, phase);
+        self.update_ms = started.elapsed().as_secs_f64() * 1e3;
+        self.frame_update_ms = self.update_ms;
+        self.converged = Some(key);
+        self.as_baked = Some(phase);
+        if let Err(e) = result {
+            self.error = Some(e.to_string());
+            return false;
+        }
+        self.error = None;
+        self.renders += 1;
+        self.shown = Some(key.version);
+        if let Some((view, shown)) = self.pipeline.as_baked_view() {
+            show_texture(&self.render_state, &mut self.texture, view, shown);
+        }
+        true
+    }
+
+    /// The image on show as linear HDR radiance: the lit preview's, or the "as baked" one.
+    pub(crate) fn shown_image(&self) -> Result<crate::gpu::Image, crate::gpu::GpuError> {
+        match self.as_baked {
+            Some(_) => self.pipeline.read_as_baked(),
+            None => self.pipeline.read_image(),
+        }
+    }
+}
+
+/// Points the preview's egui texture at `view` (quick, full and "as baked" images live in
+/// different textures).
+fn show_texture(
+    render_state: &egui_wgpu::RenderState,
+    texture: &mut Option<(egui::TextureId, [u32; 2])>,
+    view: &wgpu::TextureView,
+    shown: [u32; 2],
+) {
+    let mut renderer = render_state.renderer.write();
+    let device = &render_state.device;
+    match *texture {
+        None => {
+            let id = renderer.register_native_texture(device, view, wgpu::FilterMode::Linear);
+            *texture = Some((id, shown));
+        }
+        Some((id, _)) => {
+            renderer.update_egui_texture_from_wgpu_texture(device, view, wgpu::FilterMode::Linear, id);
+            *texture = Some((id, shown));
+        }
     }
 }
 
@@ -189,7 +241,7 @@ impl EditorState {
                 gpu.budget_ms = Some((ms, idle && ms > FRAME_BUDGET_MS));
                 Some(Duration::from_secs_f64(ms * 1e-3))
             }
-            Quality::Full => {
+            Quality::Full | Quality::AsBaked(_) => {
                 gpu.budget_ms = None;
                 None
             }
@@ -222,7 +274,7 @@ impl EditorState {
         };
         let Some(gpu) = &mut self.gpu else { return };
         let before = gpu.error.clone();
-        gpu.render(project, frame, version, self.view.preview_size, budget);
+        gpu.render(project, frame, version, self.view.preview_size, budget, self.view.quality.as_baked());
         if gpu.refining() {
             self.ctx.request_repaint();
         }

@@ -32,6 +32,19 @@ pub enum Quality {
     /// Every frame waits for the converged full-resolution image (the window freezes while
     /// it renders; for screenshots and comparisons).
     Full,
+    /// What an engine shows of the light bake with this phase mode: the emission–absorption
+    /// render of the baked density and emission, with no lights (waits like `Full`).
+    AsBaked(crate::gpu::BakePhase),
+}
+
+impl Quality {
+    /// The bake's phase mode in the "as baked" preview; None for the lit preview.
+    pub fn as_baked(self) -> Option<crate::gpu::BakePhase> {
+        match self {
+            Quality::AsBaked(phase) => Some(phase),
+            Quality::Balanced | Quality::Full => None,
+        }
+    }
 }
 
 /// Preview pixels per screen pixel: a coarser preview renders in a fraction of the time
@@ -133,6 +146,8 @@ pub(crate) struct GpuView {
     pub(super) last_frame: u64,
     /// The project state the image on show was rendered from.
     pub(super) shown: Option<Version>,
+    /// The phase mode of the "as baked" image on show; None while the lit preview shows.
+    pub(super) as_baked: Option<crate::gpu::BakePhase>,
     /// Animation: the frame the baked optical depths belong to, and the frames of the image
     /// on show (its fog's, its shadows').
     pub(super) frames: ShownFrames,
@@ -338,6 +353,8 @@ pub(crate) struct ViewState {
     pub brush_point: Option<glam::Vec3>,
     /// The pipeline's EV read back for painting at the fog's depth.
     pub fog_ev: Option<FogEv>,
+    /// Particle bins for picking and box selection, and the content they were built from.
+    pub pick_index: Option<(Version, std::sync::Arc<super::pick_index::ParticleIndex>)>,
 }
 
 /// `--screenshot` and `--measure-fps` progress.
@@ -432,6 +449,24 @@ impl EditorState {
     /// The project as it stands: keys caches of whatever depends on it.
     pub(crate) fn version(&self) -> Version {
         Version { epoch: self.epoch, generation: self.session.generation() }
+    }
+
+    /// Particle bins for picking and box selection in large scenes (None in small ones, where
+    /// the scan is as quick), built once per content generation.
+    pub(crate) fn particle_index(&mut self) -> Option<std::sync::Arc<super::pick_index::ParticleIndex>> {
+        let particles = &self.session.project().particles;
+        if particles.len() < super::pick_index::INDEX_FROM {
+            return None;
+        }
+        let version = self.content_version();
+        match &self.view.pick_index {
+            Some((v, index)) if *v == version && index.fits(particles) => Some(index.clone()),
+            _ => {
+                let index = std::sync::Arc::new(super::pick_index::ParticleIndex::build(particles));
+                self.view.pick_index = Some((version, index.clone()));
+                Some(index)
+            }
+        }
     }
 
     /// [`Self::version`] by content only (camera moves leave it alone).

@@ -1,6 +1,8 @@
-//! Viewport tools and the geometry behind them: brush dabs, picking, box selection.
+//! Viewport tools and the geometry behind them: brush dabs, picking, box selection (through
+//! `pick_index`'s bins in large scenes).
 //! Pure functions of the project and the view, so tests can check them without a window.
 
+use super::pick_index::{in_box, pick_depth, ParticleIndex};
 use super::view::ViewProjection;
 use crate::scene::{Particle, Project};
 use egui::{Pos2, Rect};
@@ -186,6 +188,11 @@ pub const LIGHT_PICK_RADIUS: f32 = 10.0;
 
 /// The nearest item to the camera whose screen footprint contains `pos`.
 pub fn pick(project: &Project, view: &ViewProjection, pos: Pos2) -> Option<Hit> {
+    pick_with(project, None, view, pos)
+}
+
+/// [`pick`], through `index` (built from the project's particles) when given: the same answer.
+pub fn pick_with(project: &Project, index: Option<&ParticleIndex>, view: &ViewProjection, pos: Pos2) -> Option<Hit> {
     let mut best: Option<(f32, Hit)> = None;
     for (i, l) in project.lights.iter().enumerate() {
         if let Some((s, z)) = view.project(project.light_anchor(l)) {
@@ -197,13 +204,12 @@ pub fn pick(project: &Project, view: &ViewProjection, pos: Pos2) -> Option<Hit> 
     if best.is_some() {
         return best.map(|b| b.1);
     }
+    if let Some(index) = index.filter(|ix| ix.fits(&project.particles)) {
+        return index.pick(&project.particles, view, pos).map(|(_, i)| Hit::Particle(i));
+    }
     for (i, p) in project.particles.iter().enumerate() {
-        if p.hidden {
-            continue;
-        }
-        if let Some((s, z)) = view.project(p.center) {
-            let r = (p.radius * view.points_per_metre(z)).max(4.0);
-            if s.distance(pos) <= r && best.is_none_or(|(bz, _)| z < bz) {
+        if let Some(z) = pick_depth(p, view, pos) {
+            if best.is_none_or(|(bz, _)| z < bz) {
                 best = Some((z, Hit::Particle(i)));
             }
         }
@@ -213,9 +219,22 @@ pub fn pick(project: &Project, view: &ViewProjection, pos: Pos2) -> Option<Hit> 
 
 /// Items whose centres project inside `rect`.
 pub fn box_select(project: &Project, view: &ViewProjection, rect: Rect) -> (BTreeSet<usize>, BTreeSet<usize>) {
+    box_select_with(project, None, view, rect)
+}
+
+/// [`box_select`], through `index` (built from the project's particles) when given: the same
+/// answer.
+pub fn box_select_with(
+    project: &Project,
+    index: Option<&ParticleIndex>,
+    view: &ViewProjection,
+    rect: Rect,
+) -> (BTreeSet<usize>, BTreeSet<usize>) {
     let inside = |c: Vec3| view.project(c).is_some_and(|(s, _)| rect.contains(s));
-    let particles =
-        project.particles.iter().enumerate().filter(|(_, p)| !p.hidden && inside(p.center)).map(|(i, _)| i).collect();
+    let particles = match index.filter(|ix| ix.fits(&project.particles)) {
+        Some(index) => index.box_select(&project.particles, view, rect),
+        None => (0..project.particles.len()).filter(|&i| in_box(&project.particles[i], view, rect)).collect(),
+    };
     let lights =
         project.lights.iter().enumerate().filter(|(_, l)| inside(project.light_anchor(l))).map(|(i, _)| i).collect();
     (particles, lights)

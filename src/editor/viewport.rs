@@ -224,16 +224,23 @@ fn toolbar(state: &mut EditorState, ui: &mut Ui) {
     });
     ui.horizontal_wrapped(|ui| {
         use super::state::Quality;
+        use crate::gpu::BakePhase;
         egui::ComboBox::new("quality", "preview")
             .selected_text(match state.view.quality {
                 Quality::Balanced => "live",
                 Quality::Full => "wait for full",
+                Quality::AsBaked(BakePhase::Isotropic) => "as baked (isotropic)",
+                Quality::AsBaked(BakePhase::Camera) => "as baked (camera)",
             })
             .show_ui(ui, |ui| {
                 ui.selectable_value(&mut state.view.quality, Quality::Balanced, "live")
                     .on_hover_text("Each frame shows the edit at once (coarser, shadows may lag), then refines to full resolution over the next frames");
                 ui.selectable_value(&mut state.view.quality, Quality::Full, "wait for full")
                     .on_hover_text("Every frame waits for the full-resolution image with fresh shadows (the window pauses; seconds per edit on software adapters)");
+                ui.selectable_value(&mut state.view.quality, Quality::AsBaked(BakePhase::Isotropic), "as baked (isotropic)")
+                    .on_hover_text("What an engine shows of the light bake with the isotropic phase: baked density and emission, no lights (for g ≠ 0 the view's phase is lost)");
+                ui.selectable_value(&mut state.view.quality, Quality::AsBaked(BakePhase::Camera), "as baked (camera)")
+                    .on_hover_text("What an engine shows of the light bake with the camera's phase: exact for this camera only");
             })
             .response
             .on_hover_text("How the preview trades responsiveness for finished frames");
@@ -494,9 +501,11 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
             return;
         }
     }
+    // Only a selection uses the particle picked; other tools keep the scan.
+    let index = if state.view.tool == Tool::Select { state.particle_index() } else { None };
     let project = state.session.project();
     state.view.gesture = match state.view.tool {
-        Tool::Select => match tools::pick(project, vp, pos) {
+        Tool::Select => match tools::pick_with(project, index.as_deref(), vp, pos) {
             Some(hit) => {
                 let selected = match hit {
                     Hit::Particle(i) => state.session.selection.particles.contains(&i),
@@ -680,7 +689,8 @@ fn finish_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2
     if let (Some(Gesture::Box { start }), Some(end)) = (&state.view.gesture, pos) {
         let r = Rect::from_two_pos(*start, end);
         if r.area() > 4.0 {
-            let (particles, lights) = tools::box_select(state.session.project(), vp, r);
+            let index = state.particle_index();
+            let (particles, lights) = tools::box_select_with(state.session.project(), index.as_deref(), vp, r);
             if !(modifiers.shift || modifiers.command) {
                 state.session.selection.clear();
             }

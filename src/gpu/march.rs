@@ -19,7 +19,7 @@ pub struct ImageTarget {
     pub width: u32,
     pub height: u32,
     pub hdr: wgpu::Texture,
-    hdr_view: wgpu::TextureView,
+    pub(super) hdr_view: wgpu::TextureView,
     pub ldr_view: wgpu::TextureView,
     params_buf: wgpu::Buffer,
 }

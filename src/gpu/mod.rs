@@ -12,7 +12,8 @@
 //!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
 //!
 //! On request, the bake (`bake`, `shaders/bake.wgsl`) turns the EV and OPVs into each cell's
-//! emitted radiance through the march's own lookups, for engines without self-shadowing.
+//! emitted radiance through the march's own lookups, for engines without self-shadowing, and
+//! `as_baked` (`shaders/as_baked.wgsl`) renders that bake as an engine would, with no lights.
 //!
 //! Each pipeline's WGSL is assembled in `shaders` from the files in `shaders/`, after the
 //! constants Rust and WGSL share (`layout::shared_constants`).
@@ -24,6 +25,7 @@
 //! own. The stages (`inject`, `propagate`, `march`, `slice`) depend on the shared context and
 //! helpers (`layout`, `buffers`, `report`), never on the scheduler.
 
+mod as_baked;
 mod bake;
 mod binning;
 mod budget;
@@ -50,6 +52,7 @@ mod shaders;
 mod slice;
 mod timer;
 
+pub use as_baked::AS_BAKED_STEPS_PER_CELL;
 pub use bake::BakePhase;
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};

@@ -14,6 +14,7 @@
 //! `limits`, the budget arithmetic in `budget`, the GPU resources in `resources` and the
 //! readbacks in `outputs`.
 
+use super::as_baked::{AsBakedInputs, AsBakedRenderer};
 use super::bake::{BakeInputs, BakePhase, Baker};
 use super::binning;
 use super::budget::{ms, Clock, Rate, QUICK_SHARE};
@@ -57,6 +58,9 @@ pub struct FogPipeline {
     slicer: Slicer,
     /// Built on the first bake: most pipelines never bake.
     baker: Option<Baker>,
+    /// Built on the first "as baked" render, with the image it last drew.
+    as_baked: Option<AsBakedRenderer>,
+    as_baked_image: Option<ImageTarget>,
     timer: Option<StageTimer>,
     grid: Option<GridResources>,
     quick: Option<ImageTarget>,
@@ -108,6 +112,8 @@ impl FogPipeline {
             marcher,
             slicer,
             baker: None,
+            as_baked: None,
+            as_baked_image: None,
             timer,
             grid: None,
             quick: None,
@@ -709,6 +715,7 @@ impl FogPipeline {
             self.marcher = Marcher::new(device, self.stage_layout);
             self.slicer = Slicer::new(device, self.stage_layout);
             self.baker = None;
+            self.as_baked = None;
             self.jobs = Jobs::default();
         }
         self.stage_layout
@@ -853,6 +860,53 @@ impl FogPipeline {
         Ok(emission)
     }
 
+    /// The emission–absorption render of the bake of `project` at the request's size (see
+    /// [`bake_emission`](Self::bake_emission)): the baked density and emission with no
+    /// lights, as an engine shows them. Read it with [`read_as_baked`](Self::read_as_baked)
+    /// or show it through [`as_baked_view`](Self::as_baked_view).
+    pub fn render_as_baked(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        phase: BakePhase,
+    ) -> Result<(), GpuError> {
+        let emission = self.bake_emission(project, request, phase)?;
+        let frame = FrameInputs::new(project, request, &self.settings(project));
+        let renderer = self.as_baked.get_or_insert_with(|| AsBakedRenderer::new(&self.ctx.device, self.stage_layout));
+        let target = match self.as_baked_image.take() {
+            Some(t) if t.width == request.width && t.height == request.height => t,
+            _ => ImageTarget::new(&self.ctx.device, request.width, request.height),
+        };
+        let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
+        let inputs = AsBakedInputs {
+            grid_buf: &g.grid_buf,
+            ev_view: &g.ev_view,
+            emission: &emission,
+            surfaces: &frame.surfaces,
+            params: frame.march,
+        };
+        let scope = ErrorScope::push(&self.ctx.device);
+        let result = renderer.render(&self.ctx, &inputs, &target);
+        scope.pop("as baked render")?;
+        result?;
+        self.as_baked_image = Some(target);
+        Ok(())
+    }
+
+    /// The last [`render_as_baked`](Self::render_as_baked) image as linear HDR radiance.
+    pub fn read_as_baked(&self) -> Result<Image, GpuError> {
+        let target = self
+            .as_baked_image
+            .as_ref()
+            .ok_or_else(|| GpuError::Invalid("nothing rendered as baked yet: call render_as_baked first".into()))?;
+        outputs::read_image(&self.ctx, target)
+    }
+
+    /// The last "as baked" image, tone-mapped (rgba8unorm), and its size, for the editor.
+    pub fn as_baked_view(&self) -> Option<(&wgpu::TextureView, [u32; 2])> {
+        self.as_baked_image.as_ref().map(|t| (&t.ldr_view, [t.width, t.height]))
+    }
+
     fn grid(&self) -> Result<&GridResources, GpuError> {
         self.grid.as_ref().ok_or_else(nothing_baked)
     }
@@ -915,6 +969,7 @@ impl FogPipeline {
         self.grid.as_ref().map_or(0, GridResources::bytes)
             + self.quick.as_ref().map_or(0, ImageTarget::bytes)
             + self.full.as_ref().map_or(0, ImageTarget::bytes)
+            + self.as_baked_image.as_ref().map_or(0, ImageTarget::bytes)
             + self.injector.bytes()
             + self.marcher.bytes()
             + self.slicer.bytes()

@@ -120,6 +120,11 @@ pub fn bake(opv: &OpvLayout) -> String {
     march(opv) + "\n" + include_str!("../../shaders/bake.wgsl")
 }
 
+/// The emission–absorption render of a bake: the march's sources, entry point `as_baked`.
+pub fn as_baked(opv: &OpvLayout) -> String {
+    march(opv) + "\n" + include_str!("../../shaders/as_baked.wgsl")
+}
+
 /// One plane of the EV or of a light's OPV.
 pub fn slice(opv: &OpvLayout) -> String {
     assemble(&[&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")])
