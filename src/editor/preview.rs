@@ -86,15 +86,15 @@ impl GpuView {
     }
 
     /// Advances the pipeline towards `project` (the still of animation frame `frame`, if
-    /// any) at `size` pixels within `budget` (None: to convergence); returns whether a new
-    /// image is on show.
+    /// any) at `size` pixels within `budget` (None: to convergence), with quick images
+    /// while it refines when `previews`; returns whether a new image is on show.
     fn render(
         &mut self,
         project: &Project,
         frame: Option<i32>,
         version: Version,
         size: [u32; 2],
-        budget: Option<Duration>,
+        (budget, previews): (Option<Duration>, bool),
     ) -> bool {
         let key = PreviewKey { version, size };
         if self.converged == Some(key) {
@@ -104,7 +104,10 @@ impl GpuView {
         let request =
             FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
         let started = Instant::now();
-        let result = self.pipeline.advance(project, &request, budget);
+        let result = match previews {
+            true => self.pipeline.advance(project, &request, budget),
+            false => self.pipeline.advance_full_only(project, &request, budget),
+        };
         self.update_ms = started.elapsed().as_secs_f64() * 1e3;
         self.frame_update_ms = self.update_ms;
         let progress = match result {
@@ -220,9 +223,12 @@ impl EditorState {
             Some((_, still)) if animated => (still, Some(self.session.frame())),
             _ => (self.session.project(), None),
         };
+        // Playing every frame shows each frame converged: a quick image would be marched
+        // only to be replaced.
+        let previews = !self.playing_every_frame();
         let Some(gpu) = &mut self.gpu else { return };
         let before = gpu.error.clone();
-        gpu.render(project, frame, version, self.view.preview_size, budget);
+        gpu.render(project, frame, version, self.view.preview_size, (budget, previews));
         if gpu.refining() {
             self.ctx.request_repaint();
         }
