@@ -419,3 +419,60 @@ fn a_vdb_sequence_equals_the_command_lines_value_for_value() {
 fn has_text(h: &Harness<'_, EditorApp>, text: &str) -> bool {
     h.query_all_by_label_contains(text).next().is_some()
 }
+
+/// Cancel during a sequence stops the frame under way: every frame written before it is
+/// complete, and nothing else is left (no temporary, no partial frame).
+#[test]
+fn a_cancelled_sequence_keeps_its_completed_frames_and_nothing_else() {
+    use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
+    let dir = tempfile::tempdir().unwrap();
+    // Each frame's march at this size takes long enough to be under way when Cancel comes.
+    let project = project_file(dir.path(), "slow.ron", |p| {
+        p.render.width = 1920;
+        p.render.height = 1080;
+        p.render.step_factor = 0.05;
+        p.animation = Some(Animation { fps: 24.0, start: 1, end: 3 });
+        let fog = Channel(Object::Medium, Prop::BaseExtinction);
+        p.set_key(fog, 1, KeyValue::Float(0.02), Interp::Linear).unwrap();
+        p.set_key(fog, 3, KeyValue::Float(0.1), Interp::Linear).unwrap();
+    });
+    let mut h = editor(&project, &dir.path().join("state"));
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "Frames");
+    click(&mut h, "Export to…");
+    h.key_press(Key::Enter);
+    h.run_steps(2);
+    let first = dir.path().join("slow.0001.vdb");
+    for _ in 0..200_000 {
+        if first.exists() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        h.step();
+    }
+    assert!(first.exists(), "frame 1 is written: {:?}", h.state().messages());
+    click(&mut h, "Cancel");
+    for _ in 0..200_000 {
+        if h.state().busy() == 0 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        h.step();
+    }
+    h.run_steps(2);
+    let messages = h.state().messages();
+    let message = messages.iter().find(|(_, m)| m.contains("cancelled after")).map(|(_, m)| m.clone());
+    let message = message.unwrap_or_else(|| panic!("no cancel message: {messages:?}"));
+    let mut left: Vec<String> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    left.sort();
+    let frames: Vec<&String> = left.iter().filter(|n| n.ends_with(".vdb")).collect();
+    assert!(!frames.is_empty() && frames.len() < 3, "{left:?}");
+    assert!(message.contains(&format!("after {} of 3 frames", frames.len())), "{message}");
+    for (k, name) in frames.iter().enumerate() {
+        assert_eq!(**name, format!("slow.{:04}.vdb", k + 1), "{left:?}");
+        let grids = list_vdb_grids(&dir.path().join(name)).expect("a completed frame reads back");
+        assert!(grids.iter().any(|g| g.name == "density"), "{name}");
+    }
+    assert_eq!(left.len(), 2 + frames.len(), "the project, the state folder and the completed frames only: {left:?}");
+}
