@@ -356,3 +356,123 @@ fn baking_the_lighting_adds_the_emission_grid() {
     assert_eq!(emission.tree_type, "Tree_vec3s_5_4_3");
     assert!(!emission.importable, "a vector grid is not offered as a density");
 }
+
+/// An animated project exports a range of frames: "Frames" proposes `NAME.####.vdb`, and the
+/// three frames baked in the background equal, value for value in every grid, those of
+/// `fogsmith export --frames` on the same project.
+#[test]
+fn a_vdb_sequence_equals_the_command_lines_value_for_value() {
+    use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
+    let dir = tempfile::tempdir().unwrap();
+    let project = project_file(dir.path(), "anim.ron", |p| {
+        p.animation = Some(Animation { fps: 24.0, start: 1, end: 3 });
+        let c = Channel(Object::Light(p.lights[0].id), Prop::Position);
+        let at = p.lights[0].position;
+        p.set_key(c, 1, KeyValue::Vec3(at), Interp::Linear).unwrap();
+        p.set_key(c, 3, KeyValue::Vec3(at + glam::Vec3::new(0.5, -0.4, 0.2)), Interp::Linear).unwrap();
+        let fog = Channel(Object::Medium, Prop::BaseExtinction);
+        p.set_key(fog, 1, KeyValue::Float(0.02), Interp::Linear).unwrap();
+        p.set_key(fog, 3, KeyValue::Float(0.1), Interp::Linear).unwrap();
+    });
+    let mut h = editor(&project, &dir.path().join("state"));
+    open_with_ctrl_e(&mut h);
+    let this = h.get_by_label("This frame (1)").accesskit_node().toggled();
+    assert_eq!(this, Some(egui::accesskit::Toggled::True), "the frame on show by default");
+    click(&mut h, "Frames");
+    assert!(has_text(&h, "Writes anim.####.vdb"), "the window names the frame pattern");
+    let summary = export_through_the_dialog(&mut h);
+    assert!(summary.contains("3 frames"), "{summary}");
+
+    let cli = dir.path().join("cli.####.vdb");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_fogsmith"))
+        .args(["export", project.to_str().unwrap(), "--frames", "1-3", "--vdb", cli.to_str().unwrap(), "--quiet"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let r = fogsmith::scene::load_project(&project).unwrap().grid.resolution;
+    let mut differ_between_frames = false;
+    for f in 1..=3 {
+        let ours = dir.path().join(format!("anim.{f:04}.vdb"));
+        let theirs = dir.path().join(format!("cli.{f:04}.vdb"));
+        let names = |p: &Path| -> Vec<String> { list_vdb_grids(p).unwrap().into_iter().map(|g| g.name).collect() };
+        assert_eq!(names(&ours), names(&theirs), "frame {f}: the same grids");
+        assert!(names(&ours).contains(&"optical_depth_0".to_string()));
+        for name in names(&ours) {
+            let (a, b) = (read_vdb_grid(&ours, Some(&name)).unwrap(), read_vdb_grid(&theirs, Some(&name)).unwrap());
+            let first = (f > 1).then(|| read_vdb_grid(&dir.path().join("anim.0001.vdb"), Some(&name)).unwrap());
+            for k in 0..r.z as i32 {
+                for j in 0..r.y as i32 {
+                    for i in 0..r.x as i32 {
+                        let v = a.value_at([i, j, k]);
+                        assert_eq!(v.to_bits(), b.value_at([i, j, k]).to_bits(), "frame {f} {name} at ({i}, {j}, {k})");
+                        differ_between_frames |= first.as_ref().is_some_and(|g| g.value_at([i, j, k]) != v);
+                    }
+                }
+            }
+        }
+    }
+    assert!(differ_between_frames, "each frame holds its own values");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left.len(), 2 + 3 + 3, "the project, the state folder and six VDBs, no temporary: {left:?}");
+}
+
+fn has_text(h: &Harness<'_, EditorApp>, text: &str) -> bool {
+    h.query_all_by_label_contains(text).next().is_some()
+}
+
+/// Cancel during a sequence stops the frame under way: every frame written before it is
+/// complete, and nothing else is left (no temporary, no partial frame).
+#[test]
+fn a_cancelled_sequence_keeps_its_completed_frames_and_nothing_else() {
+    use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
+    let dir = tempfile::tempdir().unwrap();
+    // Each frame's march at this size takes long enough to be under way when Cancel comes.
+    let project = project_file(dir.path(), "slow.ron", |p| {
+        p.render.width = 1920;
+        p.render.height = 1080;
+        p.render.step_factor = 0.05;
+        p.animation = Some(Animation { fps: 24.0, start: 1, end: 3 });
+        let fog = Channel(Object::Medium, Prop::BaseExtinction);
+        p.set_key(fog, 1, KeyValue::Float(0.02), Interp::Linear).unwrap();
+        p.set_key(fog, 3, KeyValue::Float(0.1), Interp::Linear).unwrap();
+    });
+    let mut h = editor(&project, &dir.path().join("state"));
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "Frames");
+    click(&mut h, "Export to…");
+    h.key_press(Key::Enter);
+    h.run_steps(2);
+    let first = dir.path().join("slow.0001.vdb");
+    for _ in 0..200_000 {
+        if first.exists() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        h.step();
+    }
+    assert!(first.exists(), "frame 1 is written: {:?}", h.state().messages());
+    click(&mut h, "Cancel");
+    for _ in 0..200_000 {
+        if h.state().busy() == 0 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        h.step();
+    }
+    h.run_steps(2);
+    let messages = h.state().messages();
+    let message = messages.iter().find(|(_, m)| m.contains("cancelled after")).map(|(_, m)| m.clone());
+    let message = message.unwrap_or_else(|| panic!("no cancel message: {messages:?}"));
+    let mut left: Vec<String> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    left.sort();
+    let frames: Vec<&String> = left.iter().filter(|n| n.ends_with(".vdb")).collect();
+    assert!(!frames.is_empty() && frames.len() < 3, "{left:?}");
+    assert!(message.contains(&format!("after {} of 3 frames", frames.len())), "{message}");
+    for (k, name) in frames.iter().enumerate() {
+        assert_eq!(**name, format!("slow.{:04}.vdb", k + 1), "{left:?}");
+        let grids = list_vdb_grids(&dir.path().join(name)).expect("a completed frame reads back");
+        assert!(grids.iter().any(|g| g.name == "density"), "{name}");
+    }
+    assert_eq!(left.len(), 2 + frames.len(), "the project, the state folder and the completed frames only: {left:?}");
+}

@@ -461,3 +461,89 @@ fn every_timeline_command_is_in_the_menus_and_on_the_help_sheet() {
         assert!(sheet.iter().any(|(k, w)| *k == c.shortcut_text() && w == c.text()), "{c:?} on the help sheet");
     }
 }
+
+/// The Inspector keys the camera and the medium like the selection: a diamond click keys
+/// the field of view and the base extinction at this frame, an edit off their keys is an
+/// unkeyed edit until its diamond is clicked, and undo takes each key back. Orbiting the
+/// view never keys an animated camera, even with auto-key on.
+#[test]
+fn the_inspector_keys_the_camera_and_the_medium_and_orbiting_never_keys() {
+    let mut h = harness(animated());
+    for _ in 0..11 {
+        h.key_press(egui::Key::ArrowRight);
+    }
+    h.run_steps(2);
+    assert_eq!(frame(&h), 12);
+    let fov = Channel(Object::Camera, Prop::FovYDeg);
+    let fog = Channel(Object::Medium, Prop::BaseExtinction);
+    let before = h.state().session().project().clone();
+    for (c, label) in [(fov, "Key field of view"), (fog, "Key base extinction")] {
+        h.get_by_label(label).click();
+        h.run_steps(2);
+        let p = h.state().session().project();
+        assert!(p.has_key(c, 12), "{label} keys {c} at frame 12");
+        assert_eq!(p.track(c).unwrap().keys[0].value, before.value_of(c).unwrap());
+        assert_eq!(h.state().session().undo_label(), Some(format!("Key {c} at frame 12")));
+    }
+
+    // Off its key, an edit is unkeyed until the diamond keys it.
+    for _ in 0..18 {
+        h.key_press(egui::Key::ArrowRight);
+    }
+    h.run_steps(2);
+    assert_eq!(frame(&h), 30);
+    h.state_mut().session_mut().edit(0).camera.fov_y_deg = 55.0;
+    h.state_mut().session_mut().edit(0).medium.base_extinction = 0.25;
+    h.run_steps(2);
+    assert!(has_label(&h, "Not keyed: Camera FovYDeg, Medium BaseExtinction changed at frame 30 only"));
+    assert_eq!(h.state().session().frame_still().camera.fov_y_deg, 55.0, "the preview shows the edit");
+    h.get_by_label("Key field of view").click();
+    h.get_by_label("Key base extinction").click();
+    h.run_steps(2);
+    assert!(!has_label(&h, "Not keyed"));
+    let p = h.state().session().project().clone();
+    assert_eq!(p.at_frame(30).camera.fov_y_deg, 55.0);
+    assert_eq!(p.at_frame(30).medium.base_extinction, 0.25);
+    assert_eq!(p.at_frame(12).camera.fov_y_deg, before.camera.fov_y_deg);
+    assert_eq!(p.at_frame(12).medium.base_extinction, before.medium.base_extinction);
+
+    undo(&mut h);
+    let s = h.state().session();
+    assert!(!s.project().has_key(fog, 30), "undo takes the last key back");
+    assert!(s.project().has_key(fov, 30));
+    assert_eq!(s.project().medium.base_extinction, before.medium.base_extinction, "posed from its keys again");
+    undo(&mut h);
+    let s = h.state().session();
+    assert!(!s.project().has_key(fov, 30));
+    assert_eq!(s.project().camera.fov_y_deg, before.camera.fov_y_deg);
+    for _ in 0..4 {
+        undo(&mut h); // the two edits, then the two keys at frame 12
+    }
+    assert!(h.state().session().project().track(fov).is_none() && h.state().session().project().track(fog).is_none());
+
+    // An animated camera position: orbiting with auto-key on is an unkeyed edit, not a key.
+    let position = Channel(Object::Camera, Prop::Position);
+    h.get_by_label("Key camera position").click();
+    h.run_steps(2);
+    assert!(h.state().session().project().has_key(position, 30));
+    h.get_by_label("Auto-key").click();
+    h.run_steps(2);
+    assert!(h.state().session().auto_key);
+    let keyed = h.state().session().project().clone();
+    let rect = h.state().viewport_rect().expect("the viewport is shown");
+    let from = rect.center();
+    h.event(Event::PointerMoved(from));
+    h.step();
+    press(&mut h, from, PointerButton::Secondary, true);
+    for k in 1..=5 {
+        h.event(Event::PointerMoved(from + Vec2::new(12.0 * k as f32, 4.0 * k as f32)));
+        h.step();
+    }
+    press(&mut h, from + Vec2::new(60.0, 20.0), PointerButton::Secondary, false);
+    h.run_steps(2);
+    let s = h.state().session();
+    assert_ne!(s.project().camera.position, keyed.camera.position, "the view orbited");
+    assert_eq!(s.project().tracks, keyed.tracks, "orbiting keyed nothing");
+    assert!(s.unkeyed().contains_key(&position), "the orbit is an unkeyed edit");
+    assert!(has_label(&h, "Not keyed: Camera Position"));
+}

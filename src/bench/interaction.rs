@@ -15,7 +15,9 @@
 //! interaction to the converged image (full resolution, fresh optical depths), and where the
 //! frames' time went: the pipeline's call (budgeted work and the quick image) against the
 //! rest (egui's layout and painting), during the interaction and while converging. For
-//! playback it records the frames played per second of wall time.
+//! playback it records the frames played per second of wall time, beside the rate at which
+//! the same frames' work alone (injection, propagation and march at the preview's size, on a
+//! pipeline of its own) completes: the rate "every frame" playback can reach.
 
 use super::BenchError;
 use crate::editor::app::{Quality, StartProject};
@@ -408,13 +410,21 @@ fn playback(d: &mut Driver, quality: Quality, log: &mut dyn FnMut(&str)) -> Resu
     let fps = played as f64 / seconds;
     let f = percentiles(&d.frames);
     let breakdown = Breakdown::of(&d.frames, &d.pipeline);
+    let work = playback_work(d)?;
+    let work_fps = played as f64 / work.seconds;
     log(&format!(
-        "interaction {:<8} playback     {:?}: {played} frames played converged in {seconds:.2} s = {fps:.2} frames/s ({} editor frames, frame ms p50 {:.0} max {:.0}); {}",
+        "interaction {:<8} playback     {:?}: {played} frames played converged in {seconds:.2} s = {fps:.2} frames/s ({} editor frames, frame ms p50 {:.0} max {:.0}); the same frames' work alone at {}×{} px: {work_fps:.2} frames/s ({:.2} s; stages inject {:.0} + propagate {:.0} + march {:.0} ms); {}",
         d.scene,
         quality,
         d.frames.len(),
         f[0],
         f[3],
+        work.size[0],
+        work.size[1],
+        work.seconds,
+        work.stage_ms[0],
+        work.stage_ms[1],
+        work.stage_ms[2],
         breakdown.text()
     ));
     Ok(Some(json!({
@@ -429,5 +439,44 @@ fn playback(d: &mut Driver, quality: Quality, log: &mut dyn FnMut(&str)) -> Resu
         "frames": d.frames.len(),
         "frame_ms": {"p50": f[0], "p95": f[1], "p99": f[2], "max": f[3]},
         "breakdown_during": breakdown.json(),
+        "work_alone": {
+            "fps": work_fps,
+            "seconds": work.seconds,
+            "size": work.size,
+            "stage_ms": {"inject": work.stage_ms[0], "propagate": work.stage_ms[1], "march": work.stage_ms[2]},
+        },
     })))
+}
+
+/// The work of the frames playback showed, alone: wall time and stage times.
+struct PlaybackWork {
+    seconds: f64,
+    size: [u32; 2],
+    /// Inject, propagate and march, summed over the frames.
+    stage_ms: [f64; 3],
+}
+
+/// Bakes the frames playback showed (2 to [`PLAYBACK_FRAMES`], after frame 1) in order to
+/// convergence on a pipeline of their own at the preview's size, as playback's preview
+/// does but with no editor around it: the rate playback's "every frame" mode can reach.
+fn playback_work(d: &Driver) -> Result<PlaybackWork, BenchError> {
+    let app = d.h.state();
+    let pipeline = app.pipeline().ok_or_else(|| BenchError::Editor("the editor has no pipeline".into()))?;
+    let size = app.preview_size();
+    let project = app.session().project().clone();
+    let mut fresh = crate::gpu::FogPipeline::new(pipeline.context().clone());
+    let layer = crate::export::load_base_layer(&project, app.session().path())
+        .map_err(|e| BenchError::Editor(format!("the base volume: {e}")))?;
+    fresh.set_base_layer(layer);
+    let request =
+        crate::gpu::FrameRequest { width: size[0], height: size[1], ..crate::gpu::FrameRequest::for_project(&project) };
+    let failed = |e: crate::gpu::GpuError| BenchError::Editor(format!("baking the playback's frames alone: {e}"));
+    fresh.update(&project.at_frame(1), &request).map_err(failed)?;
+    let start = Instant::now();
+    let mut stage_ms = [0.0; 3];
+    for frame in 2..=PLAYBACK_FRAMES {
+        let t = fresh.update(&project.at_frame(frame), &request).map_err(failed)?.timings_ms;
+        stage_ms = [stage_ms[0] + t.inject, stage_ms[1] + t.propagate, stage_ms[2] + t.march];
+    }
+    Ok(PlaybackWork { seconds: start.elapsed().as_secs_f64(), size, stage_ms })
 }

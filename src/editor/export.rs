@@ -2,6 +2,8 @@
 //! window shows only the options of the chosen format and says what to change when a
 //! combination cannot be written, before anything is written; the export itself runs as a
 //! background job (`jobs`) through [`crate::export::write_plan`], as `fogsmith export` does.
+//! An animated project exports the frame on show or a range of frames, each frame's file
+//! named by a frame pattern (`fog.####.vdb`) as `fogsmith export --frames` names them.
 
 use super::export_memory::ExportMemory;
 use super::files::DialogSpec;
@@ -9,6 +11,7 @@ use super::state::{EditorState, Pick};
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use crate::export::ktx::Ktx2Format;
 use crate::export::plan::{ExportPlan, ExportProblem, ExportSettings};
+use crate::export::sequence::{suggest_pattern, FramePattern};
 use crate::export::vdb::VdbCompression;
 use crate::gpu::BakePhase;
 use crate::scene::Project;
@@ -92,6 +95,16 @@ impl ExportFormat {
     }
 }
 
+/// Which frames of an animated project an export writes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FrameRange {
+    /// The frame on show, as it shows (with its unkeyed edits).
+    #[default]
+    ThisFrame,
+    /// Every frame from `first` to `last`, each its `Project::at_frame`.
+    Frames { first: i32, last: i32 },
+}
+
 /// Everything the Export window asks, remembered per project.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -101,6 +114,7 @@ pub struct ExportChoices {
     pub preset: Option<Preset>,
     pub settings: ExportSettings,
     pub image: ImageFormat,
+    pub frames: FrameRange,
 }
 
 impl ExportChoices {
@@ -115,6 +129,19 @@ impl ExportChoices {
                 ImageFormat::Png => ("png", "PNG image"),
                 ImageFormat::Exr => ("exr", "OpenEXR"),
             },
+        }
+    }
+
+    /// The frames to export from `project`, within its animation range; None for the frame
+    /// on show (a still, or "This frame").
+    pub fn sequence(&self, project: &Project) -> Option<(i32, i32)> {
+        let a = project.animation?;
+        match self.frames {
+            FrameRange::ThisFrame => None,
+            FrameRange::Frames { first, last } => {
+                let first = first.clamp(a.start, a.end);
+                Some((first, last.clamp(first, a.end)))
+            }
         }
     }
 
@@ -143,6 +170,22 @@ impl ExportChoices {
     /// empty when it can.
     pub fn problems(&self, project: &Project, path: &Path) -> Vec<String> {
         let mut out: Vec<String> = self.plan(path).problems().iter().map(problem_text).collect();
+        if let Some((first, last)) = self.sequence(project) {
+            let named = FramePattern::new(path).has_frame();
+            let file = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            if self.format == ExportFormat::Usd && named {
+                out.push(format!(
+                    "{file}: one stage holds every frame (it points at each frame's VDB, written as NAME.####.vdb \
+                     beside it); name the stage without a frame number."
+                ));
+            } else if self.format != ExportFormat::Usd && !named && last > first {
+                out.push(format!(
+                    "{file} has no frame number, so every frame would overwrite one file: put one in the name, \
+                     e.g. {} (or %04d, or $F4).",
+                    suggest_pattern(Path::new(&file)).display()
+                ));
+            }
+        }
         let g = self.settings.grids;
         if self.format.writes_vdb() {
             if !(g.density || g.optical_depth || g.transmittance) {
@@ -218,11 +261,16 @@ impl EditorState {
     }
 
     /// The file name the destination dialog proposes: the project's stem and the format's
-    /// extension.
+    /// extension, with a frame pattern between them for a range of frames.
     fn export_file_name(&self, choices: &ExportChoices) -> String {
         let stem =
             Path::new(self.session.name()).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        format!("{}.{}", stem.split(' ').next().filter(|s| !s.is_empty()).unwrap_or("fog"), choices.extension().0)
+        let stem = stem.split(' ').next().filter(|s| !s.is_empty()).unwrap_or("fog");
+        let sequence = choices.sequence(self.session.project()).is_some();
+        match choices.extension().0 {
+            ext if sequence && choices.format != ExportFormat::Usd => format!("{stem}.####.{ext}"),
+            ext => format!("{stem}.{ext}"),
+        }
     }
 
     /// Remembers `choices` for this project and asks where to write.
@@ -247,9 +295,16 @@ impl EditorState {
         let project = self.session.project();
         let name = self.export_file_name(&choices);
         let problems = choices.problems(project, Path::new(&name));
-        let files = choices.plan(Path::new(&name)).files();
+        let files = match choices.sequence(project) {
+            Some(_) if choices.format == ExportFormat::Usd => {
+                vec![PathBuf::from(&name), suggest_pattern(&Path::new(&name).with_extension("vdb"))]
+            }
+            _ => choices.plan(Path::new(&name)).files(),
+        };
         let size = [project.render.width, project.render.height];
         let lights = project.lights.len();
+        let animation = project.animation;
+        let this_frame = self.session.frame();
         let mut open = true;
         let mut go = false;
         let mut cancel = false;
@@ -261,6 +316,10 @@ impl EditorState {
             }
             ui.add(egui::Label::new(egui::RichText::new(choices.format.description()).weak()).wrap());
             ui.separator();
+            if let Some(a) = animation {
+                frame_range(ui, &mut choices.frames, a, this_frame);
+                ui.separator();
+            }
             options(ui, &mut choices, size, lights);
             ui.separator();
             let names: Vec<String> =
@@ -287,6 +346,55 @@ impl EditorState {
             self.export.window = Some(choices);
         }
     }
+}
+
+/// "This frame" or "Frames A–B" (within the animation range).
+fn frame_range(ui: &mut egui::Ui, range: &mut FrameRange, a: crate::scene::animation::Animation, this_frame: i32) {
+    ui.horizontal(|ui| {
+        ui.strong("Which frames");
+        ui.radio_value(range, FrameRange::ThisFrame, format!("This frame ({this_frame})"))
+            .on_hover_text("The frame on show, with any unkeyed edits");
+        let (mut first, mut last) = match *range {
+            FrameRange::Frames { first, last } => (first, last),
+            FrameRange::ThisFrame => (a.start, a.end),
+        };
+        let sequence = matches!(range, FrameRange::Frames { .. });
+        if ui
+            .radio(sequence, "Frames")
+            .on_hover_text("Each frame baked in the background, one file per frame named by the frame pattern")
+            .clicked()
+        {
+            *range = FrameRange::Frames { first, last };
+        }
+        let a_ = ui.add_enabled(sequence, egui::DragValue::new(&mut first).range(a.start..=a.end).speed(0.2));
+        ui.label("–");
+        let b_ = ui.add_enabled(sequence, egui::DragValue::new(&mut last).range(a.start..=a.end).speed(0.2));
+        if sequence && (a_.changed() || b_.changed()) {
+            *range = FrameRange::Frames { first: first.min(last), last: last.max(first) };
+        }
+    });
+}
+
+/// The plan of each frame of a sequence exported with `plan`: every path with the frame's
+/// number in place of its pattern; a stage's VDBs go to `NAME.####.vdb` beside it, and the
+/// stage itself is written once at the end.
+pub(crate) fn sequence_plans(plan: &ExportPlan, frames: &[i32]) -> Vec<ExportPlan> {
+    let vdb = plan.vdb.clone().or_else(|| plan.usd.as_ref().map(|u| suggest_pattern(&u.with_extension("vdb"))));
+    let at = |path: &Option<PathBuf>, frame: i32| path.as_ref().map(|p| FramePattern::new(p).path(frame));
+    frames
+        .iter()
+        .map(|&f| ExportPlan {
+            vdb: at(&vdb, f),
+            usd: None,
+            ktx2: at(&plan.ktx2, f),
+            exr_render: at(&plan.exr_render, f),
+            png_render: at(&plan.png_render, f),
+            exr_slices: at(&plan.exr_slices, f),
+            exr_atlas: at(&plan.exr_atlas, f),
+            godot: at(&plan.godot, f),
+            settings: plan.settings,
+        })
+        .collect()
 }
 
 /// The options of the chosen format, and only those.

@@ -6,7 +6,8 @@
 use super::export::ExportChoices;
 use super::files::FileDialogs;
 use super::state::{EditorState, ExactKey, ExportJob, JobResult};
-use crate::export::plan::{write_plan, ExportInputs, ExportRunError, Written};
+use crate::export::plan::{write_plan, ExportInputs, ExportPlan, ExportRunError, Written};
+use crate::export::usd::{asset_path, write_usd_sequence, StageFrame, UsdOptions};
 use crate::gpu::{FogPipeline, FrameRequest, GpuContext, GpuError, Image, Stage};
 use crate::scene::Project;
 use std::path::{Path, PathBuf};
@@ -45,6 +46,10 @@ impl EditorState {
             let why = self.gpu_missing.clone().unwrap_or_else(|| "the pipeline is not running".into());
             return self.error(format!("Cannot export to {}: {why}", path.display()));
         };
+        if let Some((first, last)) = choices.sequence(self.session.project()) {
+            let ctx = gpu.pipeline.context().clone();
+            return self.export_sequence(ctx, plan, path, (first..=last).collect());
+        }
         if let Some(e) = gpu.error.as_ref().filter(|_| plan.needs_volumes()) {
             let text =
                 format!("Cannot export to {}: the preview's bake failed, so there are no volumes: {e}", path.display());
@@ -102,6 +107,7 @@ impl EditorState {
             path: path.clone(),
             fraction: Arc::new(AtomicU32::new(0)),
             cancel: Arc::new(AtomicBool::new(false)),
+            frame: Arc::default(),
         };
         let (fraction, cancel) = (job.fraction.clone(), job.cancel.clone());
         self.jobs.export_job = Some(job);
@@ -148,6 +154,54 @@ impl EditorState {
         });
     }
 
+    /// Exports `frames` of the animated project in a background thread, each frame's
+    /// `at_frame` baked to convergence on a pipeline of its own (the preview keeps its own)
+    /// and written to the files of `plan` with the frame's number in place of the pattern,
+    /// as `fogsmith export --frames` does; a USD stage is written last, with a time sample
+    /// per frame. Each frame's files replace their targets once all of them are written, so
+    /// cancelling leaves every completed frame complete and nothing of the frame under way.
+    fn export_sequence(&mut self, ctx: GpuContext, plan: ExportPlan, path: PathBuf, frames: Vec<i32>) {
+        let project = self.session.project().clone();
+        let project_path = self.session.path().map(Path::to_owned);
+        let plans = super::export::sequence_plans(&plan, &frames);
+        let job = ExportJob {
+            path: path.clone(),
+            fraction: Arc::new(AtomicU32::new(0)),
+            cancel: Arc::new(AtomicBool::new(false)),
+            frame: Arc::default(),
+        };
+        let (fraction, cancel, note) = (job.fraction.clone(), job.cancel.clone(), job.frame.clone());
+        self.jobs.export_job = Some(job);
+        self.spawn(&format!("Exporting {}", path.display()), move || {
+            let set = |f: f32| fraction.store(f.to_bits(), Ordering::Relaxed);
+            let cancelled = || cancel.load(Ordering::Relaxed);
+            let mut done = 0;
+            let result = bake_sequence(
+                ctx,
+                &project,
+                project_path.as_deref(),
+                (&plan, &plans, &frames),
+                &mut |k, f| {
+                    done = k;
+                    if let Ok(mut n) = note.lock() {
+                        *n = format!("frame {} ({} of {})", frames[k], k + 1, frames.len());
+                    }
+                    set((k as f32 + f) / frames.len() as f32);
+                },
+                &cancelled,
+            );
+            set(1.0);
+            let result = match result {
+                Err(e) if e == EXPORT_CANCELLED => Err(format!(
+                    "{EXPORT_CANCELLED} after {done} of {} frames; the files of those frames are complete",
+                    frames.len()
+                )),
+                other => other,
+            };
+            JobResult::Exported { path, result }
+        });
+    }
+
     pub(super) fn finish_job(&mut self, result: JobResult) {
         self.jobs.busy.pop();
         match result {
@@ -167,6 +221,7 @@ impl EditorState {
                     Err(e) if e == EXPORT_CANCELLED => {
                         self.info(format!("Export cancelled; {} is unchanged", path.display()))
                     }
+                    Err(e) if e.starts_with(EXPORT_CANCELLED) => self.info(format!("Export {e}")),
                     Err(e) => self.error(format!("Export to {} failed: {e}", path.display())),
                 }
             }
@@ -256,6 +311,113 @@ fn render_output(
         Err(e) => Err(format!("The render failed: {e}")),
         Ok(_) => pipeline.read_image().map_err(|e| format!("The render could not be read back: {e}")),
     }
+}
+
+/// Bakes and writes each frame of a sequence (see `export_sequence`): `plans` are the
+/// frames' plans, `plan` the whole export's (its stage); `progress` hears the frame's index
+/// and the fraction of it done. Returns what was written, or why not.
+fn bake_sequence(
+    ctx: GpuContext,
+    project: &Project,
+    project_path: Option<&Path>,
+    (plan, plans, frames): (&ExportPlan, &[ExportPlan], &[i32]),
+    progress: &mut dyn FnMut(usize, f32),
+    cancelled: &dyn Fn() -> bool,
+) -> Result<String, String> {
+    let request = FrameRequest::for_project(project);
+    let mut pipeline = FogPipeline::new(ctx);
+    let layer = crate::export::load_base_layer(project, project_path)
+        .map_err(|e| format!("The base volume cannot be loaded for the bake: {e}"))?;
+    pipeline.set_base_layer(layer);
+    let fps = project.animation.map_or(24.0, |a| a.fps);
+    let mut stage_frames = Vec::new();
+    let mut fields = Vec::new();
+    let mut last = None;
+    for (k, (&frame, frame_plan)) in frames.iter().zip(plans).enumerate() {
+        progress(k, 0.0);
+        let still = project.at_frame(frame);
+        pipeline
+            .check_limits(&still, request.width, request.height)
+            .map_err(|e| format!("Cannot bake frame {frame}: {e}"))?;
+        let baked = pipeline.update_with(&still, &request, std::time::Duration::from_millis(50), &mut |p| {
+            let share = match p.stage {
+                Stage::Inject => 0.1 * p.stage_fraction as f32,
+                Stage::Propagate { .. } => 0.1 + 0.6 * p.stage_fraction as f32,
+                Stage::March => 0.7 + 0.1 * p.stage_fraction as f32,
+                Stage::Done => 0.8,
+            };
+            progress(k, share);
+            !cancelled()
+        });
+        match baked {
+            Err(GpuError::Cancelled) => return Err(EXPORT_CANCELLED.to_string()),
+            Err(e) => return Err(format!("Baking frame {frame} failed: {e}")),
+            Ok(_) => {}
+        }
+        let read = |e: GpuError| format!("Frame {frame}'s volumes could not be read back: {e}");
+        let ev = pipeline.read_ev().map_err(read)?;
+        let opvs =
+            (0..still.lights.len()).map(|i| pipeline.read_opv(i)).collect::<Result<Vec<_>, _>>().map_err(read)?;
+        let image = frame_plan.needs_image().then(|| pipeline.read_image()).transpose().map_err(read)?;
+        let emission = plan
+            .settings
+            .bake_light
+            .map(|phase| pipeline.bake_emission(&still, &request, phase))
+            .transpose()
+            .map_err(|e| format!("Baking frame {frame}'s lighting failed: {e}"))?;
+        let inputs = ExportInputs {
+            project: &still,
+            volumes: Some((&ev, &opvs)),
+            image: image.as_ref(),
+            emission: emission.as_ref(),
+            render_size: [request.width, request.height],
+            time: Some(crate::export::sequence::FrameTime { frame, fps }),
+        };
+        let mut staged = crate::export::Staged::default();
+        let written = match write_plan(
+            frame_plan,
+            &inputs,
+            &mut staged,
+            &mut |p| progress(k, 0.8 + 0.2 * p.overall),
+            cancelled,
+        ) {
+            Ok(_) if cancelled() => return Err(EXPORT_CANCELLED.to_string()),
+            Ok(w) => w,
+            Err(ExportRunError::Cancelled) => return Err(EXPORT_CANCELLED.to_string()),
+            Err(ExportRunError::Failed(e)) => return Err(e),
+        };
+        staged.commit().map_err(|e| format!("Frame {frame}: {e}"))?;
+        if let Some((vdb, _, _)) = &written.vdb {
+            stage_frames.push((frame, vdb.clone(), still));
+        }
+        fields = written.vdb_fields.clone();
+        last = Some(written);
+    }
+    let mut text = format!("{} frames", frames.len());
+    if let Some(w) = &last {
+        text.push_str(&format!(" ({} each)", summary(w)));
+    }
+    if let Some(usd) = &plan.usd {
+        let opts = UsdOptions {
+            vdb_asset: String::new(),
+            fields,
+            frame: plan.settings.frame,
+            width: request.width,
+            height: request.height,
+        };
+        let stage: Vec<StageFrame> = stage_frames
+            .iter()
+            .map(|(frame, vdb, still)| StageFrame { frame: *frame, project: still, vdb_asset: asset_path(usd, vdb) })
+            .collect();
+        let mut staged = crate::export::Staged::default();
+        staged.write(usd, |p| write_usd_sequence(p, &stage, fps, &opts)).map_err(|e| e.to_string())?;
+        staged.commit().map_err(|e| e.to_string())?;
+        text.push_str(&format!(
+            "; a stage with a time sample per frame of {}",
+            stage.first().map_or(String::new(), |f| f.vdb_asset.clone())
+        ));
+    }
+    Ok(text)
 }
 
 /// What an export wrote, for the message that says it is done.

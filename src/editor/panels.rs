@@ -288,6 +288,20 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 state.session.edit(t).medium.base_extinction = v;
             }
             ui.end_row();
+            keyed_label(state, ui, Channel(Object::Medium, Prop::HeightFalloff), "height falloff");
+            let tip = "k in base extinction · exp(−k·(y − y₀)): 0 keeps the base fog homogeneous";
+            if let Some((v, t)) = drag(ui, m.height_falloff, 0.01, 0.0..=crate::scene::MAX_HEIGHT_FALLOFF, " 1/m", tip)
+            {
+                state.session.edit(t).medium.height_falloff = v;
+            }
+            ui.end_row();
+            keyed_label(state, ui, Channel(Object::Medium, Prop::HeightOrigin), "height origin");
+            let limit = crate::scene::MAX_COORDINATE;
+            let tip = "y₀: the height at which the base fog has its base extinction";
+            if let Some((v, t)) = drag(ui, m.height_origin, 0.01, -limit..=limit, " m", tip) {
+                state.session.edit(t).medium.height_origin = v;
+            }
+            ui.end_row();
             ui.label("albedo");
             if let Some((v, t)) = drag(ui, m.albedo, 0.01, 0.0..=1.0, "", "Single-scattering albedo σs/σt") {
                 state.session.edit(t).medium.albedo = v;
@@ -389,6 +403,22 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 state.session.edit(t).camera.fov_y_deg = v;
             }
             ui.end_row();
+            keyed_label(state, ui, Channel(Object::Camera, Prop::Position), "camera position");
+            let tip = "Where the camera stands; orbiting the view changes it too";
+            if let Some((v, t)) = drag_vec3(ui, cam.position, 0.01, " m", tip) {
+                // The camera must look somewhere: a position on its target is not applied.
+                if v != cam.target {
+                    state.session.edit(t).camera.position = v;
+                }
+            }
+            ui.end_row();
+            keyed_label(state, ui, Channel(Object::Camera, Prop::Target), "camera target");
+            if let Some((v, t)) = drag_vec3(ui, cam.target, 0.01, " m", "The point the camera looks at") {
+                if v != cam.position {
+                    state.session.edit(t).camera.target = v;
+                }
+            }
+            ui.end_row();
             ui.label("output size");
             ui.horizontal(|ui| {
                 let (mut w, mut h) = (r.width, r.height);
@@ -488,7 +518,7 @@ fn noise_inspector(state: &mut EditorState, ui: &mut Ui) {
                     f(m);
                 }
             };
-            ui.label("amplitude");
+            keyed_label(state, ui, Channel(Object::Medium, Prop::NoiseAmplitude), "amplitude");
             if let Some((v, t)) = drag(
                 ui,
                 n.amplitude,

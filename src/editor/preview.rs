@@ -87,15 +87,16 @@ impl GpuView {
     }
 
     /// Advances the pipeline towards `project` (the still of animation frame `frame`, if
-    /// any) at `size` pixels within `budget` (None: to convergence), or renders its bake as
-    /// an engine shows it (`as_baked`, to convergence); returns whether a new image is on show.
+    /// any) at `size` pixels within `budget` (None: to convergence), with quick images
+    /// while it refines when `previews`, or renders its bake as an engine shows it
+    /// (`as_baked`, to convergence); returns whether a new image is on show.
     fn render(
         &mut self,
         project: &Project,
         frame: Option<i32>,
         version: Version,
         size: [u32; 2],
-        budget: Option<Duration>,
+        (budget, previews): (Option<Duration>, bool),
         as_baked: Option<BakePhase>,
     ) -> bool {
         let key = PreviewKey { version, size };
@@ -110,7 +111,10 @@ impl GpuView {
         }
         let switched_back = self.as_baked.take().is_some();
         let started = Instant::now();
-        let result = self.pipeline.advance(project, &request, budget);
+        let result = match previews {
+            true => self.pipeline.advance(project, &request, budget),
+            false => self.pipeline.advance_full_only(project, &request, budget),
+        };
         self.update_ms = started.elapsed().as_secs_f64() * 1e3;
         self.frame_update_ms = self.update_ms;
         let progress = match result {
@@ -272,9 +276,12 @@ impl EditorState {
             Some((_, still)) if animated => (still, Some(self.session.frame())),
             _ => (self.session.project(), None),
         };
+        // Playing every frame shows each frame converged: a quick image would be marched
+        // only to be replaced.
+        let previews = !self.playing_every_frame();
         let Some(gpu) = &mut self.gpu else { return };
         let before = gpu.error.clone();
-        gpu.render(project, frame, version, self.view.preview_size, budget, self.view.quality.as_baked());
+        gpu.render(project, frame, version, self.view.preview_size, (budget, previews), self.view.quality.as_baked());
         if gpu.refining() {
             self.ctx.request_repaint();
         }

@@ -15,6 +15,8 @@ impl EditorState {
             if let Some(job) = &self.jobs.export_job {
                 let f = f32::from_bits(job.fraction.load(Ordering::Relaxed));
                 let name = job.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+                let frame = job.frame.lock().map(|f| f.clone()).unwrap_or_default();
+                let name = if frame.is_empty() { name } else { format!("{name}, {frame}") };
                 ui.add(
                     egui::ProgressBar::new(f).desired_width(160.0).show_percentage().text(format!("exporting {name}")),
                 );
@@ -22,7 +24,11 @@ impl EditorState {
                     ui.label("cancelling…");
                 } else if ui
                     .button("Cancel")
-                    .on_hover_text(format!("Stop the export; {} stays as it was", job.path.display()))
+                    .on_hover_text(if frame.is_empty() {
+                        format!("Stop the export; {} stays as it was", job.path.display())
+                    } else {
+                        "Stop the export after the frames already written; each of them stays complete".to_string()
+                    })
                     .clicked()
                 {
                     job.cancel.store(true, Ordering::Relaxed);

@@ -178,6 +178,8 @@ pub(crate) struct ExportJob {
     /// Fraction written, as f32 bits.
     pub(super) fraction: Arc<AtomicU32>,
     pub(super) cancel: Arc<AtomicBool>,
+    /// Which frame of a sequence is being written ("frame 12, 3 of 10"); empty otherwise.
+    pub(super) frame: Arc<std::sync::Mutex<String>>,
 }
 
 /// Frame times of the last couple of seconds.

@@ -212,6 +212,11 @@ impl EditorState {
         self.goto_frame(to);
     }
 
+    /// Whether playback runs in "every frame" mode.
+    pub(super) fn playing_every_frame(&self) -> bool {
+        self.timeline.playing.is_some() && self.timeline.mode == PlayMode::EveryFrame
+    }
+
     /// Whether the preview shows the current state converged (or there is no preview).
     fn preview_done(&self) -> bool {
         let key = super::state::PreviewKey { version: self.version(), size: self.view.preview_size };

@@ -253,6 +253,18 @@ impl FogPipeline {
         self.run(project, request, budget, true)
     }
 
+    /// [`advance`](Self::advance) without quick previews: the image on show changes only
+    /// when the full-resolution image is complete (for showing each frame of an animation
+    /// converged, where a quick image would be marched only to be replaced).
+    pub fn advance_full_only(
+        &mut self,
+        project: &Project,
+        request: &FrameRequest,
+        budget: Option<Duration>,
+    ) -> Result<Progress, GpuError> {
+        self.run(project, request, budget, false)
+    }
+
     /// [`advance`](Self::advance), with or without quick previews.
     fn run(
         &mut self,
