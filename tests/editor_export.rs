@@ -428,8 +428,8 @@ fn a_cancelled_sequence_keeps_its_completed_frames_and_nothing_else() {
     let dir = tempfile::tempdir().unwrap();
     // Each frame's march at this size takes long enough to be under way when Cancel comes.
     let project = project_file(dir.path(), "slow.ron", |p| {
-        p.render.width = 1920;
-        p.render.height = 1080;
+        p.render.width = 640;
+        p.render.height = 360;
         p.render.step_factor = 0.05;
         p.animation = Some(Animation { fps: 24.0, start: 1, end: 3 });
         let fog = Channel(Object::Medium, Prop::BaseExtinction);
