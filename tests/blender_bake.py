@@ -27,30 +27,17 @@ scene = bpy.context.scene
 
 for o in [o for o in scene.objects if o.type == "LIGHT"]:
     bpy.data.objects.remove(o, do_unlink=True)
-vols = [o for o in scene.objects if o.type == "VOLUME"]
-assert len(vols) == 1, f"expected one volume, found {[o.name for o in vols]}"
-vol = vols[0]
+vol = blender_common.the_volume(scene)
 vol.data.grids.load()
 names = [g.name for g in vol.data.grids]
 assert "emission" in names and "density" in names, f"grids {names}"
 
-mat = bpy.data.materials.new("FogsmithBake")
-mat.use_nodes = True
-nodes = mat.node_tree.nodes
-nodes.clear()
-pv = nodes.new("ShaderNodeVolumePrincipled")
-pv.inputs["Density"].default_value = 1.0
-pv.inputs["Density Attribute"].default_value = "density"
-pv.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+tree, pv = blender_common.fog_material(vol, "FogsmithBake", 0.0, 0.0)
 pv.inputs["Absorption Color"].default_value = (0.0, 0.0, 0.0, 1.0)
 pv.inputs["Emission Strength"].default_value = strength
-attr = nodes.new("ShaderNodeAttribute")
+attr = tree.nodes.new("ShaderNodeAttribute")
 attr.attribute_name = "emission"
-mat.node_tree.links.new(attr.outputs["Color"], pv.inputs["Emission Color"])
-outn = nodes.new("ShaderNodeOutputMaterial")
-mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
-vol.data.materials.clear()
-vol.data.materials.append(mat)
+tree.links.new(attr.outputs["Color"], pv.inputs["Emission Color"])
 
 blender_common.centre_voxels(vol)
 

@@ -57,3 +57,36 @@ def render_rgb(scene, path, width, height):
     bpy.ops.render.render(write_still=True)
     img = bpy.data.images.load(path + ".exr")
     return np.array(img.pixels[:], dtype=np.float32).reshape(height, width, 4)[::-1, :, :3]
+
+
+def the_volume(scene):
+    """The one volume object the USD import made."""
+    vols = [o for o in scene.objects if o.type == "VOLUME"]
+    assert len(vols) == 1, f"expected one volume, found {[o.name for o in vols]}"
+    return vols[0]
+
+
+def fog_material(vol, name, albedo, anisotropy):
+    """A Principled Volume whose density is the `density` grid, the fog's albedo as its
+    colour and its g as the anisotropy; returns the node tree, its Principled Volume node."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    pv = nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Density"].default_value = 1.0
+    pv.inputs["Density Attribute"].default_value = "density"
+    pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+    pv.inputs["Anisotropy"].default_value = anisotropy
+    outn = nodes.new("ShaderNodeOutputMaterial")
+    mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
+    vol.data.materials.clear()
+    vol.data.materials.append(mat)
+    return mat.node_tree, pv
+
+
+def hard_point_lights(scene):
+    """Point and spot lights without Blender's soft falloff, as Fogsmith's lights are."""
+    for o in scene.objects:
+        if o.type == "LIGHT":
+            o.data.use_soft_falloff = False

@@ -25,9 +25,7 @@ bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.wm.usd_import(filepath=stage)
 scene = bpy.context.scene
 
-vols = [o for o in scene.objects if o.type == "VOLUME"]
-assert len(vols) == 1, f"expected one volume, found {[o.name for o in vols]}"
-vol = vols[0]
+vol = blender_common.the_volume(scene)
 # Custom attributes of the Volume prim, which the importer does not map to a material.
 from pxr import Usd  # noqa: E402  (bpy ships its own USD; usd-core is in the same venv)
 
@@ -36,25 +34,11 @@ prim = usd_stage.GetPrimAtPath("/World/Fog")
 albedo = prim.GetAttribute("fogsmith:albedo").Get()
 anisotropy = prim.GetAttribute("fogsmith:anisotropy").Get()
 
-mat = bpy.data.materials.new("FogsmithFog")
-mat.use_nodes = True
-nodes = mat.node_tree.nodes
-nodes.clear()
-pv = nodes.new("ShaderNodeVolumePrincipled")
-pv.inputs["Density"].default_value = 1.0
-pv.inputs["Density Attribute"].default_value = "density"
-pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
-pv.inputs["Anisotropy"].default_value = anisotropy
-outn = nodes.new("ShaderNodeOutputMaterial")
-mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
-vol.data.materials.clear()
-vol.data.materials.append(mat)
+blender_common.fog_material(vol, "FogsmithFog", albedo, anisotropy)
 
 blender_common.centre_voxels(vol)
 
-for o in scene.objects:
-    if o.type == "LIGHT":
-        o.data.use_soft_falloff = False
+blender_common.hard_point_lights(scene)
 cams = [o for o in scene.objects if o.type == "CAMERA"]
 scene.camera = cams[0]
 

@@ -25,33 +25,17 @@ scene = bpy.context.scene
 usd_stage = Usd.Stage.Open(stage)
 start, end = int(usd_stage.GetStartTimeCode()), int(usd_stage.GetEndTimeCode())
 
-vols = [o for o in scene.objects if o.type == "VOLUME"]
-assert len(vols) == 1, f"expected one volume, found {[o.name for o in vols]}"
-vol = vols[0]
+vol = blender_common.the_volume(scene)
 prim = usd_stage.GetPrimAtPath("/World/Fog")
 albedo = prim.GetAttribute("fogsmith:albedo").Get()
 anisotropy = prim.GetAttribute("fogsmith:anisotropy").Get()
 
-mat = bpy.data.materials.new("FogsmithFog")
-mat.use_nodes = True
-nodes = mat.node_tree.nodes
-nodes.clear()
-pv = nodes.new("ShaderNodeVolumePrincipled")
-pv.inputs["Density"].default_value = 1.0
-pv.inputs["Density Attribute"].default_value = "density"
-pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
-pv.inputs["Anisotropy"].default_value = anisotropy
-outn = nodes.new("ShaderNodeOutputMaterial")
-mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
-vol.data.materials.clear()
-vol.data.materials.append(mat)
+blender_common.fog_material(vol, "FogsmithFog", albedo, anisotropy)
 
 scene.frame_set(start)
 blender_common.centre_voxels(vol)
 
-for o in scene.objects:
-    if o.type == "LIGHT":
-        o.data.use_soft_falloff = False
+blender_common.hard_point_lights(scene)
 cams = [o for o in scene.objects if o.type == "CAMERA"]
 scene.camera = cams[0]
 
