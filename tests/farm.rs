@@ -257,6 +257,37 @@ fn a_killed_task_runs_again_to_a_complete_sequence() {
 /// A chunk of 0, frames outside the animation, a still project, an output pattern without a
 /// frame number and a missing base volume are each refused with the fix, before anything is
 /// written; a present base volume is copied into the bundle and the copy referenced.
+/// A project whose particles live in a sidecar file takes its sidecar into the bundle, and the
+/// bundle's project loads back with every particle.
+#[test]
+fn a_bundle_carries_the_particle_sidecar() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut p = animated();
+    let template = p.particles[0].clone();
+    let n = fogsmith::scene::sidecar::SIDECAR_MIN_PARTICLES;
+    p.particles = (0..n)
+        .map(|i| {
+            let mut q = template.clone();
+            q.center += Vec3::new((i % 37) as f32, (i % 11) as f32, (i % 5) as f32) * 0.01;
+            q
+        })
+        .collect();
+    p.tracks.retain(|t| !matches!(t.on.0, Object::Particle(_)));
+    p.ensure_unique_ids();
+    let project = dir.path().join("many.ron");
+    save_project(&project, &p).unwrap();
+    let out = dir.path().join("job");
+    ok(fogsmith(&["farm", "openjd", s(&project), "--frames", FRAMES, "--out", s(&out)]), "farm openjd");
+    let sidecars: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".particles"))
+        .collect();
+    assert_eq!(sidecars.len(), 1, "the bundle holds the sidecar: {sidecars:?}");
+    let back = fogsmith::scene::load_project(&out.join("many.ron")).unwrap();
+    assert_eq!(back.particles, p.particles);
+}
+
 #[test]
 fn bad_jobs_are_refused_before_any_file_is_written() {
     let dir = tempfile::tempdir().unwrap();

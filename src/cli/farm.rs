@@ -170,6 +170,10 @@ fn write_bundle(args: &JobArgs) -> Result<FarmJob, Box<dyn std::error::Error>> {
             volume.path = asset;
             save_project(&target, &project)?;
         }
+        // A project with a particle sidecar is saved afresh, which writes its sidecar beside it.
+        _ if project.particles.len() >= crate::scene::sidecar::SIDECAR_MIN_PARTICLES => {
+            save_project(&target, &project)?
+        }
         _ => {
             if std::fs::canonicalize(&args.project).ok() != std::fs::canonicalize(&target).ok() {
                 std::fs::copy(&args.project, &target)
