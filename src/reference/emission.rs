@@ -37,17 +37,7 @@ impl BakedGrid64 {
 
     /// [σ_t, j_r, j_g, j_b] at `x` inside the box.
     pub fn at(&self, x: DVec3) -> [f64; 4] {
-        let mut i0 = [0usize; 3];
-        let mut i1 = [0usize; 3];
-        let mut f = [0.0f64; 3];
-        for a in 0..3 {
-            let hi = (self.dims[a] - 1) as f64;
-            let u = ((x[a] - self.min[a]) / self.cell[a] - 0.5).clamp(0.0, hi);
-            let fl = u.floor();
-            i0[a] = fl as usize;
-            i1[a] = (i0[a] + 1).min(self.dims[a] - 1);
-            f[a] = u - fl;
-        }
+        let (i0, i1, f) = super::grid::trilinear_cells(x, self.min, self.cell, self.dims);
         let mut out = [0.0; 4];
         for n in 0..8 {
             let pick = |a: usize| if n >> a & 1 == 1 { (i1[a], f[a]) } else { (i0[a], 1.0 - f[a]) };

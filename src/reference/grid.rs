@@ -104,17 +104,7 @@ impl GridMedium64 {
         if (0..3).any(|a| x[a] < self.min[a] || x[a] > self.max[a]) {
             return self.outside_at(x.y);
         }
-        let mut i0 = [0usize; 3];
-        let mut i1 = [0usize; 3];
-        let mut f = [0.0f64; 3];
-        for a in 0..3 {
-            let hi = (self.dims[a] - 1) as f64;
-            let u = ((x[a] - self.min[a]) / self.cell[a] - 0.5).clamp(0.0, hi);
-            let fl = u.floor();
-            i0[a] = fl as usize;
-            i1[a] = (i0[a] + 1).min(self.dims[a] - 1);
-            f[a] = u - fl;
-        }
+        let (i0, i1, f) = trilinear_cells(x, self.min, self.cell, self.dims);
         let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
         let v = |i: usize, j: usize, k: usize| self.value(i, j, k);
         lerp(
@@ -214,6 +204,29 @@ pub fn clipped_optical_depth(grid: &GridSpec, medium: &Medium64, a: DVec3, b: DV
         }
         None => medium.base_depth(a, dir, len),
     }
+}
+
+/// The trilinear neighbourhood of `x` in a grid of `dims` cells from `min`, values at cell
+/// centres, clamped to the outermost centres as the GPU's lookups are: the lower and upper
+/// cell index per axis and the fraction between them.
+pub(crate) fn trilinear_cells(
+    x: DVec3,
+    min: DVec3,
+    cell: DVec3,
+    dims: [usize; 3],
+) -> ([usize; 3], [usize; 3], [f64; 3]) {
+    let mut i0 = [0usize; 3];
+    let mut i1 = [0usize; 3];
+    let mut f = [0.0f64; 3];
+    for a in 0..3 {
+        let hi = (dims[a] - 1) as f64;
+        let u = ((x[a] - min[a]) / cell[a] - 0.5).clamp(0.0, hi);
+        let fl = u.floor();
+        i0[a] = fl as usize;
+        i1[a] = (i0[a] + 1).min(dims[a] - 1);
+        f[a] = u - fl;
+    }
+    (i0, i1, f)
 }
 
 #[cfg(test)]
