@@ -65,7 +65,8 @@ struct Surface {
 @group(0) @binding(1) var<uniform> params: MarchParams;
 @group(0) @binding(2) var ev: texture_3d<f32>;
 @group(0) @binding(3) var<storage, read> lights: array<LightGpu>;
-// binding 4: `opv`, declared with its helper opv_load by src/gpu/opv_store.rs.
+// binding 4: `lookup`, the per-light lookup volumes (shaders/march_lookup.wgsl), declared with
+// its helper lookup_load by src/gpu/opv_store.rs.
 @group(0) @binding(5) var out_hdr: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var out_ldr: texture_storage_2d<rgba8unorm, write>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
@@ -114,23 +115,18 @@ fn ev_at(t: Trilinear) -> f32 {
 // the eight surrounding cells. The mean extinction is smooth where T itself has a kink (at
 // the light) and constant in homogeneous fog, so this is exact there and accurate near lights.
 fn opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
-    let s = lights[light].position;
     var c: array<f32, 8>;
     for (var n = 0u; n < 8u; n++) {
-        let p = corner(t, n);
-        let d = length(grid.min + (vec3f(p) + 0.5) * grid.cell - s);
-        if d < 1e-6 * grid.cell.x {
-            c[n] = textureLoad(ev, p, 0).r;
-        } else {
-            c[n] = opv_value(light, p) / d;
-        }
+        c[n] = lookup_value(light, corner(t, n));
     }
-    return lerp3(c, t.f) * length(x - s);
+    return lerp3(c, t.f) * length(x - lights[light].position);
 }
 
-// The optical depth stored for light `light` at cell p: every OPV read goes through here.
-fn opv_value(light: u32, p: vec3u) -> f32 {
-    return opv_load(light, p);
+// The lookup volume of light `light` at cell p (shaders/march_lookup.wgsl: the mean
+// extinction along the cell centre's path to the light): every optical-depth read goes
+// through here.
+fn lookup_value(light: u32, p: vec3u) -> f32 {
+    return lookup_load(light, p);
 }
 
 // A sun's optical depth from x in the grid box: the OPV holds G + B (propagate_directional.wgsl);
@@ -144,9 +140,7 @@ fn sun_opv_at(t: Trilinear, light: u32, x: vec3f) -> f32 {
     }
     var c: array<f32, 8>;
     for (var n = 0u; n < 8u; n++) {
-        let p = corner(t, n);
-        let xc = grid.min + (vec3f(p) + 0.5) * grid.cell;
-        c[n] = max(opv_value(light, p) - sun_beyond(xc, towards), 0.0) / max(box_exit(xc, towards), 1e-30);
+        c[n] = lookup_value(light, corner(t, n));
     }
     return lerp3(c, t.f) * box_exit(x, towards) + beyond;
 }

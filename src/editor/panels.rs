@@ -365,7 +365,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             g.cell_count()
         ))
         .on_hover_text(
-            "Extinction volume, optical-depth volumes and their scratch twins, injection lists and image targets",
+            "Extinction volume, optical-depth volumes with their scratch twins and the march's lookup volumes, injection lists and image targets",
         );
         let refused: Option<String> = ui.data(|d| d.get_temp(egui::Id::new("grid-refused"))).flatten();
         if let Some(w) =

@@ -149,7 +149,7 @@ pub fn task_memory_mib(project: &Project, width: u32, height: u32) -> u64 {
     let cells = project.grid.cell_count();
     let lights = project.lights.len().max(1) as u64;
     let pixels = width as u64 * height as u64;
-    let device = cells * 4 * (1 + 2 * lights) + pixels * 56 + project.particles.len() as u64 * 64;
+    let device = cells * 4 * (1 + 3 * lights) + pixels * 56 + project.particles.len() as u64 * 64;
     let host = 2 * cells * 4 * (1 + lights) + pixels * 16;
     let fixed = 512 << 20;
     ((device + host) * 5 / 4 + fixed).div_ceil(1 << 20)

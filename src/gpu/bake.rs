@@ -35,7 +35,8 @@ pub struct BakeInputs<'a> {
     pub grid_buf: &'a wgpu::Buffer,
     pub ev_view: &'a wgpu::TextureView,
     pub lights_buf: &'a wgpu::Buffer,
-    pub opv: &'a OpvVolumes,
+    /// The march's lookup volumes (`march_lookup`).
+    pub lookup: &'a OpvVolumes,
     pub surfaces: &'a [SurfaceGpu],
     /// The march's parameters: camera, albedo, anisotropy, surface count.
     pub params: MarchParams,
@@ -123,11 +124,11 @@ impl Baker {
                 wgpu::BindGroupEntry { binding: 1, resource: params_buf.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(inputs.ev_view) },
                 wgpu::BindGroupEntry { binding: 3, resource: inputs.lights_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: inputs.opv.first() },
+                wgpu::BindGroupEntry { binding: 4, resource: inputs.lookup.first() },
                 wgpu::BindGroupEntry { binding: 9, resource: surfaces.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 11, resource: out.as_entire_binding() },
             ];
-            entries.extend(inputs.opv.extra_entries(EXTRA_BINDING));
+            entries.extend(inputs.lookup.extra_entries(EXTRA_BINDING));
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("bake"),
                 layout: &self.layout,

@@ -46,7 +46,7 @@ impl Capacity<'_> {
     }
 
     /// Peak GPU memory, in bytes, of the resources a scene of this size needs: EV, brick
-    /// maxima, the OPV array and its scratch twin, injection lists of one chunk and the
+    /// maxima, the OPV array, its scratch twin and the march's lookup array, injection lists of one chunk and the
     /// particles, both image targets and the image readback.
     pub fn memory_needed(&self, grid: &GridSpec, lights: usize, particles: usize, width: u32, height: u32) -> u64 {
         let cells = grid.cell_count();
@@ -60,7 +60,7 @@ impl Capacity<'_> {
             self.chunk_bytes.min(particles as u64 * bins * 4) + bins * 4 + particle_bytes
         };
         let pixels = width as u64 * height as u64;
-        cells * 4 + bricks * 8 + 2 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
+        cells * 4 + bricks * 8 + 3 * cells * lights.max(1) as u64 * 4 + lists + pixels * (16 + 4) * 2 + pixels * 16
     }
 
     /// The largest grid, of the same proportions as `grid`, whose scene passes

@@ -67,7 +67,8 @@ pub struct MarchInputs<'a> {
     pub grid_buf: &'a wgpu::Buffer,
     pub ev_view: &'a wgpu::TextureView,
     pub lights_buf: &'a wgpu::Buffer,
-    pub opv: &'a OpvVolumes,
+    /// The lookup volumes (`march_lookup`), bound where the march reads optical depths.
+    pub lookup: &'a OpvVolumes,
     pub brick_max: &'a wgpu::Buffer,
     pub surfaces: &'a [SurfaceGpu],
     pub params: MarchParams,
@@ -148,7 +149,7 @@ impl Marcher {
                 target.params_buf.as_entire_binding(),
                 wgpu::BindingResource::TextureView(inputs.ev_view),
                 inputs.lights_buf.as_entire_binding(),
-                inputs.opv.first(),
+                inputs.lookup.first(),
                 wgpu::BindingResource::TextureView(&target.hdr_view),
                 wgpu::BindingResource::TextureView(&target.ldr_view),
                 self.counters_buf.as_entire_binding(),
@@ -156,7 +157,7 @@ impl Marcher {
                 self.surfaces_buf.as_entire_binding(),
                 self.sun_table.as_entire_binding(),
             ],
-            inputs.opv.extra_entries(EXTRA_BINDING),
+            inputs.lookup.extra_entries(EXTRA_BINDING),
         );
         MarchJob { bind_group, params: inputs.params, next_row: 0 }
     }

@@ -41,6 +41,7 @@ mod keys;
 mod layout;
 mod limits;
 mod march;
+mod march_lookup;
 mod opv_store;
 mod outputs;
 mod pipeline;

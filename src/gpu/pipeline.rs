@@ -27,6 +27,7 @@ use super::inject_options::{InjectOptions, InjectPath};
 use super::keys::{Baked, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
+use super::march_lookup::{LookupBuilder, LookupInputs};
 use super::opv_store::OpvLayout;
 use super::outputs::{self, Image};
 use super::propagate::{sweep_cells_per_thread, PropagationInputs, PropagationJob, Propagator};
@@ -55,6 +56,12 @@ pub struct FogPipeline {
     injector: Injector,
     propagator: Propagator,
     marcher: Marcher,
+    lookup: LookupBuilder,
+    /// Whether the march's lookup volumes match the EV, OPVs, lights and grid parameters on
+    /// the GPU; cleared by every write to them.
+    lookup_fresh: bool,
+    /// The lights and grid parameters last uploaded, to tell a change from a rewrite.
+    uniforms: Vec<u8>,
     slicer: Slicer,
     /// Built on the first bake: most pipelines never bake.
     baker: Option<Baker>,
@@ -103,6 +110,7 @@ impl FogPipeline {
         let sweep_cells = sweep_cells_per_thread(ctx.adapter_info.device_type);
         let propagator = Propagator::new(device, stage_layout, sweep_cells);
         let marcher = Marcher::new(device, stage_layout);
+        let lookup = LookupBuilder::new(device, stage_layout);
         let slicer = Slicer::new(device, stage_layout);
         let timer = StageTimer::new(&ctx);
         Self {
@@ -110,6 +118,9 @@ impl FogPipeline {
             injector,
             propagator,
             marcher,
+            lookup,
+            lookup_fresh: false,
+            uniforms: Vec::new(),
             slicer,
             baker: None,
             as_baked: None,
@@ -159,7 +170,8 @@ impl FogPipeline {
     }
 
     /// Peak GPU memory, in bytes, of the resources a scene of this size needs: EV, brick
-    /// maxima, the OPV array and its scratch twin, injection lists of one chunk and the
+    /// maxima, the OPV array, its scratch twin and the march's lookup array, injection lists
+    /// of one chunk and the
     /// particles, both image targets and the image readback.
     pub fn memory_needed(&self, grid: &GridSpec, lights: usize, particles: usize, width: u32, height: u32) -> u64 {
         self.capacity().memory_needed(grid, lights, particles, width, height)
@@ -575,6 +587,7 @@ impl FogPipeline {
             t.resolve(&mut encoder, timer::INJECT);
         }
         self.ctx.queue.submit([encoder.finish()]);
+        self.lookup_fresh = false;
         self.ctx.wait()?;
         Ok(units)
     }
@@ -637,18 +650,38 @@ impl FogPipeline {
             t.resolve(&mut encoder, timer::PROPAGATE);
         }
         self.ctx.queue.submit([encoder.finish()]);
+        self.lookup_fresh = false;
         // A lost device surfaces as an error of the next readback or update.
         let _ = self.ctx.wait();
         units
     }
 
+    /// Rebuilds the march's lookup volumes unless they match what is on the GPU.
+    fn refresh_lookup(&mut self) {
+        let Some(g) = self.grid.as_ref().filter(|_| !self.lookup_fresh) else { return };
+        let inputs = LookupInputs {
+            spec: g.spec,
+            light_count: g.light_count,
+            grid_buf: &g.grid_buf,
+            ev_view: &g.ev_view,
+            lights_buf: &g.lights_buf,
+            opv: &g.opv[0],
+            lookup: &g.lookup,
+        };
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        self.lookup.encode(&self.ctx.device, &mut encoder, &inputs);
+        self.ctx.queue.submit([encoder.finish()]);
+        self.lookup_fresh = true;
+    }
+
     fn begin_march(&mut self, target: &ImageTarget, key: &ImageKey) -> Result<MarchJob, GpuError> {
+        self.refresh_lookup();
         let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
         let inputs = MarchInputs {
             grid_buf: &g.grid_buf,
             ev_view: &g.ev_view,
             lights_buf: &g.lights_buf,
-            opv: &g.opv[0],
+            lookup: &g.lookup,
             brick_max: &g.brick_max,
             surfaces: &key.surfaces,
             params: MarchParams { size: [target.width, target.height], ..key.params },
@@ -709,6 +742,7 @@ impl FogPipeline {
         }
         let layout = self.stages_for(&spec, light_count);
         self.grid = Some(GridResources::new(&self.ctx.device, spec, light_count, layout));
+        self.lookup_fresh = false;
         self.baked = Baked::default();
         self.jobs = Jobs::default();
     }
@@ -725,6 +759,8 @@ impl FogPipeline {
             let device = &self.ctx.device;
             self.propagator = Propagator::new(device, self.stage_layout, self.sweep_cells);
             self.marcher = Marcher::new(device, self.stage_layout);
+            self.lookup = LookupBuilder::new(device, self.stage_layout);
+            self.lookup_fresh = false;
             self.slicer = Slicer::new(device, self.stage_layout);
             self.baker = None;
             self.as_baked = None;
@@ -740,6 +776,7 @@ impl FogPipeline {
         let layout = self.stages_for(&spec, light_count);
         let Some(g) = &mut self.grid else { return };
         g.resize_lights(&self.ctx, layout, light_count);
+        self.lookup_fresh = false;
         self.baked.opvs.truncate(light_count);
         // In-flight work binds the old buffers.
         self.jobs.propagate = None;
@@ -747,9 +784,14 @@ impl FogPipeline {
     }
 
     /// Uploads the lights (culled and hidden ones dark) and the grid parameters every stage reads.
-    fn write_scene_uniforms(&self, inputs: &FrameInputs) {
+    fn write_scene_uniforms(&mut self, inputs: &FrameInputs) {
         if let Some(g) = &self.grid {
             g.write_uniforms(&self.ctx.queue, &inputs.lights, &inputs.grid);
+            let bytes = [bytemuck::cast_slice(&inputs.lights), bytemuck::bytes_of(&inputs.grid)].concat();
+            if bytes != self.uniforms {
+                self.uniforms = bytes;
+                self.lookup_fresh = false;
+            }
         }
     }
 
@@ -847,6 +889,7 @@ impl FogPipeline {
         }
         self.update(project, request)?;
         let frame = FrameInputs::new(project, request, &self.settings(project));
+        self.refresh_lookup();
         let baker = self.baker.get_or_insert_with(|| Baker::new(&self.ctx.device, self.stage_layout));
         let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
         let inputs = BakeInputs {
@@ -854,7 +897,7 @@ impl FogPipeline {
             grid_buf: &g.grid_buf,
             ev_view: &g.ev_view,
             lights_buf: &g.lights_buf,
-            opv: &g.opv[0],
+            lookup: &g.lookup,
             surfaces: &frame.surfaces,
             params: frame.march,
         };

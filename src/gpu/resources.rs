@@ -16,6 +16,8 @@ pub(super) struct GridResources {
     pub lights_buf: wgpu::Buffer,
     /// The OPVs and the schemes' scratch array of the same size (see `opv_store`).
     pub opv: [OpvVolumes; 2],
+    /// The march's lookup volumes, built from the OPVs (see `march_lookup`).
+    pub lookup: OpvVolumes,
     /// Largest σ_t seen by samples in each 8³ brick, then each brick's detail (see
     /// `shaders/occupancy.wgsl`).
     pub brick_max: wgpu::Buffer,
@@ -43,15 +45,15 @@ impl GridResources {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let (lights_buf, opv) = light_buffers(device, layout, &spec, light_count);
-        Self { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, brick_max }
+        let (lights_buf, opv, lookup) = light_buffers(device, layout, &spec, light_count);
+        Self { spec, light_count, grid_buf, ev, ev_view, lights_buf, opv, lookup, brick_max }
     }
 
     /// Reallocates the per-light buffers for `light_count` lights, keeping the OPVs of the
-    /// lights that remain (by index).
+    /// lights that remain (by index). The lookup volumes start empty: they are rebuilt.
     pub fn resize_lights(&mut self, ctx: &GpuContext, layout: OpvLayout, light_count: usize) {
         let device = &ctx.device;
-        let (lights_buf, opv) = light_buffers(device, layout, &self.spec, light_count);
+        let (lights_buf, opv, lookup) = light_buffers(device, layout, &self.spec, light_count);
         let kept = self.light_count.min(light_count) as u64;
         if kept > 0 {
             let mut encoder = device.create_command_encoder(&Default::default());
@@ -62,6 +64,7 @@ impl GridResources {
         }
         self.lights_buf = lights_buf;
         self.opv = opv;
+        self.lookup = lookup;
         self.light_count = light_count;
     }
 
@@ -78,25 +81,28 @@ impl GridResources {
             + self.grid_buf.size()
             + self.lights_buf.size()
             + self.opv.iter().map(OpvVolumes::bytes).sum::<u64>()
+            + self.lookup.bytes()
             + self.brick_max.size()
     }
 }
 
-/// The lights buffer and the two OPV buffers (result and scratch) for `light_count` lights.
+/// The lights buffer, the two OPV arrays (result and scratch) and the march's lookup array
+/// for `light_count` lights.
 fn light_buffers(
     device: &wgpu::Device,
     layout: OpvLayout,
     spec: &GridSpec,
     light_count: usize,
-) -> (wgpu::Buffer, [OpvVolumes; 2]) {
+) -> (wgpu::Buffer, [OpvVolumes; 2], OpvVolumes) {
     let lights = light_count.max(1) as u64;
     let opv = ["optical depth A", "optical depth B"]
         .map(|label| OpvVolumes::new(device, layout, spec.resolution, lights, label));
+    let lookup = OpvVolumes::new(device, layout, spec.resolution, lights, "march lookup");
     let lights_buf = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("lights"),
         size: (light_count.max(1) * std::mem::size_of::<LightGpu>()) as u64,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    (lights_buf, opv)
+    (lights_buf, opv, lookup)
 }

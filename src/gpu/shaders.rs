@@ -107,12 +107,19 @@ pub fn propagate_directional(opv: &OpvLayout) -> String {
 /// The camera ray march, with Sun et al.'s airlight and surface tables.
 pub fn march(opv: &OpvLayout) -> String {
     assemble(&[
-        &opv.wgsl("opv", 4, EXTRA_BINDING, false),
+        &opv.wgsl("lookup", 4, EXTRA_BINDING, false),
         EV_TRILINEAR,
         include_str!("../../shaders/sun.wgsl"),
         include_str!("../../shaders/surface_glow.wgsl"),
         include_str!("../../shaders/march.wgsl"),
     ])
+}
+
+/// The march's per-light lookup volumes from the OPVs: reads `opv` (binding 3), writes
+/// `lookup` (binding 4).
+pub fn march_lookup(opv: &OpvLayout) -> String {
+    let opv_lookup = opv.wgsl("opv", 3, EXTRA_BINDING, false) + &opv.wgsl("lookup", 4, EXTRA_BINDING_2, true);
+    assemble(&[&opv_lookup, include_str!("../../shaders/march_lookup.wgsl")])
 }
 
 /// The bake of each cell's emission: the march's sources and lookups, entry point `bake`.
@@ -149,6 +156,7 @@ mod tests {
             ("propagate_analytic", propagate_analytic(&opv)),
             ("propagate_directional", propagate_directional(&opv)),
             ("march", march(&opv)),
+            ("march_lookup", march_lookup(&opv)),
             ("bake", bake(&opv)),
             ("slice", slice(&opv)),
         ];
