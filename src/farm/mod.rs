@@ -197,7 +197,7 @@ mod tests {
         let mut p = Project::default();
         p.grid.resolution = glam::UVec3::splat(256);
         p.lights = vec![crate::scene::Light::new(glam::Vec3::ONE, 1.0, glam::Vec3::ONE); 8];
-        assert_eq!(task_memory_mib(&p, 1920, 1080), 3490);
+        assert_eq!(task_memory_mib(&p, 1920, 1080), 4130);
     }
 
     #[test]
