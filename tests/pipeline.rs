@@ -553,7 +553,7 @@ fn only_scenes_beyond_the_device_are_refused() {
     let err = gpu.check_limits(&p, 640, 360).unwrap_err().to_string();
     assert!(err.contains(&format!("needs {needed}")), "{err}");
     assert!(err.contains("lower grid.resolution"), "{err}");
-    let fit = gpu.largest_fitting_grid(&p.grid, 8, 0, 640, 360).expect("some grid fits");
+    let fit = gpu.largest_fitting_grid(&p.grid, 8, p.particles.len(), 640, 360).expect("some grid fits");
     assert!(fit.x >= 256 && fit.x < 2048, "largest fitting grid {fit}");
     p.grid.resolution = fit;
     gpu.check_limits(&p, 640, 360).expect("the largest fitting grid fits");
