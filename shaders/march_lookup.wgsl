@@ -10,6 +10,8 @@
 @group(0) @binding(1) var ev: texture_3d<f32>;
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 // binding 3: `opv` (read), binding 4: `lookup` (written), declared by src/gpu/opv_store.rs.
+// Nonzero for the lights whose volume is rebuilt.
+@group(0) @binding(5) var<storage, read> stale: array<u32>;
 
 @compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
 fn main(@builtin(global_invocation_id) p: vec3u) {
@@ -18,6 +20,9 @@ fn main(@builtin(global_invocation_id) p: vec3u) {
     }
     let xc = grid.min + (vec3f(p) + 0.5) * grid.cell;
     for (var light = 0u; light < grid.light_count; light++) {
+        if stale[light] == 0u {
+            continue;
+        }
         var v: f32;
         if lights[light].kind == LIGHT_DIRECTIONAL {
             let towards = -lights[light].direction;

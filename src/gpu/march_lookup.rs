@@ -5,17 +5,19 @@
 //! depths) per light; with them it loads eight values.
 //!
 //! [`LookupBuilder`] is long-lived (pipeline and layout); the volumes live with the grid's
-//! other per-light arrays (`resources`). The pipeline rebuilds them before a march or a bake
-//! whenever the EV, an OPV, the lights or the grid parameters changed since the last build.
+//! other per-light arrays (`resources`). Before a march or a bake the pipeline rebuilds the
+//! volumes of the lights whose OPV, light or grid parameters changed since their last build.
 
 use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, WORKGROUP_3D};
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING, EXTRA_BINDING_2};
+use super::GpuContext;
 use crate::scene::GridSpec;
 
 /// What one build reads and writes.
 pub struct LookupInputs<'a> {
     pub spec: GridSpec,
-    pub light_count: usize,
+    /// Per light, whether to rebuild its volume.
+    pub stale: &'a [bool],
     pub grid_buf: &'a wgpu::Buffer,
     pub ev_view: &'a wgpu::TextureView,
     pub lights_buf: &'a wgpu::Buffer,
@@ -26,6 +28,8 @@ pub struct LookupInputs<'a> {
 pub struct LookupBuilder {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
+    /// One flag per light, nonzero where the volume is rebuilt.
+    flags: wgpu::Buffer,
 }
 
 impl LookupBuilder {
@@ -41,17 +45,27 @@ impl LookupBuilder {
                 Slot::StorageRead,
                 Slot::Opv { read_only: true },
                 Slot::Opv { read_only: false },
+                Slot::StorageRead,
             ],
             extra,
         );
         let pipeline = compute_pipeline(device, "march lookup", super::shaders::march_lookup(&opv), &layout);
-        Self { layout, pipeline }
+        let flags = super::buffers::storage_buffer(device, "march lookup flags", &[0u8; 4]);
+        Self { layout, pipeline, flags }
     }
 
-    /// Encodes the build of every light's lookup volume.
-    pub fn encode(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, inputs: &LookupInputs) {
-        if inputs.light_count == 0 {
+    /// Encodes the rebuild of the stale lights' lookup volumes.
+    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, inputs: &LookupInputs) {
+        if !inputs.stale.contains(&true) {
             return;
+        }
+        let device = &ctx.device;
+        let flags: Vec<u32> = inputs.stale.iter().map(|&s| s as u32).collect();
+        let bytes: &[u8] = bytemuck::cast_slice(&flags);
+        if bytes.len() as u64 > self.flags.size() {
+            self.flags = super::buffers::storage_buffer(device, "march lookup flags", bytes);
+        } else {
+            ctx.queue.write_buffer(&self.flags, 0, bytes);
         }
         let mut extra = inputs.opv.extra_entries(EXTRA_BINDING);
         extra.extend(inputs.lookup.extra_entries(EXTRA_BINDING_2));
@@ -65,6 +79,7 @@ impl LookupBuilder {
                 inputs.lights_buf.as_entire_binding(),
                 inputs.opv.first(),
                 inputs.lookup.first(),
+                self.flags.as_entire_binding(),
             ],
             extra,
         );

@@ -21,10 +21,11 @@ use super::budget::{ms, Clock, Rate, QUICK_SHARE};
 use super::buffers::storage_buffer;
 use super::error::ErrorScope;
 use super::frame_inputs::{FrameInputs, FrameRequest, Settings};
-use super::gpu_types::MarchParams;
+use super::gpu_types::{GridParams, LightGpu, MarchParams};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::inject_options::{InjectOptions, InjectPath};
 use super::keys::{Baked, ImageKey, Level, OpvKey, Region};
+use super::layout::LIGHT_DIRECTIONAL;
 use super::limits::Capacity;
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::march_lookup::{LookupBuilder, LookupInputs};
@@ -57,11 +58,13 @@ pub struct FogPipeline {
     propagator: Propagator,
     marcher: Marcher,
     lookup: LookupBuilder,
-    /// Whether the march's lookup volumes match the EV, OPVs, lights and grid parameters on
-    /// the GPU; cleared by every write to them.
-    lookup_fresh: bool,
+    /// Per light, whether its lookup volume may differ from what its OPV, the light and the
+    /// grid parameters on the GPU give (set by every write to them, cleared by a rebuild). A
+    /// lookup also reads the EV, at a light exactly on a cell centre; any EV change
+    /// re-propagates every light, which marks them.
+    lookup_stale: Vec<bool>,
     /// The lights and grid parameters last uploaded, to tell a change from a rewrite.
-    uniforms: Vec<u8>,
+    uploaded: (Vec<LightGpu>, Option<GridParams>),
     slicer: Slicer,
     /// Built on the first bake: most pipelines never bake.
     baker: Option<Baker>,
@@ -119,8 +122,8 @@ impl FogPipeline {
             propagator,
             marcher,
             lookup,
-            lookup_fresh: false,
-            uniforms: Vec::new(),
+            lookup_stale: Vec::new(),
+            uploaded: (Vec::new(), None),
             slicer,
             baker: None,
             as_baked: None,
@@ -587,7 +590,6 @@ impl FogPipeline {
             t.resolve(&mut encoder, timer::INJECT);
         }
         self.ctx.queue.submit([encoder.finish()]);
-        self.lookup_fresh = false;
         self.ctx.wait()?;
         Ok(units)
     }
@@ -650,18 +652,29 @@ impl FogPipeline {
             t.resolve(&mut encoder, timer::PROPAGATE);
         }
         self.ctx.queue.submit([encoder.finish()]);
-        self.lookup_fresh = false;
+        if let Some((_, targets)) = &self.jobs.propagate {
+            for &(i, _) in targets {
+                if let Some(s) = self.lookup_stale.get_mut(i) {
+                    *s = true;
+                }
+            }
+        }
         // A lost device surfaces as an error of the next readback or update.
         let _ = self.ctx.wait();
         units
     }
 
-    /// Rebuilds the march's lookup volumes unless they match what is on the GPU.
+    /// Rebuilds the lookup volumes of the lights whose OPV, light or grid parameters changed
+    /// since their last build.
     fn refresh_lookup(&mut self) {
-        let Some(g) = self.grid.as_ref().filter(|_| !self.lookup_fresh) else { return };
+        let Some(g) = self.grid.as_ref() else { return };
+        self.lookup_stale.resize(g.light_count, true);
+        if !self.lookup_stale.contains(&true) {
+            return;
+        }
         let inputs = LookupInputs {
             spec: g.spec,
-            light_count: g.light_count,
+            stale: &self.lookup_stale,
             grid_buf: &g.grid_buf,
             ev_view: &g.ev_view,
             lights_buf: &g.lights_buf,
@@ -669,9 +682,9 @@ impl FogPipeline {
             lookup: &g.lookup,
         };
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.lookup.encode(&self.ctx.device, &mut encoder, &inputs);
+        self.lookup.encode(&self.ctx, &mut encoder, &inputs);
         self.ctx.queue.submit([encoder.finish()]);
-        self.lookup_fresh = true;
+        self.lookup_stale.fill(false);
     }
 
     fn begin_march(&mut self, target: &ImageTarget, key: &ImageKey) -> Result<MarchJob, GpuError> {
@@ -742,7 +755,7 @@ impl FogPipeline {
         }
         let layout = self.stages_for(&spec, light_count);
         self.grid = Some(GridResources::new(&self.ctx.device, spec, light_count, layout));
-        self.lookup_fresh = false;
+        self.lookup_stale = vec![true; light_count];
         self.baked = Baked::default();
         self.jobs = Jobs::default();
     }
@@ -760,7 +773,6 @@ impl FogPipeline {
             self.propagator = Propagator::new(device, self.stage_layout, self.sweep_cells);
             self.marcher = Marcher::new(device, self.stage_layout);
             self.lookup = LookupBuilder::new(device, self.stage_layout);
-            self.lookup_fresh = false;
             self.slicer = Slicer::new(device, self.stage_layout);
             self.baker = None;
             self.as_baked = None;
@@ -776,7 +788,7 @@ impl FogPipeline {
         let layout = self.stages_for(&spec, light_count);
         let Some(g) = &mut self.grid else { return };
         g.resize_lights(&self.ctx, layout, light_count);
-        self.lookup_fresh = false;
+        self.lookup_stale = vec![true; light_count];
         self.baked.opvs.truncate(light_count);
         // In-flight work binds the old buffers.
         self.jobs.propagate = None;
@@ -787,11 +799,16 @@ impl FogPipeline {
     fn write_scene_uniforms(&mut self, inputs: &FrameInputs) {
         if let Some(g) = &self.grid {
             g.write_uniforms(&self.ctx.queue, &inputs.lights, &inputs.grid);
-            let bytes = [bytemuck::cast_slice(&inputs.lights), bytemuck::bytes_of(&inputs.grid)].concat();
-            if bytes != self.uniforms {
-                self.uniforms = bytes;
-                self.lookup_fresh = false;
+            let (lights, grid) = &mut self.uploaded;
+            self.lookup_stale.resize(inputs.lights.len(), true);
+            let same_grid = grid.is_some_and(|g| bytemuck::bytes_of(&g) == bytemuck::bytes_of(&inputs.grid));
+            for (i, l) in inputs.lights.iter().enumerate() {
+                if !same_grid || lights.get(i).is_none_or(|old| bytemuck::bytes_of(old) != bytemuck::bytes_of(l)) {
+                    self.lookup_stale[i] = true;
+                }
             }
+            *lights = inputs.lights.clone();
+            *grid = Some(inputs.grid);
         }
     }
 
