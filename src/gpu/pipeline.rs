@@ -25,7 +25,6 @@ use super::gpu_types::{GridParams, LightGpu, MarchParams};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::inject_options::{InjectOptions, InjectPath};
 use super::keys::{Baked, ImageKey, Level, OpvKey, Region};
-use super::layout::LIGHT_DIRECTIONAL;
 use super::limits::Capacity;
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::march_lookup::{LookupBuilder, LookupInputs};
