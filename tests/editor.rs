@@ -363,8 +363,69 @@ fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
     h.get_by_label("Recover unsaved work");
     h.get_by_label("Restore").click();
     h.run_steps(2);
+    wait_idle(&mut h);
     assert!(h.state().session().project().particles.is_empty(), "the recovered work replaced the demo");
     assert!(h.state().session().is_dirty(), "recovered work is unsaved");
+}
+
+/// A project whose particles live in a sidecar opens off the UI thread with the steps of its
+/// load reported as the terminal's progress bar names them, and so does restoring a large
+/// recovery file; the editor keeps drawing frames meanwhile.
+#[test]
+fn a_large_project_opens_and_restores_with_the_steps_of_its_load() {
+    use fogsmith::scene::{save_project, Particle, Project};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let particles = (0..12_000)
+        .map(|i| {
+            let t = i as f32 / 12_000.0;
+            Particle::new(glam::Vec3::new(t * 3.0 - 1.5, 1.0 + (t * 40.0).sin() * 0.5, (t * 23.0).cos()), 0.05, 1.5)
+        })
+        .collect();
+    let mut project = Project { particles, ..Project::default() };
+    project.ensure_unique_ids();
+    let path = dir.path().join("large.ron");
+    save_project(&path, &project).expect("the large project saves");
+    let text = std::fs::read_to_string(&path).expect("the RON");
+    assert!(text.contains("particle_file"), "the particles are in a sidecar");
+    let expected = load_project(&path).expect("it loads");
+    let steps = ["reading", "parsing", "reading particles", "validating"];
+
+    let state_dir = dir.path().join("state");
+    let options = EditorOptions { recovery: true, state_dir: Some(state_dir.clone()), ..EditorOptions::default() };
+    let mut h = harness_with(demo(), options.clone());
+    h.state_mut().request(Action::Open(path.clone()));
+    let generation = h.state().session().generation();
+    h.step();
+    assert!(h.state().busy() > 0, "the load runs in the background");
+    assert_eq!(h.state().session().generation(), generation, "the old project stays until the new one is in");
+    wait_idle(&mut h);
+    assert_eq!(h.state().session().project(), &expected, "{:?}", h.state().messages());
+    assert_eq!(h.state().session().path(), Some(path.as_path()));
+    assert_eq!(h.state().load_steps(), steps);
+
+    // Unsaved work on it leaves a recovery file with a sidecar; the next start lists it
+    // without reading the particles and restores it with the same steps but parsing, which
+    // the listing did.
+    h.state_mut().session_mut().add_particles(0, [Particle::new(glam::Vec3::ONE, 0.2, 1.0)]);
+    let edited = h.state().session().project().clone();
+    for _ in 0..400 {
+        h.step();
+        let found = fogsmith::scene::recovery::find_recoveries(&state_dir);
+        if found.first().and_then(|f| f.as_ref().ok()).is_some_and(|(_, r)| r.project == edited) {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    drop(h);
+    let mut h = harness_with(demo(), options);
+    h.get_by_label("Recover unsaved work");
+    h.get_by_label_contains("12001 particles");
+    h.get_by_label("Restore").click();
+    h.run_steps(2);
+    wait_idle(&mut h);
+    assert_eq!(h.state().session().project(), &edited, "{:?}", h.state().messages());
+    assert!(h.state().session().is_dirty(), "restored work is unsaved");
+    assert_eq!(h.state().load_steps(), ["reading", "reading particles", "validating"]);
 }
 
 /// Recovery keeps every stroke: with no frame after the stroke's release (an idle editor) and
@@ -407,6 +468,7 @@ fn an_idle_crash_after_a_stroke_recovers_the_project_at_release() {
     h.get_by_label("Recover unsaved work");
     h.get_by_label("Restore").click();
     h.run_steps(2);
+    wait_idle(&mut h);
     assert_eq!(h.state().session().project(), &at_release, "the restored project is the one at the release");
 }
 

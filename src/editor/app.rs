@@ -232,6 +232,18 @@ impl EditorApp {
     pub fn busy(&self) -> usize {
         self.state.jobs.busy.len()
     }
+    /// The steps of the project load in progress (File → Open, a recent or dropped file, a
+    /// restored recovery file), or of the last one once it has finished, as the status bar
+    /// names them.
+    pub fn load_steps(&self) -> Vec<String> {
+        match &self.state.jobs.load {
+            Some(load) => {
+                load.steps.lock().map(|s| s.iter().map(|(step, _)| step.clone()).collect()).unwrap_or_default()
+            }
+            None => self.state.jobs.last_load_steps.clone(),
+        }
+    }
+
     /// Runs or (with unsaved changes) asks before running `action`.
     pub fn request(&mut self, action: Action) {
         self.state.request(action);

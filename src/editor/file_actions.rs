@@ -3,8 +3,8 @@
 //! File → Import VDB….
 
 use super::files::{DialogSpec, FileDialogs};
-use super::state::{Action, EditorState, JobResult, Pick};
-use crate::scene::{load_project, save_project, Project};
+use super::state::{Action, EditorState, JobResult, LoadJob, Pick};
+use crate::scene::{load_project_with, save_project, Project};
 use egui::{Context, Id};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -28,6 +28,36 @@ impl EditorState {
             } else {
                 self.error(format!("{}: not a Fogsmith project or VDB; drop a .ron or .vdb file", path.display()));
             }
+        }
+    }
+
+    /// Reads a project in a background thread, as [`Self::spawn`] does, with the steps of
+    /// its load (which `read` reports through the callback it is given) in the status bar.
+    pub(super) fn spawn_load(
+        &mut self,
+        label: &str,
+        file: &Path,
+        read: impl FnOnce(&mut dyn FnMut(&str, f64)) -> JobResult + Send + 'static,
+    ) {
+        let steps = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let name = file.file_name().map_or_else(|| file.display().to_string(), |n| n.to_string_lossy().into_owned());
+        self.jobs.load = Some(LoadJob { name, started: Instant::now(), steps: steps.clone() });
+        let ctx = self.ctx.clone();
+        self.spawn(label, move || {
+            read(&mut |step, fraction| {
+                if let Ok(mut steps) = steps.lock() {
+                    steps.push((step.to_owned(), fraction));
+                }
+                ctx.request_repaint();
+            })
+        });
+    }
+
+    /// Ends the load in progress, keeping its steps.
+    pub(super) fn finish_load(&mut self) {
+        if let Some(load) = self.jobs.load.take() {
+            let steps = load.steps.lock().map(|s| s.iter().map(|(step, _)| step.clone()).collect());
+            self.jobs.last_load_steps = steps.unwrap_or_default();
         }
     }
 
@@ -62,8 +92,8 @@ impl EditorState {
             }
             Action::Open(path) => {
                 let p = path.clone();
-                self.spawn(&format!("Opening {}", path.display()), move || JobResult::Loaded {
-                    result: load_project(&p).map(Box::new).map_err(|e| e.to_string()),
+                self.spawn_load(&format!("Opening {}", path.display()), &path, move |progress| JobResult::Loaded {
+                    result: load_project_with(&p, progress).map(Box::new).map_err(|e| e.to_string()),
                     path: p,
                 });
             }

@@ -232,13 +232,27 @@ impl EditorState {
                 self.error(format!("Export to {} failed: {e}", path.display()))
             }
             JobResult::Loaded { path, result: Ok(project) } => {
+                self.finish_load();
                 self.replace_project(*project, Some(path.clone()), "");
                 self.info(format!("Opened {}", path.display()));
                 self.push_recent(path);
             }
             JobResult::Loaded { path, result: Err(e) } => {
+                self.finish_load();
                 self.recent.retain(|p| p != &path);
                 self.error(format!("Could not open the project: {e}"));
+            }
+            JobResult::Restored { file, original, result: Ok(project) } => {
+                self.finish_load();
+                self.replace_project(*project, original, "recovered.ron");
+                self.session.mark_unsaved();
+                if let Err(e) = crate::scene::recovery::remove_recovery(&file) {
+                    self.error(e.to_string());
+                }
+            }
+            JobResult::Restored { file, result: Err(e), .. } => {
+                self.finish_load();
+                self.error(format!("Could not restore the unsaved work: {e}; {} is kept", file.display()));
             }
             JobResult::Saved { path, generation, result: Ok(()) } => {
                 self.drop_recovery();

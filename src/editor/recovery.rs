@@ -2,7 +2,7 @@
 //! ends and every few seconds during a long one, on a background thread; at start, work left
 //! by an earlier run is offered back.
 
-use super::state::{EditorState, RecoveryWritten};
+use super::state::{EditorState, JobResult, RecoveryWritten};
 use egui::Context;
 use std::path::Path;
 
@@ -23,7 +23,7 @@ impl EditorState {
     /// Turns recovery on: finds what earlier runs left, to offer it back.
     pub(super) fn find_recoveries(&mut self) {
         let dir = self.options.state_dir.clone().unwrap_or_else(crate::scene::recovery::state_dir);
-        for found in crate::scene::recovery::find_recoveries(&dir) {
+        for found in crate::scene::recovery::list_recoveries(&dir) {
             match found {
                 Ok(r) => self.recovery.found.push(r),
                 Err(e) => self.error(format!("A recovery file could not be read: {e}")),
@@ -98,11 +98,9 @@ impl EditorState {
                 ui.horizontal(|ui| {
                     let name =
                         rec.original.as_ref().map_or("untitled project".to_string(), |p| p.display().to_string());
-                    ui.label(format!(
-                        "{name} ({} particles, {} lights)",
-                        rec.project.particles.len(),
-                        rec.project.lights.len()
-                    ));
+                    let particles =
+                        rec.project.particle_file.as_ref().map_or(rec.project.particles.len() as u64, |f| f.count);
+                    ui.label(format!("{name} ({particles} particles, {} lights)", rec.project.lights.len()));
                     if ui
                         .button("Restore")
                         .on_hover_text("Open this work (unsaved) in place of the current project")
@@ -119,10 +117,18 @@ impl EditorState {
         if let Some((i, restore)) = action {
             let (file, rec) = self.recovery.found.remove(i);
             if restore {
-                self.replace_project(rec.project, rec.original, "recovered.ron");
-                self.session.mark_unsaved();
-            }
-            if let Err(e) = crate::scene::recovery::remove_recovery(&file) {
+                // Read and checked off the UI thread, with the steps in the status bar; the
+                // file goes once its work is in.
+                let original = rec.original.clone();
+                let shown = original.clone().unwrap_or_else(|| file.clone());
+                self.spawn_load("Restoring unsaved work", &shown, move |progress| JobResult::Restored {
+                    result: crate::scene::recovery::restore_recovery(&file, rec, progress)
+                        .map(Box::new)
+                        .map_err(|e| e.to_string()),
+                    file,
+                    original,
+                });
+            } else if let Err(e) = crate::scene::recovery::remove_recovery(&file) {
                 self.error(e.to_string());
             }
         }

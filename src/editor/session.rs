@@ -21,7 +21,7 @@ use super::history::Stored;
 use crate::scene::animation::{Animation, Channel, Interp, KeyValue, Object};
 use crate::scene::{Light, Particle, Project};
 use glam::Vec3;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::{Path, PathBuf};
 
 /// Most undo steps kept.
@@ -95,7 +95,13 @@ pub struct Session {
     pub auto_key: bool,
     /// Animated values changed on this frame without a key, with their changed values.
     unkeyed: BTreeMap<Channel, KeyValue>,
+    /// The content generations since which the particles only grew at the end, each with
+    /// how many there were then, oldest first (see [`Session::appended_since`]).
+    appends: VecDeque<(u64, usize)>,
 }
+
+/// Most content generations [`Session::appended_since`] answers for.
+const APPENDS_KEPT: usize = 256;
 
 impl Session {
     /// A session on `project`, read from `path` (or never saved when `path` is `None`;
@@ -124,6 +130,7 @@ impl Session {
             frame,
             auto_key: false,
             unkeyed: BTreeMap::new(),
+            appends: VecDeque::new(),
         };
         session.pose();
         session
@@ -146,6 +153,17 @@ impl Session {
     /// Like [`Self::generation`] but unchanged by camera moves: for views of the volumes.
     pub fn content_generation(&self) -> u64 {
         self.content_generation
+    }
+
+    /// When every change since content generation `generation` only appended particles (a
+    /// paint stroke), how many there were then: what a view derived from the particles
+    /// needs to bring itself up to date with the new ones alone. None otherwise, or when
+    /// `generation` is too old to say.
+    pub fn appended_since(&self, generation: u64) -> Option<usize> {
+        if generation == self.content_generation {
+            return Some(self.project.particles.len());
+        }
+        self.appends.iter().find(|(g, _)| *g == generation).map(|&(_, n)| n)
     }
     pub fn is_dirty(&self) -> bool {
         self.saved_generation != Some(self.generation)
@@ -206,8 +224,21 @@ impl Session {
     /// Mutable access for an edit. A new undo step is recorded unless `tag` continues the
     /// edit in progress.
     pub fn edit(&mut self, tag: EditTag) -> &mut Project {
+        self.edit_as(tag, false)
+    }
+
+    /// [`Self::edit`]; `append`: the edit only adds particles at the end of the list.
+    fn edit_as(&mut self, tag: EditTag, append: bool) -> &mut Project {
         // Earlier edits' keys belong to their own step, before this one's snapshot.
         self.sync_keys();
+        if append {
+            if self.appends.len() == APPENDS_KEPT {
+                self.appends.pop_front();
+            }
+            self.appends.push_back((self.content_generation, self.project.particles.len()));
+        } else {
+            self.appends.clear();
+        }
         if tag == NEW_STEP || self.open_tag != Some(tag) {
             self.push_undo();
             self.open_tag = if tag == NEW_STEP { None } else { Some(tag) };
@@ -302,6 +333,7 @@ impl Session {
     /// A new generation for a change of what is shown (the frame), not of the document:
     /// a saved document stays saved.
     fn bump_view_generation(&mut self) {
+        self.appends.clear();
         let was_saved = self.saved_generation == Some(self.generation);
         self.generation = self.next_generation;
         self.content_generation = self.next_generation;
@@ -573,6 +605,7 @@ impl Session {
         let project = std::mem::replace(&mut self.project, s.project);
         let selection = std::mem::replace(&mut self.selection, s.selection);
         let generation = std::mem::replace(&mut self.generation, s.generation);
+        self.appends.clear();
         self.content_generation = self.next_generation;
         self.next_generation += 1;
         self.sanitize_selection();
@@ -597,7 +630,7 @@ impl Session {
 
     /// Appends particles (one undo step per `tag`) and returns how many there are now.
     pub fn add_particles(&mut self, tag: EditTag, particles: impl IntoIterator<Item = Particle>) -> usize {
-        let p = self.edit(tag);
+        let p = self.edit_as(tag, true);
         for mut q in particles {
             q.id = p.new_particle_id();
             p.particles.push(q);
@@ -951,6 +984,27 @@ mod tests {
         assert!(!s.undo());
         assert!(s.redo());
         assert_eq!(s.project().particles.len(), 9);
+    }
+
+    #[test]
+    fn appended_since_follows_a_stroke_until_another_edit() {
+        let mut s = session();
+        let g0 = s.content_generation();
+        assert_eq!(s.appended_since(g0), Some(4));
+        let tag = s.new_tag();
+        s.add_particles(tag, [Particle::new(Vec3::ONE, 0.1, 1.0)]);
+        let g1 = s.content_generation();
+        s.add_particles(tag, [Particle::new(Vec3::ONE, 0.1, 1.0), Particle::new(Vec3::ONE, 0.1, 1.0)]);
+        assert_eq!((s.appended_since(g0), s.appended_since(g1)), (Some(4), Some(5)));
+        s.end_edit();
+        let g2 = s.content_generation();
+        s.scale_particles(NEW_STEP, &[0].into(), 2.0, false);
+        assert_eq!((s.appended_since(g0), s.appended_since(g2)), (None, None), "a change in place");
+        let g3 = s.content_generation();
+        s.add_particles(NEW_STEP, [Particle::new(Vec3::ONE, 0.1, 1.0)]);
+        assert_eq!(s.appended_since(g3), Some(7));
+        s.undo();
+        assert_eq!(s.appended_since(g3), None, "undo replaces the list");
     }
 
     #[test]

@@ -4,13 +4,31 @@ use super::state::EditorState;
 use egui::{Context, Id};
 use std::sync::atomic::Ordering;
 
+/// How long a load runs before the status bar shows its steps instead of a spinner.
+const LOAD_STEPS_AFTER: std::time::Duration = std::time::Duration::from_millis(300);
+
 impl EditorState {
     pub(super) fn status_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
-            if let Some(job) = self.jobs.busy.last() {
+            // A load that takes more than a moment shows its steps (reading, parsing, reading
+            // particles, validating) as a bar; other jobs show a spinner.
+            let load = self.jobs.load.as_ref().filter(|l| l.started.elapsed() >= LOAD_STEPS_AFTER);
+            if let Some(load) = load {
+                let (step, fraction) =
+                    load.steps.lock().ok().and_then(|s| s.last().cloned()).unwrap_or_else(|| ("starting".into(), 0.0));
+                ui.add(
+                    egui::ProgressBar::new(fraction as f32)
+                        .desired_width(200.0)
+                        .text(format!("opening {}: {step}", load.name)),
+                );
+                ui.separator();
+            } else if let Some(job) = self.jobs.busy.last() {
                 ui.spinner();
                 ui.label(job.as_str());
                 ui.separator();
+            }
+            if self.jobs.load.is_some() {
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
             }
             if let Some(job) = &self.jobs.export_job {
                 let f = f32::from_bits(job.fraction.load(Ordering::Relaxed));

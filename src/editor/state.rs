@@ -87,11 +87,36 @@ pub enum Action {
 
 /// What a background job hands back to the frame loop.
 pub(super) enum JobResult {
-    Picked { purpose: Pick, spec: Box<DialogSpec>, path: Option<PathBuf>, seconds: f64 },
-    Exported { path: PathBuf, result: Result<String, String> },
-    Loaded { path: PathBuf, result: Result<Box<Project>, String> },
-    Saved { path: PathBuf, generation: u64, result: Result<(), String> },
-    Exact { key: ExactKey, result: Result<Vec<f64>, String> },
+    Picked {
+        purpose: Pick,
+        spec: Box<DialogSpec>,
+        path: Option<PathBuf>,
+        seconds: f64,
+    },
+    Exported {
+        path: PathBuf,
+        result: Result<String, String>,
+    },
+    Loaded {
+        path: PathBuf,
+        result: Result<Box<Project>, String>,
+    },
+    /// A recovery file's work, restored: `file` is the recovery file, `original` the project
+    /// file the work belongs to.
+    Restored {
+        file: PathBuf,
+        original: Option<PathBuf>,
+        result: Result<Box<Project>, String>,
+    },
+    Saved {
+        path: PathBuf,
+        generation: u64,
+        result: Result<(), String>,
+    },
+    Exact {
+        key: ExactKey,
+        result: Result<Vec<f64>, String>,
+    },
 }
 
 /// What a file dialog was opened for.
@@ -378,13 +403,36 @@ pub(crate) struct Jobs {
     pub(super) pending_export: Option<(ExportChoices, PathBuf)>,
     /// The export being written in the background.
     pub(super) export_job: Option<ExportJob>,
+    /// The project being opened or restored in the background.
+    pub(super) load: Option<LoadJob>,
+    /// The steps of the last load that finished.
+    pub(super) last_load_steps: Vec<String>,
 }
 
 impl Jobs {
     pub(super) fn new() -> Self {
         let (tx, rx) = mpsc::channel();
-        Self { tx, rx, busy: Vec::new(), pending_export: None, export_job: None }
+        Self {
+            tx,
+            rx,
+            busy: Vec::new(),
+            pending_export: None,
+            export_job: None,
+            load: None,
+            last_load_steps: Vec::new(),
+        }
     }
+}
+
+/// A project read in the background (File → Open, a recent file, a dropped file, a restored
+/// recovery file): the steps of its load as `load_project_with` reports them, for the status
+/// bar.
+pub(crate) struct LoadJob {
+    /// The file's name, for the status bar.
+    pub(super) name: String,
+    pub(super) started: Instant,
+    /// Each step so far and the fraction of the load done before it.
+    pub(super) steps: Arc<std::sync::Mutex<Vec<(String, f64)>>>,
 }
 
 /// Crash recovery: where recovery files go and what an earlier run left.

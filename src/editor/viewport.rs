@@ -126,15 +126,21 @@ fn viewport_message(painter: &egui::Painter, rect: Rect, text: &str, colour: Col
 /// A warning row while particles reach outside the grid box, with "Fit grid to particles".
 fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
     thread_local! {
-        /// The count for one state of the project: counting visits every particle.
-        static CROSSING: std::cell::Cell<Option<(super::session::Version, usize)>> = const { std::cell::Cell::new(None) };
+        /// The count for one state of the project and its particles then: counting visits
+        /// every particle, so a stroke's dabs are counted on their own.
+        static CROSSING: std::cell::Cell<Option<(super::session::Version, usize, usize)>> = const { std::cell::Cell::new(None) };
     }
     let version = state.content_version();
+    let project = state.session.project();
     let crossing = match CROSSING.get() {
-        Some((v, n)) if v == version => n,
-        _ => {
-            let n = state.session.project().particles_crossing_grid().len();
-            CROSSING.set(Some((version, n)));
+        Some((v, n, _)) if v == version => n,
+        cached => {
+            let appended = cached.and_then(|(v, n, len)| {
+                let grown = v.epoch == version.epoch && state.session.appended_since(v.generation) == Some(len);
+                grown.then(|| n + project.particles_crossing_grid_from(len).len())
+            });
+            let n = appended.unwrap_or_else(|| project.particles_crossing_grid().len());
+            CROSSING.set(Some((version, n, project.particles.len())));
             n
         }
     };

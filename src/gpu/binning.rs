@@ -79,6 +79,7 @@ pub fn for_each_brick(dims: UVec3, (lo, hi): (UVec3, UVec3), mut f: impl FnMut(u
 /// Particle counts per bin for one bin edge: the histogram the injection cuts its chunks
 /// from. The lists themselves are built one chunk of bricks at a time ([`BinCounts::fill`]),
 /// so memory is bounded by the chunk, not by the scene.
+#[derive(Clone)]
 pub struct BinCounts {
     /// Edge of a bin across (x and y) in cells; along z a bin spans a brick.
     pub bin_size: u32,
@@ -118,6 +119,27 @@ impl BinCounts {
             }
         }
         Self { bin_size: bin, dims, counts, brute_force }
+    }
+
+    /// The counts after `removed` particles left the list they were counted from and `added`
+    /// ones joined it: what [`BinCounts::new`] gives for the new list, at the cost of the
+    /// change. Counts of brute force are of every visible particle in every bin.
+    pub fn update(&mut self, grid: &GridSpec, removed: &[&Particle], added: &[&Particle]) {
+        let (dims, edge) = (self.dims, bin_edge(self.bin_size));
+        for (list, add) in [(removed, false), (added, true)] {
+            for p in list {
+                let range = if self.brute_force {
+                    visible(p).then_some((UVec3::ZERO, dims - 1))
+                } else {
+                    bin_range(grid, p, edge)
+                };
+                if let Some(range) = range {
+                    for_each_brick(dims, range, |b| {
+                        self.counts[b] = if add { self.counts[b] + 1 } else { self.counts[b] - 1 };
+                    });
+                }
+            }
+        }
     }
 
     fn range(&self, grid: &GridSpec, p: &Particle) -> Option<(UVec3, UVec3)> {
@@ -250,48 +272,163 @@ pub fn choose_bins(
     counts.expect("BIN_EDGES is not empty")
 }
 
-/// Bricks whose EV changes when the particle list goes from `old` to `new`: those overlapped
-/// by particles in one list and not the other, counted with multiplicity and compared by
-/// value, so reordering or renaming costs nothing.
-pub fn dirty_bricks(grid: &GridSpec, old: &[Particle], new: &[Particle]) -> Vec<u32> {
-    type Key = ([u32; 3], u32, u32, bool, bool);
-    let key = |p: &Particle| -> Key {
-        (p.center.to_array().map(f32::to_bits), p.radius.to_bits(), p.density.to_bits(), p.hidden, p.noise)
-    };
-    let sorted = |list: &[Particle]| {
-        let mut v: Vec<(Key, usize)> = list.iter().enumerate().map(|(i, p)| (key(p), i)).collect();
-        v.sort_unstable();
-        v
-    };
-    let (a, b) = (sorted(old), sorted(new));
-    let dims = brick_dims(grid);
-    let mut dirty = vec![false; (dims.x * dims.y * dims.z) as usize];
-    let mut mark = |p: &Particle| {
-        if let Some(range) = brick_range(grid, p) {
-            for_each_brick(dims, range, |i| dirty[i] = true);
-        }
-    };
-    let (mut i, mut j) = (0, 0);
-    while i < a.len() || j < b.len() {
-        match (a.get(i), b.get(j)) {
-            (Some(x), Some(y)) if x.0 == y.0 => {
+/// The particles that left a list and those that joined it between two states, compared by
+/// the values the EV reads (centre, radius, density, hidden, noise) with multiplicity, so that
+/// reordering or renaming changes nothing.
+pub struct Change<'a> {
+    pub removed: Vec<&'a Particle>,
+    pub added: Vec<&'a Particle>,
+}
+
+impl<'a> Change<'a> {
+    /// The change from `old` to `new`. Every edit keeps the particles it does not touch in
+    /// order, so one walk along both lists pairs them off (guided by ids, which the editor
+    /// hands out ascending) and leaves only what the edit touched to be compared by value:
+    /// the cost is the walk plus the edit, not a sort of the scene. Lists in another order
+    /// still give the right answer, by sorting more.
+    pub fn between(old: &'a [Particle], new: &'a [Particle]) -> Self {
+        let (mut removed, mut added) = (Vec::new(), Vec::new());
+        let (mut i, mut j) = (0, 0);
+        while i < old.len() && j < new.len() {
+            let (a, b) = (&old[i], &new[j]);
+            if a == b {
                 i += 1;
                 j += 1;
-            }
-            (Some(x), Some(y)) if x.0 < y.0 => {
-                mark(&old[x.1]);
+            } else if a.id == b.id {
+                removed.push(a);
+                added.push(b);
                 i += 1;
-            }
-            (Some(x), None) => {
-                mark(&old[x.1]);
+                j += 1;
+            } else if a.id < b.id {
+                removed.push(a);
                 i += 1;
-            }
-            (_, Some(y)) => {
-                mark(&new[y.1]);
+            } else {
+                added.push(b);
                 j += 1;
             }
-            (None, None) => break,
         }
+        removed.extend(&old[i..]);
+        added.extend(&new[j..]);
+        // What left and came back by value (a rename, a reorder) changes no cell.
+        type Key = ([u32; 3], u32, u32, bool, bool);
+        let key = |p: &Particle| -> Key {
+            (p.center.to_array().map(f32::to_bits), p.radius.to_bits(), p.density.to_bits(), p.hidden, p.noise)
+        };
+        removed.sort_unstable_by_key(|p| key(p));
+        added.sort_unstable_by_key(|p| key(p));
+        let (mut left, mut joined) = (Vec::new(), Vec::new());
+        let (mut i, mut j) = (0, 0);
+        while i < removed.len() || j < added.len() {
+            match (removed.get(i).map(|p| key(p)), added.get(j).map(|p| key(p))) {
+                (Some(x), Some(y)) if x == y => {
+                    i += 1;
+                    j += 1;
+                }
+                (Some(x), Some(y)) if x < y => {
+                    left.push(removed[i]);
+                    i += 1;
+                }
+                (Some(_), None) => {
+                    left.push(removed[i]);
+                    i += 1;
+                }
+                _ => {
+                    joined.push(added[j]);
+                    j += 1;
+                }
+            }
+        }
+        Self { removed: left, added: joined }
     }
-    dirty.iter().enumerate().filter(|(_, d)| **d).map(|(i, _)| i as u32).collect()
+
+    /// Bricks whose EV changes: those the cut-off spheres of the particles that left or
+    /// joined overlap.
+    pub fn dirty_bricks(&self, grid: &GridSpec) -> Vec<u32> {
+        let dims = brick_dims(grid);
+        let mut dirty = vec![false; (dims.x * dims.y * dims.z) as usize];
+        for p in self.removed.iter().chain(&self.added) {
+            if let Some(range) = brick_range(grid, p) {
+                for_each_brick(dims, range, |i| dirty[i] = true);
+            }
+        }
+        dirty.iter().enumerate().filter(|(_, d)| **d).map(|(i, _)| i as u32).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bricks by a full multiset comparison: sort both lists by value.
+    fn dirty_by_sorting(grid: &GridSpec, old: &[Particle], new: &[Particle]) -> Vec<u32> {
+        let key = |p: &Particle| {
+            (p.center.to_array().map(f32::to_bits), p.radius.to_bits(), p.density.to_bits(), p.hidden, p.noise)
+        };
+        let (mut a, mut b): (Vec<&Particle>, Vec<&Particle>) = (old.iter().collect(), new.iter().collect());
+        a.sort_by_key(|p| key(p));
+        b.sort_by_key(|p| key(p));
+        let mut removed = Vec::new();
+        let mut added = Vec::new();
+        let (mut i, mut j) = (0, 0);
+        while i < a.len() || j < b.len() {
+            match (a.get(i), b.get(j)) {
+                (Some(x), Some(y)) if key(x) == key(y) => (i, j) = (i + 1, j + 1),
+                (Some(x), Some(y)) if key(x) < key(y) => (removed.push(*x), i += 1).1,
+                (Some(x), None) => (removed.push(*x), i += 1).1,
+                (_, Some(y)) => (added.push(*y), j += 1).1,
+                (None, None) => break,
+            }
+        }
+        Change { removed, added }.dirty_bricks(grid)
+    }
+
+    #[test]
+    fn a_change_marks_the_bricks_a_full_comparison_marks() {
+        let grid = GridSpec { min: Vec3::ZERO, max: Vec3::splat(4.0), resolution: UVec3::splat(40) };
+        let base: Vec<Particle> = (0..300u32)
+            .map(|i| {
+                let f = |k: u32| ((i * k) % 97) as f32 / 97.0 * 4.0;
+                Particle { id: i, ..Particle::new(Vec3::new(f(7), f(13), f(31)), 0.05 + (i % 5) as f32 * 0.02, 1.0) }
+            })
+            .collect();
+        let mut appended = base.clone();
+        appended.push(Particle { id: 300, ..Particle::new(Vec3::splat(2.0), 0.1, 3.0) });
+        let erased: Vec<Particle> = base.iter().filter(|p| p.id % 37 != 4).cloned().collect();
+        let mut scaled = base.clone();
+        scaled[10].radius *= 2.0;
+        scaled[250].hidden = true;
+        let mut renamed = base.clone();
+        renamed[5].name = Some("a".into());
+        let mut reversed = base.clone();
+        reversed.reverse();
+        let mut mixed = reversed.clone();
+        mixed.remove(17);
+        mixed[100].center.y += 0.3;
+        mixed.push(Particle { id: 301, ..Particle::new(Vec3::splat(1.0), 0.2, 3.0) });
+        let mut shuffled_ids = base.clone();
+        for (k, p) in shuffled_ids.iter_mut().enumerate() {
+            p.id = (k as u32 * 7919) % 300;
+        }
+        let mut shuffled_edit = shuffled_ids.clone();
+        shuffled_edit[33].density = 5.0;
+        shuffled_edit.remove(200);
+        for (old, new) in [
+            (&base, &appended),
+            (&appended, &base),
+            (&base, &erased),
+            (&base, &scaled),
+            (&base, &renamed),
+            (&base, &reversed),
+            (&reversed, &mixed),
+            (&base, &mixed),
+            (&shuffled_ids, &shuffled_edit),
+            (&base, &Vec::new()),
+        ] {
+            assert_eq!(Change::between(old, new).dirty_bricks(&grid), dirty_by_sorting(&grid, old, new));
+        }
+        assert!(Change::between(&base, &renamed).dirty_bricks(&grid).is_empty(), "a rename dirties nothing");
+        assert!(Change::between(&base, &reversed).dirty_bricks(&grid).is_empty(), "nor does a reorder");
+        let append = Change::between(&base, &appended);
+        assert_eq!((append.removed.len(), append.added.len()), (0, 1), "an append is only its particle");
+    }
 }

@@ -31,6 +31,31 @@ fn cell_centre_box(grid: &GridSpec, bricks: &[u32]) -> (glam::Vec3, glam::Vec3) 
     (centre(lo), centre(hi))
 }
 
+/// What the host path knows of the particles the EV was last planned for: their counts per
+/// brick (which decide the path and weigh the bricks) and the longest cut-off reach among
+/// them (which bounds the particles a brick can see). Both are kept up to date edit by edit
+/// ([`HostCounts::update`]), so that planning a dab costs the dab, not the scene.
+#[derive(Clone)]
+pub(super) struct HostCounts {
+    counts: BinCounts,
+    /// No particle's cut-off reaches further, in metres (an upper bound: removing a particle
+    /// leaves it as it was).
+    reach: f32,
+}
+
+impl HostCounts {
+    pub fn new(grid: &GridSpec, particles: &[crate::scene::Particle]) -> Self {
+        let reach = particles.iter().map(binning::cutoff_radius).fold(0.0f32, f32::max);
+        Self { counts: BinCounts::new(grid, particles, binning::BRICK, false), reach }
+    }
+
+    /// The counts and reach after `removed` left the particles and `added` joined them.
+    pub fn update(&mut self, grid: &GridSpec, change: &binning::Change) {
+        self.counts.update(grid, &change.removed, &change.added);
+        self.reach = change.added.iter().map(|p| binning::cutoff_radius(p)).fold(self.reach, f32::max);
+    }
+}
+
 /// Where injection sums the particles' gaussians into each cell.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InjectPath {
@@ -72,39 +97,45 @@ impl InjectOptions {
 
     /// The injection of `bricks` of `project`, on the path these options choose, with the bin
     /// edge of its particle lists when the adapter sums them. `noise`: the medium's noise
-    /// modulates the EV.
+    /// modulates the EV. `host`: the host path's counts of `project`'s particles, given
+    /// whenever [`host_possible`](Self::host_possible).
     pub fn begin(
         &self,
         ctx: &GpuContext,
         project: &Project,
         noise: bool,
         bricks: Vec<u32>,
+        host: Option<&HostCounts>,
     ) -> (InjectJob, Option<u32>) {
         let grid = &project.grid;
         let max_items = self.chunk_bytes(ctx) / 4;
-        let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, noise)).collect();
-        // The host path's per-brick counts are also what decides it, and its cost estimate.
-        let brick_counts = self
-            .host_possible(ctx)
-            .then(|| BinCounts::new(grid, &project.particles, binning::BRICK, false))
-            .filter(|counts| self.host_pays(grid, counts));
-        if let Some(counts) = brick_counts {
+        let host = host.filter(|h| self.host_possible(ctx) && self.host_pays(grid, &h.counts));
+        if let Some(host) = host {
             // The host lists nothing. Only particles that reach the dirty bricks add to them:
             // a dab orders its neighbourhood, not the scene (in the same relative order, so
-            // every sum is the same bit for bit).
+            // every sum is the same bit for bit). A centre further out than the longest reach
+            // (with room for rounding) fails the test below, so it is not converted first.
             let (lo, hi) = cell_centre_box(grid, &bricks);
-            let near: Vec<ParticleGpu> = particles
-                .into_iter()
+            let cell = grid.cell_size();
+            let slack = (glam::Vec3::splat(host.reach) + cell) * 1.01;
+            let (near_lo, near_hi) = (lo - slack, hi + slack);
+            let near: Vec<ParticleGpu> = project
+                .particles
+                .iter()
+                .filter(|p| p.center.cmpge(near_lo).all() && p.center.cmple(near_hi).all())
+                .map(|p| particle_gpu(p, noise))
                 .filter(|p| {
-                    let reach = glam::Vec3::splat(p.cutoff2.sqrt() * 1.001) + grid.cell_size();
+                    let reach = glam::Vec3::splat(p.cutoff2.sqrt() * 1.001) + cell;
                     let c = glam::Vec3::from_array(p.center);
                     (c + reach).cmpge(lo).all() && (c - reach).cmple(hi).all()
                 })
                 .collect();
             let ordered = host_sums::order(grid, near, |p| p.cutoff2.sqrt());
+            let counts = host.counts.clone();
             let job = Injector::begin(grid, Vec::new(), Vec::new(), counts, bricks, max_items, Some(ordered));
             return (job, None);
         }
+        let particles: Vec<ParticleGpu> = project.particles.iter().map(|p| particle_gpu(p, noise)).collect();
         let counts = binning::choose_bins(grid, &project.particles, max_items, self.brute_force, self.bin_edge);
         let bin_size = counts.bin_size;
         let job = Injector::begin(grid, project.particles.clone(), particles, counts, bricks, max_items, None);
@@ -112,7 +143,7 @@ impl InjectOptions {
     }
 
     /// Whether the injection may take the host path, for scenes dense enough under `Auto`.
-    fn host_possible(&self, ctx: &GpuContext) -> bool {
+    pub fn host_possible(&self, ctx: &GpuContext) -> bool {
         match self.path {
             InjectPath::Host => true,
             InjectPath::Adapter => false,

@@ -63,10 +63,18 @@ pub(super) enum Level {
 /// Injections remembered for partial re-propagation.
 const EV_HISTORY: usize = 64;
 
+/// What the extinction volume holds (or is being injected with): its key and particles, and
+/// on the host path their counts, all brought up to date by each edit's span.
+pub(super) struct BakedEv {
+    pub key: EvKey,
+    pub particles: Vec<Particle>,
+    pub host: Option<super::inject_options::HostCounts>,
+}
+
 /// What the GPU holds, to decide what a new project state invalidates.
 #[derive(Default)]
 pub(super) struct Baked {
-    pub ev: Option<(EvKey, Vec<Particle>)>,
+    pub ev: Option<BakedEv>,
     pub ev_generation: u64,
     /// Per light: the inputs of the OPV on the GPU (None: never propagated).
     pub opvs: Vec<Option<OpvKey>>,

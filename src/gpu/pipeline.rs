@@ -23,8 +23,8 @@ use super::error::ErrorScope;
 use super::frame_inputs::{FrameInputs, FrameRequest, Settings};
 use super::gpu_types::{GridParams, LightGpu, MarchParams};
 use super::inject::{InjectInputs, InjectJob, Injector};
-use super::inject_options::{InjectOptions, InjectPath};
-use super::keys::{Baked, ImageKey, Level, OpvKey, Region};
+use super::inject_options::{HostCounts, InjectOptions, InjectPath};
+use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
 use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::march_lookup::{LookupBuilder, LookupInputs};
@@ -523,24 +523,44 @@ impl FogPipeline {
         }
     }
 
-    /// Starts (or extends) the injection of what changed since the EV on the GPU.
+    /// Starts (or extends) the injection of what changed since the EV on the GPU. An edit
+    /// costs one walk along the particle lists plus what it touched ([`binning::Change`]):
+    /// its dirty bricks and the host path's counts come from the change alone, and the EV's
+    /// particles are copied from the first one that differs.
     fn plan_inject(&mut self, project: &Project, inputs: &mut FrameInputs) {
         let key = &inputs.ev;
-        let mut bricks: Vec<u32> = match &self.baked.ev {
-            Some((k, particles)) if k == key => {
-                if *particles == project.particles {
+        let grid = &project.grid;
+        let host = self.inject.host_possible(&self.ctx);
+        let mut bricks: Vec<u32> = match &mut self.baked.ev {
+            Some(ev) if ev.key == *key => {
+                let (old, new) = (&ev.particles, &project.particles);
+                let same = old.iter().zip(new).take_while(|(a, b)| a == b).count();
+                if same == old.len() && same == new.len() {
                     return;
                 }
-                binning::dirty_bricks(&project.grid, particles, &project.particles)
+                let change = binning::Change::between(&old[same..], &new[same..]);
+                let bricks = change.dirty_bricks(grid);
+                match &mut ev.host {
+                    Some(counts) => counts.update(grid, &change),
+                    None if host => ev.host = Some(HostCounts::new(grid, &project.particles)),
+                    None => {}
+                }
+                ev.particles.truncate(same);
+                ev.particles.extend_from_slice(&project.particles[same..]);
+                bricks
             }
             _ => {
-                let dims = binning::brick_dims(&project.grid);
+                self.baked.ev = Some(BakedEv {
+                    key: key.clone(),
+                    particles: project.particles.clone(),
+                    host: host.then(|| HostCounts::new(grid, &project.particles)),
+                });
+                let dims = binning::brick_dims(grid);
                 (0..dims.x * dims.y * dims.z).collect()
             }
         };
         if bricks.is_empty() && self.jobs.inject.is_none() {
             // Only names or other fields the EV does not read changed.
-            self.baked.ev = Some((key.clone(), project.particles.clone()));
             return;
         }
         let mut region = Region::of_bricks(&project.grid, &bricks);
@@ -552,14 +572,14 @@ impl FogPipeline {
             bricks.sort_unstable();
             bricks.dedup();
         }
-        let (job, bin_size) = self.inject.begin(&self.ctx, project, key.noise.is_some(), bricks);
+        let counts = self.baked.ev.as_ref().and_then(|ev| ev.host.as_ref());
+        let (job, bin_size) = self.inject.begin(&self.ctx, project, key.noise.is_some(), bricks, counts);
         if let Some(bin_size) = bin_size.filter(|&b| b != self.bin_size) {
             self.bin_size = bin_size;
             inputs.grid.bin_size = bin_size;
             self.write_scene_uniforms(inputs);
         }
         self.jobs.inject = Some((job, region));
-        self.baked.ev = Some((inputs.ev.clone(), project.particles.clone()));
     }
 
     /// Runs one chunk of the injection sized to `left_ms`; returns its cost units.

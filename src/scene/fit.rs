@@ -79,11 +79,17 @@ impl Project {
     /// Indices of the visible particles whose support crosses an open face of the grid box
     /// (see the module).
     pub fn particles_crossing_grid(&self) -> Vec<usize> {
+        self.particles_crossing_grid_from(0)
+    }
+
+    /// [`Self::particles_crossing_grid`] among the particles from index `start` on.
+    pub fn particles_crossing_grid_from(&self, start: usize) -> Vec<usize> {
         let sealed = self.sealed_grid_faces();
         let g = &self.grid;
         self.particles
             .iter()
             .enumerate()
+            .skip(start)
             .filter(|(_, p)| {
                 let r = p.support_radius();
                 !p.hidden

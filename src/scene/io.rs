@@ -51,12 +51,24 @@ pub fn parse_project(text: &str, origin: &Path) -> Result<Project, ProjectError>
 fn parse_project_with(text: &str, origin: &Path, progress: &mut dyn FnMut(&str, f64)) -> Result<Project, ProjectError> {
     progress("parsing", 0.1);
     let options = ron::Options::default();
-    let mut project: Project = options.from_str(text).map_err(|e| ProjectError::Syntax {
+    let project: Project = options.from_str(text).map_err(|e| ProjectError::Syntax {
         path: origin.to_owned(),
         line: e.position.line,
         col: e.position.col,
         message: e.code.to_string(),
     })?;
+    complete_load(project, text, origin, progress)
+}
+
+/// What every load does once `text` (from `origin`) is parsed into `project`: reads the
+/// particle sidecar it names from `origin`'s directory, brings it to the current version and
+/// validates it, telling `progress` each step.
+pub(crate) fn complete_load(
+    mut project: Project,
+    text: &str,
+    origin: &Path,
+    progress: &mut dyn FnMut(&str, f64),
+) -> Result<Project, ProjectError> {
     let invalid = |error: ValidationError| {
         let (line, col) = locate_field(text, &error.field).unwrap_or((1, 1));
         ProjectError::Invalid { path: origin.to_owned(), line, col, error }

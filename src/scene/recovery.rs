@@ -90,9 +90,23 @@ fn read_particles(path: &Path, rec: &mut Recovery) -> Result<(), ProjectError> {
     Ok(())
 }
 
-/// Every readable recovery file in `dir` with its path, newest first. Unreadable ones are
-/// reported as errors rather than dropped, so nothing is lost silently.
+/// Every readable recovery file in `dir` with its path and particles, newest first.
+/// Unreadable ones are reported as errors rather than dropped, so nothing is lost silently.
 pub fn find_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectError>> {
+    list_recoveries(dir)
+        .into_iter()
+        .map(|found| {
+            let (path, mut rec) = found?;
+            read_particles(&path, &mut rec)?;
+            Ok((path, rec))
+        })
+        .collect()
+}
+
+/// [`find_recoveries`] without reading particle sidecars: a project with many particles
+/// still names its sidecar (`particle_file`, with the count), so listing what is left is
+/// quick however large the work; [`restore_recovery`] reads the rest.
+pub fn list_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectError>> {
     let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
     let mut out: Vec<Result<(PathBuf, Recovery), ProjectError>> = entries
         .filter_map(Result::ok)
@@ -101,18 +115,30 @@ pub fn find_recoveries(dir: &Path) -> Vec<Result<(PathBuf, Recovery), ProjectErr
         .map(|path| {
             let text =
                 std::fs::read_to_string(&path).map_err(|source| ProjectError::Io { path: path.clone(), source })?;
-            let mut rec: Recovery = ron::from_str(&text).map_err(|e| ProjectError::Syntax {
+            let rec: Recovery = ron::from_str(&text).map_err(|e| ProjectError::Syntax {
                 path: path.clone(),
                 line: e.position.line,
                 col: e.position.col,
                 message: e.code.to_string(),
             })?;
-            read_particles(&path, &mut rec)?;
             Ok((path, rec))
         })
         .collect();
     out.sort_by_key(|r| std::cmp::Reverse(r.as_ref().map_or(0, |(_, rec)| rec.saved_unix)));
     out
+}
+
+/// The project of the recovery file at `path`, as [`list_recoveries`] found it: its
+/// particles read from the sidecar it names, then checked as every loaded project is
+/// (migrated and validated once), telling `progress` each step as a load does.
+pub fn restore_recovery(
+    path: &Path,
+    rec: Recovery,
+    progress: &mut dyn FnMut(&str, f64),
+) -> Result<Project, ProjectError> {
+    progress("reading", 0.0);
+    let text = std::fs::read_to_string(path).map_err(|source| ProjectError::Io { path: path.to_owned(), source })?;
+    super::io::complete_load(rec.project, &text, path, progress)
 }
 
 /// Removes a recovery file once its work is saved or deliberately discarded.
@@ -255,6 +281,15 @@ mod tests {
         write_recovery(&path, None, &p).unwrap();
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "the file and its newest sidecar");
         assert_eq!(find_recoveries(dir.path())[0].as_ref().unwrap().1.project, p);
+        // Listed quickly, with the particles left in the sidecar, then restored with the
+        // steps of a load.
+        let (listed, rec) = list_recoveries(dir.path()).pop().unwrap().unwrap();
+        assert!(rec.project.particles.is_empty());
+        assert_eq!(rec.project.particle_file.as_ref().map(|f| f.count), Some(SIDECAR_MIN_PARTICLES as u64));
+        let mut steps = Vec::new();
+        let restored = restore_recovery(&listed, rec, &mut |step, _| steps.push(step.to_owned())).unwrap();
+        assert_eq!(restored, p);
+        assert_eq!(steps, ["reading", "reading particles", "validating"]);
         remove_recovery(&path).unwrap();
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "both go");
     }
