@@ -202,11 +202,12 @@ fn a_plate_casts_a_shadow_in_the_fog() {
                 }
                 shaded += 1;
                 let (i, mirror) = ((py * w + px) as usize, (py * w + w - 1 - px) as usize);
-                for c in 0..3 {
-                    brightest_shaded = brightest_shaded.max(image.rgba[i][c] as f64).max(reference[i][c]);
-                    dimmest_lit = dimmest_lit.min(image.rgba[mirror][c] as f64).min(reference[mirror][c]);
-                    lit_sum += reference[mirror][c];
-                }
+                let (a, r) = (&image.rgba[i][..3], &reference[i]);
+                let (am, rm) = (&image.rgba[mirror][..3], &reference[mirror]);
+                brightest_shaded =
+                    a.iter().map(|v| *v as f64).chain(r.iter().copied()).fold(brightest_shaded, f64::max);
+                dimmest_lit = am.iter().map(|v| *v as f64).chain(rm.iter().copied()).fold(dimmest_lit, f64::min);
+                lit_sum += rm.iter().sum::<f64>();
             }
         }
         let lit_mean = lit_sum / (3 * shaded.max(1)) as f64;

@@ -445,7 +445,7 @@ mod tests {
                 let (min, max) = match k {
                     // Flush with a face of the grid box, on its outer side.
                     0 => {
-                        let a = (case % 3) as usize;
+                        let a = case % 3;
                         let (mut lo, mut hi) = (g_min - 0.2, g_max + 0.2);
                         if case % 2 == 0 {
                             lo[a] = g_max[a];
