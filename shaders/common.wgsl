@@ -30,7 +30,8 @@ struct GridParams {
 // A light (kind LIGHT_POINT, LIGHT_SPOT or LIGHT_DIRECTIONAL): position, intensity per RGB
 // channel (W/sr; W/m² for a directional light), unit direction (the spot's axis or the
 // direction a sun's light travels), the spot's half-angle (radians) and blend. Hidden and
-// culled lights have zero rgb.
+// culled lights have zero rgb. occluders: bit i set when surface i (< 32) can block a path
+// from the grid box to the light (the march's fog_shadowed).
 struct LightGpu {
     position: vec3f,
     kind: u32,
@@ -38,6 +39,7 @@ struct LightGpu {
     angle: f32,
     direction: vec3f,
     blend: f32,
+    occluders: u32,
 }
 
 @group(0) @binding(0) var<uniform> grid: GridParams;

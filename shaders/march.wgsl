@@ -8,9 +8,9 @@
 // its optical depth from the OPV where they leave it.
 //
 // Homogeneous base fog outside the grid uses Sun et al.'s closed form (shaders/sun.wgsl) for
-// every point light whose light paths cannot meet the grid, and is marched otherwise; height
-// fog (physics.md §9) is always marched there, each step's optical thickness and every light
-// path's optical depth outside the grid taken from its closed form. A spot light is a
+// every point light whose light paths cannot meet the grid or a surface, and is marched
+// otherwise; height fog (physics.md §9) is always marched there, each step's optical thickness
+// and every light path's optical depth outside the grid taken from its closed form. A spot light is a
 // point light times its cone factor (common.wgsl); samples outside its cone skip it entirely.
 // A directional light (sun) adds σ_s·p·E·exp(−T_sun) with no falloff, T_sun from its OPV
 // where its path crosses the grid and the base fog's closed form elsewhere (physics.md §9).
@@ -23,6 +23,11 @@
 // transmittance falls below tr_cutoff, and at the first surface, which is shaded by every
 // light through the fog (Lambert, shadowed by the other surfaces, plus Sun et al.'s surface
 // term; see shade_surface).
+//
+// Surfaces shadow the fog as they shadow each other: a sample gets no light from a light that a
+// surface hides (fog_shadowed, by shadowed()'s rules, the bake's too). Inside the grid box each
+// light tests only the surfaces in its `occluders` mask, those that can block a path from the
+// box to it (src/gpu/frame_inputs.rs); outside the box every surface is tested.
 
 struct MarchParams {
     origin: vec3f,
@@ -254,6 +259,9 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
             }
         }
         let d = max(length(to_x), 1e-12);
+        if fog_shadowed(x, l, -to_x / d, d) {
+            continue;
+        }
         var depth: f32;
         if inside {
             depth = opv_at(tri, l, x);
@@ -267,6 +275,9 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
         for (var l = 0u; l < grid.light_count; l++) {
             let light = lights[l];
             if light.kind != LIGHT_DIRECTIONAL || all(light.rgb == vec3f(0.0)) {
+                continue;
+            }
+            if fog_shadowed(x, l, -light.direction, OPAQUE) {
                 continue;
             }
             var sun: f32;
@@ -377,8 +388,9 @@ fn march_fog(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
 }
 
 // Base fog outside the grid over [t0, t1]. For each light whose light paths from the whole
-// segment provably miss the grid (the bounding box of the segment and the light misses it),
-// with isotropic scattering, the in-scattering is Sun et al.'s closed form from the
+// segment provably miss the grid and every surface (the bounding box of the segment and the
+// light misses the grid and the surface boxes, and no ground is above its bottom), with
+// isotropic scattering, the in-scattering is Sun et al.'s closed form from the
 // segment's start, attenuated by the transmittance so far; the other lights are marched (see
 // march_fog). Without any marched light the transmittance is advanced analytically.
 fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
@@ -398,7 +410,8 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
         let lo = min(min(start, end), light.position);
         let hi = max(max(start, end), light.position);
         let misses_grid = any(lo > grid.max) || any(hi < grid.min);
-        if params.anisotropy == 0.0 && l < 32u && misses_grid && light.kind == LIGHT_POINT && grid.height_falloff == 0.0 {
+        if params.anisotropy == 0.0 && l < 32u && misses_grid && light.kind == LIGHT_POINT && grid.height_falloff == 0.0
+            && clear_of_surfaces(lo, hi) {
             let to_light = light.position - start;
             let d_sv = length(to_light);
             let gamma = acos(clamp(dot(dir, to_light / max(d_sv, 1e-30)), -1.0, 1.0));
@@ -531,23 +544,68 @@ fn shadowed(x: vec3f, n: vec3f, u: vec3f, t_max: f32) -> bool {
     let reach = t_max * (1.0 - 1e-3);
     let inv = safe_inverse(u);
     for (var i = 0u; i < params.surface_count; i++) {
-        let s = surfaces[i];
-        if s.kind == SURFACE_GROUND {
-            if u.y < 0.0 && o.y > s.min.y && (s.min.y - o.y) / u.y < reach {
-                return true;
-            }
-        } else {
-            let slabs = ray_slabs(o, inv, s.min, s.max);
-            let tn = slabs.near;
-            let tf = slabs.far;
-            let t_in = max(tn.x, max(tn.y, tn.z));
-            let t_out = min(tf.x, min(tf.y, tf.z));
-            if t_out > 0.0 && t_in <= t_out && t_in < reach {
-                return true;
-            }
+        if blocks(surfaces[i], o, u, inv, reach) {
+            return true;
         }
     }
     return false;
+}
+
+// Whether surface s blocks the path from o along unit u (inv = safe_inverse(u)) before `reach`.
+fn blocks(s: Surface, o: vec3f, u: vec3f, inv: vec3f, reach: f32) -> bool {
+    if s.kind == SURFACE_GROUND {
+        return u.y < 0.0 && o.y > s.min.y && (s.min.y - o.y) / u.y < reach;
+    }
+    let slabs = ray_slabs(o, inv, s.min, s.max);
+    let tn = slabs.near;
+    let tf = slabs.far;
+    let t_in = max(tn.x, max(tn.y, tn.z));
+    let t_out = min(tf.x, min(tf.y, tf.z));
+    return t_out > 0.0 && t_in <= t_out && t_in < reach;
+}
+
+// shadowed(x, 0, u, t_max) for a fog sample x and light l: in the grid box only the surfaces of
+// the light's occluders mask (bit i: surface i < 32) and those from the 33rd on can block, the
+// others provably cannot, so they are skipped.
+fn fog_shadowed(x: vec3f, l: u32, u: vec3f, t_max: f32) -> bool {
+    if params.surface_count == 0u {
+        return false;
+    }
+    if !inside_grid(x) {
+        return shadowed(x, vec3f(0.0), u, t_max);
+    }
+    let reach = t_max * (1.0 - 1e-3);
+    let inv = safe_inverse(u);
+    var mask = lights[l].occluders;
+    while mask != 0u {
+        let i = firstTrailingBit(mask);
+        mask &= mask - 1u;
+        if blocks(surfaces[i], x, u, inv, reach) {
+            return true;
+        }
+    }
+    for (var i = 32u; i < params.surface_count; i++) {
+        if blocks(surfaces[i], x, u, inv, reach) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// Whether no surface can block a path between two points of the box [lo, hi]: no surface box's
+// interior overlaps it and the ground is not above its bottom.
+fn clear_of_surfaces(lo: vec3f, hi: vec3f) -> bool {
+    for (var i = 0u; i < params.surface_count; i++) {
+        let s = surfaces[i];
+        if s.kind == SURFACE_GROUND {
+            if s.min.y > lo.y {
+                return false;
+            }
+        } else if all(s.min < hi) && all(s.max > lo) {
+            return false;
+        }
+    }
+    return true;
 }
 
 // Radiance leaving x towards the camera (view direction `dir`), Lambertian plus the surface's

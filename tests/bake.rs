@@ -8,7 +8,7 @@ use common::{pipeline, small_scene, Rng};
 use fogsmith::gpu::{BakePhase, FrameRequest};
 use fogsmith::measure::image_error;
 use fogsmith::reference::{render_emission, render_reference, RefRenderOptions};
-use fogsmith::scene::{Light, LightKind, Project, StepPolicy};
+use fogsmith::scene::{Ground, Light, LightKind, Project, StepPolicy, SurfaceBox};
 use glam::{DVec3, Vec3};
 use std::path::Path;
 use std::process::Command;
@@ -41,6 +41,30 @@ fn random_scene(seed: u64, res: u32) -> Project {
         q.id = i as u32;
     }
     p.render.step_policy = StepPolicy::Adaptive;
+    p
+}
+
+/// [`random_scene`] with surfaces that shadow part of the fog: a small box between each light
+/// and the grid's centre, inside the grid near its face, one across the grid box, and a ground
+/// plane through its lower part when the sun shines from above (from below it would shadow all
+/// of the sun's light). They are black, so that the lit render, like the bake's, holds only the
+/// fog's light; both stop rays at them.
+fn random_scene_with_surfaces(seed: u64, res: u32) -> Project {
+    let mut p = random_scene(seed, res);
+    let mut rng = Rng(seed ^ 0x5eed);
+    let black = |min: Vec3, max: Vec3| SurfaceBox { min, max, albedo: Vec3::ZERO, ..SurfaceBox::default() };
+    for l in p.lights.clone() {
+        let c = match l.kind {
+            LightKind::Directional { direction } => -direction.normalize() * 0.8,
+            _ => l.position.normalize() * 0.8,
+        };
+        p.surfaces.boxes.push(black(c - rng.v(0.05, 0.15), c + rng.v(0.05, 0.15)));
+    }
+    let c = rng.v(-0.6, 0.6);
+    p.surfaces.boxes.push(black(c - Vec3::new(0.1, 0.3, 0.1), c + Vec3::new(0.1, 0.3, 0.1)));
+    if p.lights.iter().all(|l| !matches!(l.kind, LightKind::Directional { direction } if direction.y > 0.0)) {
+        p.surfaces.ground = Some(Ground { height: rng.range(-0.9, -0.6), albedo: Vec3::ZERO, ..Ground::default() });
+    }
     p
 }
 
@@ -91,6 +115,38 @@ fn isotropic_bake_renders_like_the_lit_scene() {
         let (rmse, mean, march) = bake_error(&p, BakePhase::Isotropic);
         println!("seed {seed}, g = 0, isotropic: relative RMSE {rmse:.4}, mean {mean:.4}; march vs exact {march:.4}");
         assert!(rmse < MARCH_FACTOR * march && mean < MEAN_BOUND, "seed {seed}");
+    }
+}
+
+/// Surfaces shadow the fog in the lit render as in the bake, so with boxes between the lights
+/// and the fog and a ground through the grid the image means still agree within `MEAN_BOUND`
+/// (without the shadows in the lit render they would differ by the tenth or more of the
+/// fog's light the surfaces remove, asserted). Pixel by pixel the bake blurs each shadow's
+/// edge over a cell (a cell holds the mean across it, and its render interpolates between
+/// cells) where the lit render keeps it sharp, so the relative RMSE is bounded by
+/// `EDGE_BOUND` instead of the march's own error.
+const EDGE_BOUND: f64 = 0.15;
+
+#[test]
+fn the_bake_renders_like_the_lit_scene_with_surfaces() {
+    for seed in [3, 17] {
+        let p = random_scene_with_surfaces(seed, 48);
+        let (rmse, mean, march) = bake_error(&p, BakePhase::Isotropic);
+        println!("seed {seed}, surfaces, g = 0: relative RMSE {rmse:.4}, mean {mean:.4}; march vs exact {march:.4}");
+        assert!(rmse < EDGE_BOUND && mean < MEAN_BOUND, "seed {seed}: {rmse}, {mean}");
+        // The surfaces darken a good part of the fog, which the lit render must show too.
+        let baked = |p: &Project| {
+            let e = pipeline().bake_emission(p, &FrameRequest::for_project(p), BakePhase::Isotropic).unwrap();
+            e.data.iter().map(|v| v[0] as f64).sum::<f64>()
+        };
+        let mut open = p.clone();
+        open.surfaces = Default::default();
+        let (shaded, lit) = (baked(&p), baked(&open));
+        println!("seed {seed}: the surfaces remove {:.1} % of the baked emission", 100.0 * (1.0 - shaded / lit));
+        assert!(
+            shaded < 0.9 * lit,
+            "seed {seed}: the surfaces shadow too little of the fog to test: {shaded} vs {lit}"
+        );
     }
 }
 
@@ -400,9 +456,9 @@ fn a_box_shadows_the_baked_fog() {
 /// of a cell (the reference: 1/16), each integrated exactly for constant σ_t and j, on
 /// integrands that are smooth inside cells and have kinks at the planes through cell centres,
 /// so each ray's error is second order in σ_t·Δ (at most a few hundredths here), plus f32
-/// rounding over a few hundred steps (about 1e-6 relative each). A box across part of the view
-/// stops rays in both; pixels on its outline may fall either side (f32 against f64 hit
-/// distances). The relative RMSE (printed) stays an order of magnitude below the bound, which
+/// rounding over a few hundred steps (about 1e-6 relative each). In the last case boxes and a
+/// ground plane across part of the view stop rays in both and shadow the baked fog; pixels on
+/// their outlines may fall either side (f32 against f64 hit distances). The relative RMSE (printed) stays an order of magnitude below the bound, which
 /// is itself 50× below the bake's own difference from the lit render (about 1 %, above), so a
 /// wrong lookup, step, clamp or phase fails it.
 const AS_BAKED_BOUND: f64 = 2e-4;
@@ -414,7 +470,8 @@ fn the_as_baked_preview_matches_the_f64_emission_render() {
         (41, 0.6, BakePhase::Camera, false),
         (41, 0.6, BakePhase::Isotropic, true),
     ] {
-        let mut p = random_scene(seed, 48);
+        // The box case also has the shadowing surfaces.
+        let mut p = if with_box { random_scene_with_surfaces(seed, 48) } else { random_scene(seed, 48) };
         p.medium.anisotropy = g;
         if with_box {
             p.surfaces.boxes.push(fogsmith::scene::SurfaceBox {

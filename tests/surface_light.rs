@@ -71,7 +71,9 @@ fn expected_direct(p: &Project, x: DVec3, channel: usize) -> f64 {
 /// (by the CPU ray–box test) lose exactly the direct light (GPU with block vs GPU without,
 /// relative error below 1e-3: the optical depth is exact in homogeneous fog, f32 leaves
 /// ~1e-6), pixels well outside the shadow lose nothing, and the image with the block matches
-/// the reference render.
+/// the reference render. The first two compare scenes whose fog scatters nothing (albedo 0),
+/// so that the block's shadow in the fog in front of the ground leaves those pixels alone;
+/// the reference comparison includes it.
 #[test]
 fn block_shadows_ground_for_every_light_kind() {
     let kinds = [
@@ -82,9 +84,13 @@ fn block_shadows_ground_for_every_light_kind() {
     ];
     for (kind, beta) in kinds {
         let with = shadow_scene(kind, beta, true);
-        let without = shadow_scene(kind, beta, false);
+        let absorbing = |block| {
+            let mut p = shadow_scene(kind, beta, block);
+            p.medium.albedo = 0.0;
+            p
+        };
         let (w, h) = (with.render.width, with.render.height);
-        let (img_with, img_without) = (gpu_image(&with), gpu_image(&without));
+        let (img_with, img_without) = (gpu_image(&absorbing(true)), gpu_image(&absorbing(false)));
         let light = &with.lights[0];
         let origin = with.camera.position.as_dvec3();
         let (mut in_shadow, mut lit, mut worst_shadow, mut worst_lit) = (0, 0, 0.0f64, 0.0f64);
@@ -124,7 +130,7 @@ fn block_shadows_ground_for_every_light_kind() {
             }
         }
         let reference = render_reference(&with, w, h, &RefRenderOptions::default());
-        let image = fogsmith::gpu::Image { width: w, height: h, rgba: img_with.clone() };
+        let image = fogsmith::gpu::Image { width: w, height: h, rgba: gpu_image(&with) };
         let err = image_error(&image, &reference);
         println!(
             "{kind:?}: {} shadowed and {} lit pixel channels; shadow depth rel error max {worst_shadow:.2e}, \
@@ -160,7 +166,9 @@ fn lights_on_and_inside_boxes_stay_finite() {
 /// faces turned away from the lamp are lit by the fog's glow. Against the reference (which
 /// evaluates the surface term exactly), pixels lit by the glow alone match within the table's
 /// error (about 1 % at most, see the lib test glow_table_error_within_bilinear_bound) plus
-/// the march's.
+/// the march's, which includes the block's shadow in the fog in front of those faces: the
+/// march takes each step as lit or shadowed at its middle, so a shadow's edge costs up to half
+/// a step's in-scattering there.
 #[test]
 fn fog_glow_on_surfaces_matches_reference() {
     let mut p = shadow_scene(LightKind::Point, 0.35, false);
@@ -199,7 +207,7 @@ fn fog_glow_on_surfaces_matches_reference() {
     let err = image_error(&image, &reference);
     println!("street lamp: {glow_only} pixels on faces turned away, max relative error {worst:.4}; image relative RMSE {:.4}", err.rel_rmse);
     assert!(glow_only > 20, "{glow_only}");
-    assert!(worst < 0.03, "{worst}");
+    assert!(worst < 0.05, "{worst}");
     assert!(err.rel_rmse < 0.02, "{}", err.rel_rmse);
 }
 

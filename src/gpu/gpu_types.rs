@@ -38,6 +38,10 @@ pub struct LightGpu {
     /// Unit spot axis or direction of travel of a directional light.
     pub direction: [f32; 3],
     pub blend: f32,
+    /// Bit i set when surface i (< 32) can block a path from the grid box to the light
+    /// (`frame_inputs::occluders`).
+    pub occluders: u32,
+    pub _pad: [u32; 3],
 }
 
 #[repr(C)]

@@ -10,7 +10,7 @@
 //!   models a project's imported base volume inside [`Medium64`], as the injection adds it.
 //! - [`optical_depth_volume`], [`optical_depth_cells`]: exact optical-depth volumes (OPVs).
 //! - [`render_reference`], [`radiance_along_ray`], [`in_scatter_adaptive`]: single scattering
-//!   (§4) with exact transmittance.
+//!   (§4) with exact transmittance, the surfaces shadowing the fog and each other.
 //! - [`render_emission`]: emission–absorption renders of baked density and emission (§10).
 //! - [`sun`]: Sun et al.'s closed form for homogeneous fog (§6) and its lookup tables.
 //! - [`surface_glow`]: Sun et al.'s surface term by hemisphere quadrature (§9).

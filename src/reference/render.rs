@@ -3,7 +3,8 @@
 //!
 //! Semantics shared with the GPU ray march: σ_s = albedo·σ_t; isotropic phase 1/(4π) when the
 //! anisotropy g is 0, else Henyey–Greenstein with cosθ = ⟨(x − S)/|x − S|, −ω⟩; light radiance
-//! I·color/|S − x|² · exp(−T(x, S)); hidden lights are ignored. Without base fog only the
+//! I·color/|S − x|² · exp(−T(x, S)), or none where a surface blocks the path from x to the light
+//! (by [`shadowed`]'s rules, as for surfaces); hidden lights are ignored. Without base fog only the
 //! ray's overlap with the grid box is integrated (particles are assumed inside it); with base
 //! fog the ray runs from the camera to `t_max` (possibly infinite), the parts outside the box
 //! carrying base fog only.
@@ -78,6 +79,24 @@ fn arriving(medium: &Medium64, project: &Project, l: &Light64, x: DVec3) -> Opti
     Some((to_x / d2.sqrt(), cone / d2, (-medium.optical_depth(x, l.position)).exp()))
 }
 
+/// [`arriving`] at a fog sample `x`, or None where a surface blocks the path to the light.
+fn arriving_fog(medium: &Medium64, project: &Project, l: &Light64, x: DVec3) -> Option<(DVec3, f64, f64)> {
+    if !project.surfaces.is_empty() {
+        let (towards, reach) = match l.sun {
+            Some(direction) => (-direction, f64::INFINITY),
+            None => {
+                let v = l.position - x;
+                let d = v.length();
+                (v / d, d)
+            }
+        };
+        if reach > 0.0 && shadowed(project, x, DVec3::ZERO, towards, reach) {
+            return None;
+        }
+    }
+    arriving(medium, project, l, x)
+}
+
 fn lights64(project: &Project, medium: &Medium64) -> Vec<Light64> {
     project
         .visible_lights()
@@ -148,12 +167,13 @@ fn domain(project: &Project, base: f64, origin: DVec3, dir: DVec3, t_max: f64) -
     }
 }
 
-/// Radiance arriving from all lights at `x`, scattered towards −`dir`, per unit σ_s.
+/// Radiance arriving from all lights at `x` (past the surfaces), scattered towards −`dir`, per
+/// unit σ_s.
 fn in_scattered(medium: &Medium64, project: &Project, lights: &[Light64], phase: Phase, x: DVec3, dir: DVec3) -> DVec3 {
     lights
         .iter()
         .filter_map(|l| {
-            let (travel, geometry, tr) = arriving(medium, project, l, x)?;
+            let (travel, geometry, tr) = arriving_fog(medium, project, l, x)?;
             Some(l.rgb * (geometry * phase.eval(travel.dot(-dir)) * tr))
         })
         .sum()
@@ -248,8 +268,8 @@ pub fn radiance_along_ray(
 }
 
 /// The same integral as [`radiance_along_ray`] by globally adaptive Gauss–Kronrod
-/// quadrature of the full integrand σ_s·p·I/d²·exp(−T(O, x) − T(x, S)), both optical depths
-/// exact, to relative tolerance `rel_tol`. The domain is split at each light's and each
+/// quadrature of the full integrand σ_s·p·I/d²·exp(−T(O, x) − T(x, S)) (0 where a surface
+/// blocks the light), both optical depths exact, to relative tolerance `rel_tol`. The domain is split at each light's and each
 /// nearby particle's closest approach and at the box faces; an infinite tail is mapped onto
 /// a finite interval. Far slower than marching; used to validate it (and the Sun test).
 pub fn in_scatter_adaptive(
@@ -281,7 +301,7 @@ pub fn in_scatter_adaptive(
     for light in &lights {
         let integrand = |t: f64| {
             let x = origin + dir * t;
-            let Some((travel, geometry, tr)) = arriving(medium, project, light, x) else { return 0.0 };
+            let Some((travel, geometry, tr)) = arriving_fog(medium, project, light, x) else { return 0.0 };
             geometry
                 * albedo
                 * medium.extinction(x)
