@@ -564,11 +564,15 @@ fn blocks(s: Surface, o: vec3f, u: vec3f, inv: vec3f, reach: f32) -> bool {
     return t_out > 0.0 && t_in <= t_out && t_in < reach;
 }
 
+// False in the pipeline for scenes without surfaces (src/gpu/march.rs), which then compiles
+// without the test below.
+override fog_shadows: bool = true;
+
 // shadowed(x, 0, u, t_max) for a fog sample x and light l: in the grid box only the surfaces of
 // the light's occluders mask (bit i: surface i < 32) and those from the 33rd on can block, the
 // others provably cannot, so they are skipped.
 fn fog_shadowed(x: vec3f, l: u32, u: vec3f, t_max: f32) -> bool {
-    if params.surface_count == 0u {
+    if !fog_shadows || params.surface_count == 0u {
         return false;
     }
     if !inside_grid(x) {

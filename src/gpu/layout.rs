@@ -207,6 +207,18 @@ pub fn compute_pipeline_entry(
     layout: &wgpu::BindGroupLayout,
     entry: &str,
 ) -> wgpu::ComputePipeline {
+    compute_pipeline_with(device, label, code, layout, entry, &[])
+}
+
+/// [`compute_pipeline_entry`] with values for the shader's `override` constants.
+pub fn compute_pipeline_with(
+    device: &wgpu::Device,
+    label: &str,
+    code: String,
+    layout: &wgpu::BindGroupLayout,
+    entry: &str,
+    constants: &[(&str, f64)],
+) -> wgpu::ComputePipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(code.into()),
@@ -221,7 +233,7 @@ pub fn compute_pipeline_entry(
         layout: Some(&pipeline_layout),
         module: &module,
         entry_point: Some(entry),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
         cache: None,
     })
 }

@@ -5,7 +5,7 @@
 //! counters; the per-march inputs (grid, EV, lights, OPVs, occupancy) are passed explicitly.
 
 use super::gpu_types::{MarchParams, SurfaceGpu};
-use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline, Slot, WORKGROUP_2D};
+use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline_with, Slot, WORKGROUP_2D};
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
@@ -77,6 +77,8 @@ pub struct MarchInputs<'a> {
 /// A march in progress: the rows below `next_row` are done.
 pub struct MarchJob {
     bind_group: wgpu::BindGroup,
+    /// Whether the scene has surfaces, which shadow the fog.
+    surfaces: bool,
     params: MarchParams,
     pub next_row: u32,
 }
@@ -92,7 +94,13 @@ impl MarchJob {
 
 pub struct Marcher {
     layout: wgpu::BindGroupLayout,
+    /// The march of scenes without surfaces, compiled without the fog's surface-shadow test
+    /// (`fog_shadows`): the dead code slows every sample on software adapters.
     pipeline: wgpu::ComputePipeline,
+    /// The march with it, built for the first scene with surfaces.
+    with_surfaces: Option<wgpu::ComputePipeline>,
+    /// The WGSL both are built from.
+    code: String,
     /// Sun et al.'s F table (remapped layout) for the closed-form base fog, then the G table
     /// of their surface term.
     sun_table: wgpu::Buffer,
@@ -120,14 +128,15 @@ impl Marcher {
             ],
             opv.layout_entries(EXTRA_BINDING, true),
         );
-        let pipeline = compute_pipeline(device, "march", super::shaders::march(&opv), &layout);
+        let code = super::shaders::march(&opv);
+        let pipeline = compute_pipeline_with(device, "march", code.clone(), &layout, "main", &[("fog_shadows", 0.0)]);
         let mut tables = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE).data;
         tables.extend_from_slice(crate::surface_table::glow_table());
         tables.extend_from_slice(crate::surface_table::spec_table());
         let sun_table = super::buffers::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::buffers::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::buffers::storage_buffer(device, "surfaces", &[]);
-        Self { layout, pipeline, sun_table, counters_buf, surfaces_buf }
+        Self { layout, pipeline, with_surfaces: None, code, sun_table, counters_buf, surfaces_buf }
     }
 
     /// Uploads the inputs of a march into `target` and returns the job; its counters start at 0.
@@ -159,7 +168,12 @@ impl Marcher {
             ],
             inputs.lookup.extra_entries(EXTRA_BINDING),
         );
-        MarchJob { bind_group, params: inputs.params, next_row: 0 }
+        let surfaces = !inputs.surfaces.is_empty();
+        if surfaces && self.with_surfaces.is_none() {
+            let code = self.code.clone();
+            self.with_surfaces = Some(compute_pipeline_with(device, "march", code, &self.layout, "main", &[]));
+        }
+        MarchJob { bind_group, surfaces, params: inputs.params, next_row: 0 }
     }
 
     /// Encodes the next band of at most `rows` rows (rounded up to whole workgroups) of `job`.
@@ -183,7 +197,8 @@ impl Marcher {
                 label: Some("march"),
                 timestamp_writes: timestamps,
             });
-            pass.set_pipeline(&self.pipeline);
+            let pipeline = self.with_surfaces.as_ref().filter(|_| job.surfaces).unwrap_or(&self.pipeline);
+            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &job.bind_group, &[]);
             pass.dispatch_workgroups(job.params.size[0].div_ceil(WORKGROUP_2D), band.div_ceil(WORKGROUP_2D), 1);
         }
