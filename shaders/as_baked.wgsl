@@ -26,10 +26,7 @@ fn as_baked(@builtin(global_invocation_id) id: vec3u) {
     if any(id.xy >= params.size) {
         return;
     }
-    let size = vec2f(params.size);
-    let sx = (f32(id.x) + 0.5) / size.x * 2.0 - 1.0;
-    let sy = 1.0 - (f32(id.y) + 0.5) / size.y * 2.0;
-    let dir = normalize(params.forward + params.right * sx + params.up * sy);
+    let dir = camera_ray(id.xy);
     let o = params.origin;
     let hit = first_surface(o, dir);
     let slabs = ray_slabs(o, safe_inverse(dir), grid.min, grid.max);

@@ -182,3 +182,12 @@ fn sun_beyond(x: vec3f, towards: vec3f) -> f32 {
     let e = box_exit(x, towards);
     return base_fog_depth(x + towards * e, towards, -1.0);
 }
+
+// A sun's mean in-box extinction at x, from its optical depth `depth` there: (depth − B)/exit,
+// B the base fog beyond the box (sun_beyond). Interpolated between cells, it is exact in
+// homogeneous fog (propagate_directional.wgsl, march_lookup.wgsl).
+fn sun_mean_extinction(depth: f32, x: vec3f, towards: vec3f) -> f32 {
+    let e = box_exit(x, towards);
+    let b = sun_beyond(x, towards);
+    return max(depth - b, 0.0) / max(e, 1e-30);
+}

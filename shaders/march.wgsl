@@ -673,16 +673,21 @@ fn tonemap(c: vec3f) -> vec3f {
     return select(hi, lo, l <= vec3f(0.0031308));
 }
 
+// The unit direction of the camera ray through the centre of pixel `px`.
+fn camera_ray(px: vec2u) -> vec3f {
+    let size = vec2f(params.size);
+    let sx = (f32(px.x) + 0.5) / size.x * 2.0 - 1.0;
+    let sy = 1.0 - (f32(px.y) + 0.5) / size.y * 2.0;
+    return normalize(params.forward + params.right * sx + params.up * sy);
+}
+
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
     let id = gid + vec3u(0u, params.row_offset, 0u);
     if any(id.xy >= params.size) {
         return;
     }
-    let size = vec2f(params.size);
-    let sx = (f32(id.x) + 0.5) / size.x * 2.0 - 1.0;
-    let sy = 1.0 - (f32(id.y) + 0.5) / size.y * 2.0;
-    let dir = normalize(params.forward + params.right * sx + params.up * sy);
+    let dir = camera_ray(id.xy);
     let o = params.origin;
 
     radiance = vec3f(0.0);

@@ -25,8 +25,7 @@ fn main(@builtin(global_invocation_id) p: vec3u) {
         }
         var v: f32;
         if lights[light].kind == LIGHT_DIRECTIONAL {
-            let towards = -lights[light].direction;
-            v = max(opv_load(light, p) - sun_beyond(xc, towards), 0.0) / max(box_exit(xc, towards), 1e-30);
+            v = sun_mean_extinction(opv_load(light, p), xc, -lights[light].direction);
         } else {
             let d = length(xc - lights[light].position);
             if d < 1e-6 * grid.cell.x {

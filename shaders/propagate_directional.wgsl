@@ -46,10 +46,7 @@ struct PlaneParams {
 
 // Mean in-box extinction of cell c of the previous plane: (T − B)/exit.
 fn mean_extinction(c: vec3u, towards: vec3f, light: u32) -> f32 {
-    let x = cell_center(c);
-    let e = box_exit(x, towards);
-    let b = sun_beyond(x, towards);
-    return max(opv_load(light, c) - b, 0.0) / max(e, 1e-30);
+    return sun_mean_extinction(opv_load(light, c), cell_center(c), towards);
 }
 
 // The largest |second difference| of the stencil values v (cells f − 1 … f + 2 of an axis of

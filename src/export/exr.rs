@@ -252,27 +252,16 @@ pub fn write_atlas_exr_in_frame(
             samples[dst..dst + nx].copy_from_slice(&volume.data[src..src + nx]);
         }
     }
-    let mut attributes = LayerAttributes::default();
-    grid_attributes(&mut attributes, &grid);
+    let mut attributes = atlas_attributes(&grid, &layout, frame);
     let o = &mut attributes.other;
-    o.insert(
-        Text::new_or_panic("fogsmith/atlas_tiles"),
-        AttributeValue::IntVec2(Vec2(layout.tiles_x as i32, layout.tiles_y as i32)),
-    );
     o.insert(
         Text::new_or_panic("fogsmith/atlas_tile_size"),
         AttributeValue::IntVec2(Vec2(layout.tile_width as i32, layout.tile_height as i32)),
     );
-    o.insert(Text::new_or_panic("fogsmith/atlas_slices"), AttributeValue::I32(layout.slices as i32));
-    o.insert(Text::new_or_panic("fogsmith/up_axis"), AttributeValue::Text(Text::new_or_panic(frame.up_name())));
-    o.insert(Text::new_or_panic("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()));
     o.insert(
         Text::new_or_panic("fogsmith/handedness"),
         AttributeValue::Text(Text::new_or_panic(frame.handedness_name())),
     );
-    let a = super::vdb::index_to_world_matrix(&grid, frame);
-    let m: [f32; 16] = std::array::from_fn(|n| a[n / 4][n % 4] as f32);
-    o.insert(Text::new_or_panic("fogsmith/index_to_world"), AttributeValue::Matrix4x4(m));
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     list.push(AnyChannel::new(Text::new_or_panic("Y"), FlatSamples::F32(samples)));
     let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
@@ -316,21 +305,10 @@ pub fn write_baked_atlas_exr(
             }
         }
     }
-    let mut attributes = LayerAttributes::default();
-    grid_attributes(&mut attributes, &grid);
+    let mut attributes = atlas_attributes(&grid, &layout, frame);
     let o = &mut attributes.other;
-    o.insert(
-        Text::new_or_panic("fogsmith/atlas_tiles"),
-        AttributeValue::IntVec2(Vec2(layout.tiles_x as i32, layout.tiles_y as i32)),
-    );
-    o.insert(Text::new_or_panic("fogsmith/atlas_slices"), AttributeValue::I32(layout.slices as i32));
     o.insert(Text::new_or_panic("fogsmith/emission_scale"), AttributeValue::F32(scales[0]));
     o.insert(Text::new_or_panic("fogsmith/extinction_scale"), AttributeValue::F32(scales[1]));
-    o.insert(Text::new_or_panic("fogsmith/up_axis"), AttributeValue::Text(Text::new_or_panic(frame.up_name())));
-    o.insert(Text::new_or_panic("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()));
-    let a = super::vdb::index_to_world_matrix(&grid, frame);
-    let m: [f32; 16] = std::array::from_fn(|n| a[n / 4][n % 4] as f32);
-    o.insert(Text::new_or_panic("fogsmith/index_to_world"), AttributeValue::Matrix4x4(m));
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     for (name, samples) in ["R", "G", "B", "A"].into_iter().zip(channels) {
         list.push(AnyChannel::new(Text::new_or_panic(name), FlatSamples::F16(samples)));
@@ -338,6 +316,24 @@ pub fn write_baked_atlas_exr(
     let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
     write_atomic(path, |tmp| Image::from_layer(layer).write().to_file(tmp).map_err(|e| exr_error(path, e)))?;
     Ok((layout, scales))
+}
+
+/// The header of an atlas: the grid, the tiling and the frame (up axis, units, index to world).
+fn atlas_attributes(grid: &GridSpec, layout: &AtlasLayout, frame: &Frame) -> LayerAttributes {
+    let mut attributes = LayerAttributes::default();
+    grid_attributes(&mut attributes, grid);
+    let o = &mut attributes.other;
+    o.insert(
+        Text::new_or_panic("fogsmith/atlas_tiles"),
+        AttributeValue::IntVec2(Vec2(layout.tiles_x as i32, layout.tiles_y as i32)),
+    );
+    o.insert(Text::new_or_panic("fogsmith/atlas_slices"), AttributeValue::I32(layout.slices as i32));
+    o.insert(Text::new_or_panic("fogsmith/up_axis"), AttributeValue::Text(Text::new_or_panic(frame.up_name())));
+    o.insert(Text::new_or_panic("fogsmith/meters_per_unit"), AttributeValue::F64(frame.meters_per_unit()));
+    let a = super::vdb::index_to_world_matrix(grid, frame);
+    let m: [f32; 16] = std::array::from_fn(|n| a[n / 4][n % 4] as f32);
+    o.insert(Text::new_or_panic("fogsmith/index_to_world"), AttributeValue::Matrix4x4(m));
+    attributes
 }
 
 fn grid_attributes(attributes: &mut LayerAttributes, grid: &GridSpec) {
