@@ -54,7 +54,7 @@ struct MarchParams {
     // Directional lights among the lights, visited after the others in a loop of their own:
     // their code inside the point lights' loop slows every sample.
     sun_count: u32,
-    _pad2: u32,
+    col_offset: u32,
 }
 
 // kind SURFACE_BOX: an axis-aligned box [min, max]; SURFACE_GROUND: the plane y = min.y, facing +y.
@@ -683,7 +683,7 @@ fn camera_ray(px: vec2u) -> vec3f {
 
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u) {
-    let id = gid + vec3u(0u, params.row_offset, 0u);
+    let id = gid + vec3u(params.col_offset, params.row_offset, 0u);
     if any(id.xy >= params.size) {
         return;
     }

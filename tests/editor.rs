@@ -527,6 +527,32 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
     assert!(differing == 0, "the converged preview equals a fresh bake: max difference {diff:e} of peak {peak:e}, {differing} values differ");
 }
 
+/// An edit that changes nothing the preview shows (a particle renamed) is on show in the frame
+/// of the edit, with the image it already had: no input waits for an image that will not come.
+#[test]
+fn an_edit_that_changes_nothing_on_show_is_shown_at_once() {
+    let mut h = progressive_harness();
+    for _ in 0..5000 {
+        h.step();
+        if h.state().preview_status().is_some_and(|s| s.converged) {
+            break;
+        }
+    }
+    let before = h.state().preview_status().expect("a preview");
+    assert!(before.converged, "the preview converged");
+    h.state_mut().session_mut().edit(fogsmith::editor::session::NEW_STEP).particles[0].name = Some("renamed".into());
+    h.step();
+    let after = h.state().preview_status().unwrap();
+    assert_eq!(after.shown_generation, Some(h.state().session().generation()), "the rename is on show");
+    assert_eq!(after.renders, before.renders, "with no new image");
+    // A change the image shows is on show only with its own image.
+    h.state_mut().session_mut().edit(fogsmith::editor::session::NEW_STEP).particles[0].density *= 3.0;
+    h.step();
+    let painted = h.state().preview_status().unwrap();
+    assert_eq!(painted.shown_generation, Some(h.state().session().generation()));
+    assert!(painted.renders > after.renders, "the denser particle got a new image");
+}
+
 /// The preview image against a fresh bake of the session's project at the same size: how
 /// many values differ in their bits, the largest difference and the fresh bake's peak.
 fn compare_with_fresh_bake(h: &Harness<'_, EditorApp>) -> (usize, f32, f32) {

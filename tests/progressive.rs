@@ -290,3 +290,24 @@ fn every_edit_keeps_the_march_lookups_in_step() {
     p.lights[0].kind = LightKind::Point;
     settle(&mut gpu, &p, "the spot turned back into a point light");
 }
+
+/// A call with no time left marches one workgroup of the full image, not a whole row of
+/// workgroups (which on a software adapter can cost more than a frame), and bands of every
+/// width add up to exactly the fresh bake.
+#[test]
+fn a_call_without_time_marches_part_of_a_row_and_converges_to_the_fresh_bake() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-2.0, 0.3, 0.1)]);
+    p.render.width = 200;
+    p.render.height = 40;
+    let request = FrameRequest::for_project(&p);
+    let calls = converge(&mut gpu, &p, &request, Duration::ZERO);
+    let marching: Vec<f64> = calls.iter().filter(|c| c.stage == Stage::March).map(|c| c.stage_fraction).collect();
+    let steps: Vec<f64> = marching.windows(2).map(|w| w[1] - w[0]).collect();
+    let row = 8.0 / 40.0;
+    let largest = steps.iter().copied().fold(0.0, f64::max);
+    assert!(steps.len() > 10, "the march took {} calls", steps.len() + 1);
+    assert!(largest < 0.5 * row, "a call without time marched {largest} of the image, a row of workgroups is {row}");
+    assert!(steps.iter().all(|&s| s >= 0.0), "the march's progress never goes back");
+    assert_same_as_fresh(&gpu, &p, &request);
+}

@@ -18,14 +18,15 @@ pub const FRAME_BUDGET_MS: f64 = 30.0;
 /// While no input arrives, the pipeline may take this many times the rest of the last
 /// frame's cost (egui, the quick march, present), so that most of the wall time goes to the
 /// work and convergence approaches the work's own time...
-pub const IDLE_WORK_SHARE: f64 = 3.0;
-/// ...but no more than this, so input that arrives during an idle frame shows within about
-/// 200 ms.
-pub const IDLE_BUDGET_MAX_MS: f64 = 120.0;
+pub const IDLE_WORK_SHARE: f64 = 4.5;
+/// ...but no more than this, so that input arriving during an idle frame waits at most
+/// about this plus the rest of the frame. The march's bands fit the time left (parts of a
+/// row of workgroups where a whole row would not), so idle frames keep to it.
+pub const IDLE_BUDGET_MAX_MS: f64 = 150.0;
 
-/// How long without input before a frame counts as idle: shorter than the gaps between
-/// the steps of a wheel turn or a slow drag, so those keep the frame budget.
-pub const IDLE_AFTER: Duration = Duration::from_millis(400);
+/// How long without input before a frame counts as idle: longer than the gaps between the
+/// steps of a wheel turn (a drag holds its gesture and is never idle).
+pub const IDLE_AFTER: Duration = Duration::from_millis(250);
 
 /// The pipeline's budget for a frame: [`FRAME_BUDGET_MS`] during input, and while idle
 /// [`IDLE_WORK_SHARE`] times the rest of the last frame, between the two bounds.
@@ -136,6 +137,10 @@ impl GpuView {
         }
         // Back from "as baked": the lit image the pipeline holds shows again.
         if !progress.new_image && !switched_back {
+            // An edit that changes nothing on show (a dab outside the grid) is on show at once.
+            if progress.shows_scene {
+                self.shown = Some(version);
+            }
             return false;
         }
         self.renders += 1;
@@ -337,7 +342,7 @@ mod tests {
     fn the_budget_grows_only_while_idle_and_stays_within_its_bounds() {
         assert_eq!(frame_budget_ms(false, Some(200.0), 30.0), FRAME_BUDGET_MS, "input keeps the frame budget");
         assert_eq!(frame_budget_ms(true, None, 0.0), FRAME_BUDGET_MS, "no frame measured yet");
-        assert_eq!(frame_budget_ms(true, Some(60.0), 30.0), 90.0, "three times the 30 ms rest of the frame");
+        assert_eq!(frame_budget_ms(true, Some(50.0), 20.0), 90.0, "4.5 times the 20 ms rest of the frame");
         assert_eq!(frame_budget_ms(true, Some(35.0), 30.0), FRAME_BUDGET_MS, "never below the frame budget");
         assert_eq!(frame_budget_ms(true, Some(500.0), 30.0), IDLE_BUDGET_MAX_MS, "never above the cap");
         assert_eq!(frame_budget_ms(true, Some(10.0), 30.0), FRAME_BUDGET_MS, "a rest below zero counts as none");

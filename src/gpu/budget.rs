@@ -82,9 +82,4 @@ impl Rate {
         let h = ((height as f64 * s) as u32).max(16).min(height);
         (w, h)
     }
-
-    /// Rows of a `width`-pixel image that fit in `left_ms`, at least one band.
-    pub fn rows_in(&self, left_ms: Option<f64>, width: u32, band: u32) -> u32 {
-        (self.units_in(left_ms) / (width as u64).max(1)).clamp(band as u64, u32::MAX as u64) as u32
-    }
 }

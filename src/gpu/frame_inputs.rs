@@ -403,7 +403,7 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
         surface_count,
         row_offset: 0,
         sun_count: project.lights.iter().filter(|l| matches!(l.kind, LightKind::Directional { .. })).count() as u32,
-        _pad: 0,
+        col_offset: 0,
     }
 }
 

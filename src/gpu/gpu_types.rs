@@ -83,7 +83,8 @@ pub struct MarchParams {
     pub row_offset: u32,
     /// Directional lights among the lights: the march visits them in a loop of their own.
     pub sun_count: u32,
-    pub _pad: u32,
+    /// First image column of this dispatch (a band narrower than the image).
+    pub col_offset: u32,
 }
 
 #[repr(C)]

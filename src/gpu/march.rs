@@ -1,5 +1,7 @@
 //! The ray-march stage: single scattering along camera rays (`shaders/march.wgsl`) into an
-//! [`ImageTarget`], in bands of rows so that a frame can be spread over several submits.
+//! [`ImageTarget`], in bands so that the work can be spread over several submits and frames:
+//! whole rows of workgroups, or, where the time left holds less than one such row, part of one
+//! (on a software adapter one row of workgroups of a large image costs more than a frame).
 //!
 //! [`Marcher`] is long-lived: it owns the pipeline, its layout, Sun et al.'s F table and the
 //! counters; the per-march inputs (grid, EV, lights, OPVs, occupancy) are passed explicitly.
@@ -74,13 +76,15 @@ pub struct MarchInputs<'a> {
     pub params: MarchParams,
 }
 
-/// A march in progress: the rows below `next_row` are done.
+/// A march in progress: the rows above `next_row` are done, and in the band of
+/// [`BAND_ROWS`] rows from there, the columns left of `next_col`.
 pub struct MarchJob {
     bind_group: wgpu::BindGroup,
     /// Whether the scene has surfaces, which shadow the fog.
     surfaces: bool,
     params: MarchParams,
     pub next_row: u32,
+    next_col: u32,
 }
 
 impl MarchJob {
@@ -88,7 +92,9 @@ impl MarchJob {
         self.next_row >= self.params.size[1]
     }
     pub fn fraction(&self) -> f64 {
-        self.next_row.min(self.params.size[1]) as f64 / self.params.size[1].max(1) as f64
+        let [w, h] = self.params.size;
+        let rows = self.next_row as f64 + self.next_col as f64 / w.max(1) as f64 * BAND_ROWS as f64;
+        (rows / h.max(1) as f64).min(1.0)
     }
 }
 
@@ -173,24 +179,42 @@ impl Marcher {
             let code = self.code.clone();
             self.with_surfaces = Some(compute_pipeline_with(device, "march", code, &self.layout, "main", &[]));
         }
-        MarchJob { bind_group, surfaces, params: inputs.params, next_row: 0 }
+        MarchJob { bind_group, surfaces, params: inputs.params, next_row: 0, next_col: 0 }
     }
 
-    /// Encodes the next band of at most `rows` rows (rounded up to whole workgroups) of `job`.
-    /// Each band is its own submit: the row offset lives in the target's uniform.
+    /// Encodes the next band of `job`, about `pixels` pixels (at least one workgroup): whole
+    /// rows of workgroups where that many fit, else part of one. Returns the pixels it covers.
+    /// Each band is its own submit: its offsets live in the target's uniform.
     pub fn encode_band(
         &self,
         ctx: &GpuContext,
         target: &ImageTarget,
         encoder: &mut wgpu::CommandEncoder,
         job: &mut MarchJob,
-        rows: u32,
+        pixels: u64,
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
-    ) {
-        let left = job.params.size[1] - job.next_row;
-        let band = rows.clamp(1, left).div_ceil(BAND_ROWS) * BAND_ROWS;
-        let band = band.min(left);
-        let params = MarchParams { row_offset: job.next_row, ..job.params };
+    ) -> u64 {
+        let [width, height] = job.params.size;
+        let left = height - job.next_row;
+        let row_pixels = width as u64 * BAND_ROWS.min(left) as u64;
+        let params = MarchParams { row_offset: job.next_row, col_offset: job.next_col, ..job.params };
+        let (groups, covered) = if job.next_col == 0 && pixels >= row_pixels {
+            let rows = (pixels / width as u64).min(left as u64) as u32;
+            let band = if rows >= left { left } else { rows / BAND_ROWS * BAND_ROWS };
+            job.next_row += band;
+            ((width.div_ceil(WORKGROUP_2D), band.div_ceil(WORKGROUP_2D)), band as u64 * width as u64)
+        } else {
+            let rows = BAND_ROWS.min(left);
+            let cols = ((pixels / rows as u64) as u32 / WORKGROUP_2D * WORKGROUP_2D)
+                .max(WORKGROUP_2D)
+                .min(width - job.next_col);
+            job.next_col += cols;
+            if job.next_col >= width {
+                job.next_col = 0;
+                job.next_row += rows;
+            }
+            ((cols.div_ceil(WORKGROUP_2D), 1), cols as u64 * rows as u64)
+        };
         ctx.queue.write_buffer(&target.params_buf, 0, bytemuck::bytes_of(&params));
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -200,9 +224,9 @@ impl Marcher {
             let pipeline = self.with_surfaces.as_ref().filter(|_| job.surfaces).unwrap_or(&self.pipeline);
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &job.bind_group, &[]);
-            pass.dispatch_workgroups(job.params.size[0].div_ceil(WORKGROUP_2D), band.div_ceil(WORKGROUP_2D), 1);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
         }
-        job.next_row += band;
+        covered
     }
 
     /// Adds the counters of the finished march to `counters`.

@@ -26,7 +26,7 @@ use super::inject::{InjectInputs, InjectJob, Injector};
 use super::inject_options::{HostCounts, InjectOptions, InjectPath};
 use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
-use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
+use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher};
 use super::march_lookup::{LookupBuilder, LookupInputs};
 use super::opv_store::OpvLayout;
 use super::outputs::{self, Image};
@@ -485,7 +485,7 @@ impl FogPipeline {
         }
         while self.jobs.march.is_some() {
             let t = Instant::now();
-            let units = self.march_item(clock.left_ms(t), inputs.request.width, &mut progress.report.counters)?;
+            let units = self.march_item(clock.left_ms(t), &mut progress.report.counters)?;
             progress.report.timings_ms.march += self.item_ms(timer::MARCH, t, units)?;
             if let Some((_, key)) = self.jobs.march.take_if(|(job, _)| job.done()) {
                 self.marcher.read_counters(&self.ctx, &mut progress.report.counters)?;
@@ -503,6 +503,8 @@ impl FogPipeline {
         self.note_memory();
         if let Some((key, _)) = &self.baked.shown {
             progress.shown_size = self.shown_target().map_or([0, 0], |t| [t.width, t.height]);
+            progress.shows_scene = progress.stage != Stage::Inject
+                && key.same_scene(&inputs.image_key(self.baked.ev_generation, &self.baked.opvs));
             // A propagated light whose OPV on show differs from what the scene needs now.
             progress.shadows_stale = (0..inputs.light_count()).any(|i| {
                 inputs
@@ -721,25 +723,24 @@ impl FogPipeline {
         Ok(self.marcher.begin(&self.ctx, target, &inputs))
     }
 
-    /// Marches the next band of rows of the full image sized to `left_ms`; returns its pixels.
-    fn march_item(&mut self, left_ms: Option<f64>, width: u32, counters: &mut Counters) -> Result<u64, GpuError> {
+    /// Marches the next band of the full image sized to `left_ms`; returns its pixels.
+    fn march_item(&mut self, left_ms: Option<f64>, counters: &mut Counters) -> Result<u64, GpuError> {
         let (Some((job, _)), Some(target)) = (self.jobs.march.as_mut(), self.full.as_ref()) else {
             // Without its target a march cannot go on: drop it.
             self.jobs.march = None;
             return Ok(0);
         };
-        let rows = self.rates[timer::MARCH as usize].rows_in(left_ms, width, BAND_ROWS);
-        let before = job.next_row;
+        let pixels = self.rates[timer::MARCH as usize].units_in(left_ms);
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         let stamps = self.timer.as_ref().map(|t| t.writes(timer::MARCH));
-        self.marcher.encode_band(&self.ctx, target, &mut encoder, job, rows, stamps);
+        let covered = self.marcher.encode_band(&self.ctx, target, &mut encoder, job, pixels, stamps);
         if let Some(t) = &self.timer {
             t.resolve(&mut encoder, timer::MARCH);
         }
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
         counters.dispatches += 1;
-        Ok((job.next_row - before) as u64 * width as u64)
+        Ok(covered)
     }
 
     /// Marches the whole image at `w`×`h`, a reduced size (see `preview_stage`), and shows it.
@@ -751,7 +752,7 @@ impl FogPipeline {
         let t = Instant::now();
         let mut job = self.begin_march(&target, &key)?;
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.marcher.encode_band(&self.ctx, &target, &mut encoder, &mut job, h, None);
+        self.marcher.encode_band(&self.ctx, &target, &mut encoder, &mut job, u64::MAX, None);
         self.ctx.queue.submit([encoder.finish()]);
         self.ctx.wait()?;
         self.rates[timer::MARCH as usize].observe(w as u64 * h as u64, ms(t));

@@ -115,6 +115,9 @@ pub struct Progress {
     pub report: FrameReport,
     /// A new image is on show since the previous call.
     pub new_image: bool,
+    /// The image on show is of the scene of this call, optical depths aside (see
+    /// `shadows_stale`): an edit that changed nothing the image shows needs no new one.
+    pub shows_scene: bool,
     /// Size of the image on show (smaller than requested while the preview is refining).
     pub shown_size: [u32; 2],
     /// The image on show reads optical depths that lag the scene (moved lights, edited fog).
