@@ -18,11 +18,11 @@ pub const FRAME_BUDGET_MS: f64 = 30.0;
 /// While no input arrives, the pipeline may take this many times the rest of the last
 /// frame's cost (egui, the quick march, present), so that most of the wall time goes to the
 /// work and convergence approaches the work's own time...
-pub const IDLE_WORK_SHARE: f64 = 4.5;
+pub const IDLE_WORK_SHARE: f64 = 6.0;
 /// ...but no more than this, so that input arriving during an idle frame waits at most
 /// about this plus the rest of the frame. The march's bands fit the time left (parts of a
 /// row of workgroups where a whole row would not), so idle frames keep to it.
-pub const IDLE_BUDGET_MAX_MS: f64 = 150.0;
+pub const IDLE_BUDGET_MAX_MS: f64 = 200.0;
 
 /// How long without input before a frame counts as idle: longer than the gaps between the
 /// steps of a wheel turn (a drag holds its gesture and is never idle).
@@ -342,7 +342,7 @@ mod tests {
     fn the_budget_grows_only_while_idle_and_stays_within_its_bounds() {
         assert_eq!(frame_budget_ms(false, Some(200.0), 30.0), FRAME_BUDGET_MS, "input keeps the frame budget");
         assert_eq!(frame_budget_ms(true, None, 0.0), FRAME_BUDGET_MS, "no frame measured yet");
-        assert_eq!(frame_budget_ms(true, Some(50.0), 20.0), 90.0, "4.5 times the 20 ms rest of the frame");
+        assert_eq!(frame_budget_ms(true, Some(35.0), 20.0), 90.0, "six times the 15 ms rest of the frame");
         assert_eq!(frame_budget_ms(true, Some(35.0), 30.0), FRAME_BUDGET_MS, "never below the frame budget");
         assert_eq!(frame_budget_ms(true, Some(500.0), 30.0), IDLE_BUDGET_MAX_MS, "never above the cap");
         assert_eq!(frame_budget_ms(true, Some(10.0), 30.0), FRAME_BUDGET_MS, "a rest below zero counts as none");
