@@ -24,6 +24,14 @@ fn converge(gpu: &mut FogPipeline, p: &Project, request: &FrameRequest, budget: 
     panic!("no convergence after 100000 calls: {:?}", all.last());
 }
 
+/// The small scene with a light inside the grid and one outside, rendered at `width`×`height`.
+fn two_lights(width: u32, height: u32) -> Project {
+    let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-2.0, 0.3, 0.1)]);
+    p.render.width = width;
+    p.render.height = height;
+    p
+}
+
 /// Asserts that `gpu` holds exactly what a fresh pipeline bakes for `p`, bit for bit.
 fn assert_same_as_fresh(gpu: &FogPipeline, p: &Project, request: &FrameRequest) {
     let mut fresh = pipeline();
@@ -48,9 +56,7 @@ fn assert_same_as_fresh(gpu: &FogPipeline, p: &Project, request: &FrameRequest) 
 fn tiny_budgets_converge_to_the_fresh_bake_for_every_scheme() {
     for scheme in [Scheme::Sweep, Scheme::Exact, Scheme::Giroud] {
         let mut gpu = pipeline();
-        let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-2.0, 0.3, 0.1)]);
-        p.render.width = 64;
-        p.render.height = 48;
+        let p = two_lights(64, 48);
         let request = FrameRequest { scheme, ..FrameRequest::for_project(&p) };
         let calls = converge(&mut gpu, &p, &request, Duration::ZERO);
         assert!(calls.len() > 3, "{scheme:?}: a zero budget still spreads the bake over calls ({} calls)", calls.len());
@@ -253,9 +259,7 @@ fn update_progress_is_monotone_and_cancellable() {
 #[test]
 fn every_edit_keeps_the_march_lookups_in_step() {
     let mut gpu = pipeline();
-    let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-2.0, 0.3, 0.1)]);
-    p.render.width = 40;
-    p.render.height = 30;
+    let mut p = two_lights(40, 30);
     let request = FrameRequest::for_project(&p);
     let settle = |gpu: &mut FogPipeline, p: &Project, what: &str| {
         converge(gpu, p, &request, Duration::from_millis(2));
@@ -297,9 +301,7 @@ fn every_edit_keeps_the_march_lookups_in_step() {
 #[test]
 fn a_call_without_time_marches_part_of_a_row_and_converges_to_the_fresh_bake() {
     let mut gpu = pipeline();
-    let mut p = small_scene(24, &[Vec3::new(0.9, 0.9, 0.9), Vec3::new(-2.0, 0.3, 0.1)]);
-    p.render.width = 200;
-    p.render.height = 40;
+    let p = two_lights(200, 40);
     let request = FrameRequest::for_project(&p);
     let calls = converge(&mut gpu, &p, &request, Duration::ZERO);
     let marching: Vec<f64> = calls.iter().filter(|c| c.stage == Stage::March).map(|c| c.stage_fraction).collect();
