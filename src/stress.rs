@@ -102,7 +102,7 @@ fn center(p: &Project, c: [u32; 3]) -> Vec3 {
 }
 
 /// Deterministic numbers in [0, 1).
-fn lcg(state: &mut u64) -> f32 {
+pub(crate) fn lcg(state: &mut u64) -> f32 {
     *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
     (*state >> 40) as f32 / (1u64 << 24) as f32
 }

@@ -418,8 +418,7 @@ mod tests {
 
     impl Lcg {
         fn f(&mut self) -> f32 {
-            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+            crate::stress::lcg(&mut self.0)
         }
         fn range(&mut self, a: f32, b: f32) -> f32 {
             a + (b - a) * self.f()

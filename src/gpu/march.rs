@@ -205,7 +205,7 @@ impl Marcher {
             ((width.div_ceil(WORKGROUP_2D), band.div_ceil(WORKGROUP_2D)), band as u64 * width as u64)
         } else {
             let rows = BAND_ROWS.min(left);
-            let cols = ((pixels / rows as u64) as u32 / WORKGROUP_2D * WORKGROUP_2D)
+            let cols = ((pixels / rows as u64).min(width as u64) as u32 / WORKGROUP_2D * WORKGROUP_2D)
                 .max(WORKGROUP_2D)
                 .min(width - job.next_col);
             job.next_col += cols;
