@@ -313,3 +313,29 @@ fn a_call_without_time_marches_part_of_a_row_and_converges_to_the_fresh_bake() {
     assert!(steps.iter().all(|&s| s >= 0.0), "the march's progress never goes back");
     assert_same_as_fresh(&gpu, &p, &request);
 }
+
+/// An update in slices (the command line's progress bar) may overrun a slice, so its march
+/// keeps to whole rows of workgroups, the most efficient bands: with zero slices every report
+/// during the march stands at a whole number of rows of workgroups, and the result is the
+/// fresh bake.
+#[test]
+fn an_update_in_slices_marches_whole_rows_of_workgroups() {
+    let mut gpu = pipeline();
+    let p = two_lights(200, 40);
+    let request = FrameRequest::for_project(&p);
+    let mut fractions = Vec::new();
+    gpu.update_with(&p, &request, Duration::ZERO, &mut |progress| {
+        if progress.stage == Stage::March {
+            fractions.push(progress.stage_fraction);
+        }
+        true
+    })
+    .unwrap();
+    let rows = 40.0 / 8.0;
+    assert!(fractions.len() >= 2, "the march was reported {} times", fractions.len());
+    assert!(
+        fractions.iter().all(|f| (f * rows - (f * rows).round()).abs() < 1e-9),
+        "reports between whole rows of workgroups: {fractions:?}"
+    );
+    assert_same_as_fresh(&gpu, &p, &request);
+}

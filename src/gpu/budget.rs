@@ -15,13 +15,21 @@ pub(super) fn ms(t: Instant) -> f64 {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Clock {
     deadline: Option<Instant>,
+    /// The deadline only spaces out progress reports (an update in slices), so an item may
+    /// overrun it: the march then keeps to whole rows of workgroups, its most efficient bands.
+    pub whole_rows: bool,
 }
 
 impl Clock {
-    /// A deadline `budget` from now.
+    /// A deadline `budget` from now, which a frame must keep.
     pub fn start(budget: Option<Duration>) -> Self {
         let started = Instant::now();
-        Self { deadline: budget.map(|b| started + b) }
+        Self { deadline: budget.map(|b| started + b), whole_rows: false }
+    }
+
+    /// A slice of `slice` between progress reports, which items may overrun.
+    pub fn slice(slice: Duration) -> Self {
+        Self { whole_rows: true, ..Self::start(Some(slice)) }
     }
 
     pub fn bounded(&self) -> bool {

@@ -26,7 +26,7 @@ use super::inject::{InjectInputs, InjectJob, Injector};
 use super::inject_options::{HostCounts, InjectOptions, InjectPath};
 use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
-use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher};
+use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::march_lookup::{LookupBuilder, LookupInputs};
 use super::opv_store::OpvLayout;
 use super::outputs::{self, Image};
@@ -234,7 +234,7 @@ impl FogPipeline {
         let mut total: Option<FrameReport> = None;
         let mut request = *request;
         loop {
-            let progress = self.run(project, &request, Some(slice), false)?;
+            let progress = self.run(project, &request, Clock::slice(slice), false)?;
             // Forced once, then continued.
             request.force = false;
             match &mut total {
@@ -264,7 +264,7 @@ impl FogPipeline {
         request: &FrameRequest,
         budget: Option<Duration>,
     ) -> Result<Progress, GpuError> {
-        self.run(project, request, budget, true)
+        self.run(project, request, Clock::start(budget), true)
     }
 
     /// [`advance`](Self::advance) without quick previews: the image on show changes only
@@ -276,7 +276,7 @@ impl FogPipeline {
         request: &FrameRequest,
         budget: Option<Duration>,
     ) -> Result<Progress, GpuError> {
-        self.run(project, request, budget, false)
+        self.run(project, request, Clock::start(budget), false)
     }
 
     /// [`advance`](Self::advance), with or without quick previews.
@@ -284,10 +284,9 @@ impl FogPipeline {
         &mut self,
         project: &Project,
         request: &FrameRequest,
-        budget: Option<Duration>,
+        clock: Clock,
         previews: bool,
     ) -> Result<Progress, GpuError> {
-        let clock = Clock::start(budget);
         self.capacity().check_request(project, request)?;
         let mut inputs = FrameInputs::new(project, request, &self.settings(project));
         let scope = ErrorScope::push(&self.ctx.device);
@@ -485,7 +484,7 @@ impl FogPipeline {
         }
         while self.jobs.march.is_some() {
             let t = Instant::now();
-            let units = self.march_item(clock.left_ms(t), &mut progress.report.counters)?;
+            let units = self.march_item(clock.left_ms(t), clock.whole_rows, &mut progress.report.counters)?;
             progress.report.timings_ms.march += self.item_ms(timer::MARCH, t, units)?;
             if let Some((_, key)) = self.jobs.march.take_if(|(job, _)| job.done()) {
                 self.marcher.read_counters(&self.ctx, &mut progress.report.counters)?;
@@ -723,14 +722,18 @@ impl FogPipeline {
         Ok(self.marcher.begin(&self.ctx, target, &inputs))
     }
 
-    /// Marches the next band of the full image sized to `left_ms`; returns its pixels.
-    fn march_item(&mut self, left_ms: Option<f64>, counters: &mut Counters) -> Result<u64, GpuError> {
+    /// Marches the next band of the full image sized to `left_ms` (at least a row of
+    /// workgroups with `whole_rows`); returns its pixels.
+    fn march_item(&mut self, left_ms: Option<f64>, whole_rows: bool, counters: &mut Counters) -> Result<u64, GpuError> {
         let (Some((job, _)), Some(target)) = (self.jobs.march.as_mut(), self.full.as_ref()) else {
             // Without its target a march cannot go on: drop it.
             self.jobs.march = None;
             return Ok(0);
         };
-        let pixels = self.rates[timer::MARCH as usize].units_in(left_ms);
+        let mut pixels = self.rates[timer::MARCH as usize].units_in(left_ms);
+        if whole_rows {
+            pixels = pixels.max(target.width as u64 * BAND_ROWS as u64);
+        }
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         let stamps = self.timer.as_ref().map(|t| t.writes(timer::MARCH));
         let covered = self.marcher.encode_band(&self.ctx, target, &mut encoder, job, pixels, stamps);
