@@ -27,7 +27,20 @@
 // Surfaces shadow the fog as they shadow each other: a sample gets no light from a light that a
 // surface hides (fog_shadowed, by shadowed()'s rules, the bake's too). Inside the grid box each
 // light tests only the surfaces in its `occluders` mask, those that can block a path from the
-// box to it (src/gpu/frame_inputs.rs); outside the box every surface is tested.
+// box to it (src/gpu/frame_inputs.rs); outside the box every surface is tested, and a light
+// that one surface hides from both a base-fog sample and the end of its segment is dark for
+// the rest of the segment (the points a box or the ground hides from a light form a convex
+// set): where every marched light is dark, the march leaves the segment to the fog's closed form.
+//
+// The pipeline compiles the march per combination of the features below that a scene uses
+// (src/gpu/march.rs `MarchFeatures`): everything here is inlined into one loop, and code for
+// what a scene lacks still slows every sample on software adapters.
+override spot_lights: bool = true;
+override sun_lights: bool = true;
+// Base fog outside the grid.
+override base_fog: bool = true;
+// Surfaces, which shadow the fog.
+override fog_shadows: bool = true;
 
 struct MarchParams {
     origin: vec3f,
@@ -86,6 +99,10 @@ var<private> skipped: u32;
 // Lights (bit l for light l < 32) whose in-scattering on the current base-fog segment was
 // added in closed form, so the numeric march skips them.
 var<private> sun_mask: u32;
+// Lights (bit l for light l < 32) that a surface hides from the rest of the current base-fog
+// segment (note_blocker), and that segment's end.
+var<private> dark: u32;
+var<private> segment_end: vec3f;
 
 struct Trilinear {
     i0: vec3u,
@@ -244,7 +261,7 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
     var inscatter = vec3f(0.0);
     for (var l = 0u; l < grid.light_count; l++) {
         let light = lights[l];
-        if all(light.rgb == vec3f(0.0)) || (l < 32u && (sun_mask & (1u << l)) != 0u) {
+        if all(light.rgb == vec3f(0.0)) || (l < 32u && ((sun_mask | dark) & (1u << l)) != 0u) {
             continue;
         }
         if light.kind == LIGHT_DIRECTIONAL {
@@ -252,14 +269,14 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
         }
         let to_x = x - light.position;
         var cone = 1.0;
-        if light.kind == LIGHT_SPOT {
+        if spot_lights && light.kind == LIGHT_SPOT {
             cone = cone_mean(light, x, dir, dt);
             if cone <= 0.0 {
                 continue;
             }
         }
         let d = max(length(to_x), 1e-12);
-        if fog_shadowed(x, l, -to_x / d, d) {
+        if fog_hidden(x, inside, l, -to_x / d, d) {
             continue;
         }
         var depth: f32;
@@ -271,13 +288,13 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
         let cos_theta = dot(to_x / d, -dir);
         inscatter += light.rgb * (cone * phase(cos_theta) * exp(-depth) * mean_inverse_square(x, dir, dt, light.position));
     }
-    if params.sun_count > 0u {
+    if sun_lights && params.sun_count > 0u {
         for (var l = 0u; l < grid.light_count; l++) {
             let light = lights[l];
-            if light.kind != LIGHT_DIRECTIONAL || all(light.rgb == vec3f(0.0)) {
+            if light.kind != LIGHT_DIRECTIONAL || all(light.rgb == vec3f(0.0)) || (l < 32u && (dark & (1u << l)) != 0u) {
                 continue;
             }
-            if fog_shadowed(x, l, -light.direction, OPAQUE) {
+            if fog_hidden(x, inside, l, -light.direction, OPAQUE) {
                 continue;
             }
             var sun: f32;
@@ -371,13 +388,22 @@ fn cone_mean(light: LightGpu, x: vec3f, dir: vec3f, dt: f32) -> f32 {
 // fastest (a half made the image error 5× larger on the accuracy test). Ends away from the
 // box (the camera, a surface, the far cut-off) need no small steps. Cost grows with the
 // logarithm of the lengths involved, not with the lengths.
-fn march_fog(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
+//
+// `live` holds the marched lights (bit l for light l, 0 when one is beyond the 32nd): once all
+// of them are dark (note_blocker), the rest of the segment only attenuates.
+fn march_fog(o: vec3f, dir: vec3f, t0: f32, t1: f32, live: u32) {
     var t = t0;
+    dark = 0u;
+    segment_end = o + dir * t1;
     loop {
         if t >= t1 || transmittance < params.tr_cutoff {
             break;
         }
         let x = o + dir * t;
+        if live != 0u && (dark & live) == live {
+            transmittance *= exp(-base_fog_depth(x, dir, t1 - t));
+            break;
+        }
         let to_box = length(max(max(grid.min - x, x - grid.max), vec3f(0.0)));
         var dt = max(params.step, 0.2 * to_box);
         dt = max(min(dt, 0.1 * nearest_light(x)), params.min_step);
@@ -385,6 +411,7 @@ fn march_fog(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
         integrate(o + dir * (t + 0.5 * dt), dir, dt, false);
         t += dt;
     }
+    dark = 0u;
 }
 
 // Base fog outside the grid over [t0, t1]. For each light whose light paths from the whole
@@ -402,6 +429,8 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
     let end = o + dir * t1;
     sun_mask = 0u;
     var marched = false;
+    var live = 0u;
+    var untracked = false;
     for (var l = 0u; l < grid.light_count; l++) {
         let light = lights[l];
         if all(light.rgb == vec3f(0.0)) {
@@ -419,10 +448,15 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
             sun_mask |= 1u << l;
         } else {
             marched = true;
+            if l < 32u {
+                live |= 1u << l;
+            } else {
+                untracked = true;
+            }
         }
     }
     if marched {
-        march_fog(o, dir, t0, t1);
+        march_fog(o, dir, t0, t1, select(live, 0u, untracked));
     } else {
         transmittance *= exp(-base_fog_depth(start, dir, t1 - t0));
     }
@@ -564,10 +598,6 @@ fn blocks(s: Surface, o: vec3f, u: vec3f, inv: vec3f, reach: f32) -> bool {
     return t_out > 0.0 && t_in <= t_out && t_in < reach;
 }
 
-// False in the pipeline for scenes without surfaces (src/gpu/march.rs), which then compiles
-// without the test below.
-override fog_shadows: bool = true;
-
 // shadowed(x, 0, u, t_max) for a fog sample x and light l: in the grid box only the surfaces of
 // the light's occluders mask (bit i: surface i < 32) and those from the 33rd on can block, the
 // others provably cannot, so they are skipped.
@@ -594,6 +624,59 @@ fn fog_shadowed(x: vec3f, l: u32, u: vec3f, t_max: f32) -> bool {
         }
     }
     return false;
+}
+
+// fog_shadowed for a sample of the march: in base fog outside the grid, a light found hidden is
+// also tested for the rest of the segment (note_blocker).
+fn fog_hidden(x: vec3f, inside: bool, l: u32, u: vec3f, t_max: f32) -> bool {
+    if inside {
+        return fog_shadowed(x, l, u, t_max);
+    }
+    if !fog_shadows || params.surface_count == 0u {
+        return false;
+    }
+    let i = blocker(x, u, t_max);
+    if i == NO_SURFACE {
+        return false;
+    }
+    note_blocker(i, l);
+    return true;
+}
+
+const NO_SURFACE: u32 = 0xffffffffu;
+
+// The first surface (by index) that blocks the path from fog sample x along unit u before
+// distance t_max, or NO_SURFACE: shadowed()'s test for a point on no surface.
+fn blocker(x: vec3f, u: vec3f, t_max: f32) -> u32 {
+    let reach = t_max * (1.0 - 1e-3);
+    let inv = safe_inverse(u);
+    for (var i = 0u; i < params.surface_count; i++) {
+        if blocks(surfaces[i], x, u, inv, reach) {
+            return i;
+        }
+    }
+    return NO_SURFACE;
+}
+
+// Surface i hides light l from a base-fog sample. The points a box or the ground hides from a
+// light (by blocks(), its reach included) form a convex set, so if i also hides l from the
+// segment's end, it hides it from every sample between: l is dark for the rest of the segment.
+fn note_blocker(i: u32, l: u32) {
+    if l >= 32u {
+        return;
+    }
+    let light = lights[l];
+    var u = -light.direction;
+    var reach = OPAQUE * (1.0 - 1e-3);
+    if light.kind != LIGHT_DIRECTIONAL {
+        let v = light.position - segment_end;
+        let d = max(length(v), 1e-12);
+        u = v / d;
+        reach = d * (1.0 - 1e-3);
+    }
+    if blocks(surfaces[i], segment_end, u, safe_inverse(u), reach) {
+        dark |= 1u << l;
+    }
 }
 
 // Whether no surface can block a path between two points of the box [lo, hi]: no surface box's
@@ -631,7 +714,7 @@ fn shade_surface(x: vec3f, hit: Hit, dir: vec3f) -> vec3f {
         if all(light.rgb == vec3f(0.0)) {
             continue;
         }
-        if light.kind == LIGHT_DIRECTIONAL {
+        if sun_lights && light.kind == LIGHT_DIRECTIONAL {
             let cos_sun = dot(n, -light.direction);
             if cos_sun > 0.0 && !shadowed(x, n, -light.direction, OPAQUE) {
                 let brdf = albedo / PI * cos_sun + ks * phong_lobe(dot(mirror, -light.direction), hit.phong_exponent);
@@ -643,7 +726,10 @@ fn shade_surface(x: vec3f, hit: Hit, dir: vec3f) -> vec3f {
         let d2 = max(dot(to_light, to_light), 1e-12);
         let d = sqrt(d2);
         let cos_i = dot(n, to_light / d);
-        let cone = cone_factor(light, -to_light);
+        var cone = 1.0;
+        if spot_lights {
+            cone = cone_factor(light, -to_light);
+        }
         if cone <= 0.0 || (cos_i <= 0.0 && !glow) {
             continue;
         }
@@ -700,7 +786,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     let t_enter = max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0));
     let t_exit = min(min(slabs.far.x, slabs.far.y), slabs.far.z);
     let in_box = t_exit > t_enter;
-    let fog = grid.base_extinction > 0.0;
+    let fog = base_fog && grid.base_extinction > 0.0;
 
     sun_mask = 0u;
     if in_box {

@@ -222,3 +222,48 @@ fn a_plate_casts_a_shadow_in_the_fog() {
         assert!(e < 0.015, "{:?}: {e}", p.lights[0].kind);
     }
 }
+
+/// Base fog outside the grid that surfaces hide from the lights: the march drops a light for
+/// the rest of a fog segment once one surface hides it from a sample and from the segment's
+/// end, and leaves a segment to the fog's closed form once every light is dropped. On random
+/// scenes with lights (point or spot) inside the grid, walls along three of its faces,
+/// shortened at random, and a pillar between the camera and the first light, so that camera
+/// rays start in its shadow and leave it into lit fog, the march's error against the
+/// reference is its error without the surfaces plus at most what shadow edges add
+/// (`SHADOW_EDGES`). Dropping a light for the rest of a segment without the end's test fails this.
+#[test]
+fn fog_hidden_by_walls_and_pillars_matches_the_reference() {
+    let mut rng = Rng(0x0d4a_7c11);
+    let mut worst = 0.0f64;
+    for case in 0..4 {
+        let mut p = small_scene(32, &[]);
+        p.medium.base_extinction = 0.1;
+        p.lights = (0..1 + case % 2).map(|k| light_of(k, rng.v(-0.6, 0.6), 3.0)).collect();
+        if let LightKind::Spot { direction, angle_deg, .. } = &mut p.lights.last_mut().unwrap().kind {
+            *direction = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 1.0);
+            *angle_deg = 70.0;
+        }
+        let lo = |rng: &mut Rng| -1.3 + rng.range(0.0, 0.6);
+        let hi = |rng: &mut Rng| 1.3 - rng.range(0.0, 0.6);
+        for axis in 0..3 {
+            let mut min = Vec3::new(lo(&mut rng), lo(&mut rng), lo(&mut rng));
+            let mut max = Vec3::new(hi(&mut rng), hi(&mut rng), hi(&mut rng));
+            min[axis] = -1.2;
+            max[axis] = -1.0;
+            p.surfaces.boxes.push(SurfaceBox { min, max, ..SurfaceBox::default() });
+        }
+        p.camera.position = Vec3::new(rng.range(-1.5, 1.5), rng.range(-0.5, 1.0), 4.0);
+        p.camera.target = Vec3::ZERO;
+        p.camera.fov_y_deg = 60.0;
+        let pillar = p.lights[0].position.lerp(p.camera.position, rng.range(0.5, 0.7));
+        let half = rng.v(0.1, 0.2);
+        p.surfaces.boxes.push(SurfaceBox { min: pillar - half, max: pillar + half, ..SurfaceBox::default() });
+        let mut open = p.clone();
+        open.surfaces = Default::default();
+        let (e, e_open) = (render_error(&p), render_error(&open));
+        println!("case {case}: relative RMSE {e:.4}, without the surfaces {e_open:.4}");
+        assert!(e < e_open + SHADOW_EDGES, "case {case}: {e} with the surfaces, {e_open} without");
+        worst = worst.max(e - e_open);
+    }
+    println!("the surfaces add at most {worst:.4} to the relative RMSE");
+}

@@ -3,11 +3,14 @@
 //! whole rows of workgroups, or, where the time left holds less than one such row, part of one
 //! (on a software adapter one row of workgroups of a large image costs more than a frame).
 //!
-//! [`Marcher`] is long-lived: it owns the pipeline, its layout, Sun et al.'s F table and the
+//! [`Marcher`] is long-lived: it owns the pipelines, their layout, Sun et al.'s F table and the
 //! counters; the per-march inputs (grid, EV, lights, OPVs, occupancy) are passed explicitly.
+//! The march is compiled once per [`MarchFeatures`] a scene needs, when first needed.
 
-use super::gpu_types::{MarchParams, SurfaceGpu};
-use super::layout::{bind_group_layout_with, bind_group_with, compute_pipeline_with, Slot, WORKGROUP_2D};
+use super::gpu_types::{GridParams, LightGpu, MarchParams, SurfaceGpu};
+use super::layout::{
+    bind_group_layout_with, bind_group_with, compute_pipeline_with, Slot, LIGHT_DIRECTIONAL, LIGHT_SPOT, WORKGROUP_2D,
+};
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
@@ -73,15 +76,52 @@ pub struct MarchInputs<'a> {
     pub lookup: &'a OpvVolumes,
     pub brick_max: &'a wgpu::Buffer,
     pub surfaces: &'a [SurfaceGpu],
+    /// What the scene needs of the march: at most what `lights`, `surfaces` and the grid hold.
+    pub features: MarchFeatures,
     pub params: MarchParams,
+}
+
+/// The parts of the march a scene uses (the `override` constants of `shaders/march.wgsl`). All
+/// of the march is inlined into one loop, and on software adapters the code for a light kind
+/// or medium a scene lacks still slows every sample, so each combination in use gets its own
+/// pipeline; any scene renders the same with all of them on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MarchFeatures {
+    pub spot_lights: bool,
+    pub sun_lights: bool,
+    /// Base fog outside the grid.
+    pub base_fog: bool,
+    /// Surfaces, which shadow the fog.
+    pub surfaces: bool,
+}
+
+impl MarchFeatures {
+    /// What a scene of these lights, surfaces and grid uses.
+    pub fn of(lights: &[LightGpu], surfaces: &[SurfaceGpu], grid: &GridParams) -> Self {
+        Self {
+            spot_lights: lights.iter().any(|l| l.kind == LIGHT_SPOT),
+            sun_lights: lights.iter().any(|l| l.kind == LIGHT_DIRECTIONAL),
+            base_fog: grid.base_extinction > 0.0,
+            surfaces: !surfaces.is_empty(),
+        }
+    }
+
+    fn constants(&self) -> [(&'static str, f64); 4] {
+        let on = |b: bool| if b { 1.0 } else { 0.0 };
+        [
+            ("spot_lights", on(self.spot_lights)),
+            ("sun_lights", on(self.sun_lights)),
+            ("base_fog", on(self.base_fog)),
+            ("fog_shadows", on(self.surfaces)),
+        ]
+    }
 }
 
 /// A march in progress: the rows above `next_row` are done, and in the band of
 /// [`BAND_ROWS`] rows from there, the columns left of `next_col`.
 pub struct MarchJob {
     bind_group: wgpu::BindGroup,
-    /// Whether the scene has surfaces, which shadow the fog.
-    surfaces: bool,
+    features: MarchFeatures,
     params: MarchParams,
     pub next_row: u32,
     next_col: u32,
@@ -100,12 +140,9 @@ impl MarchJob {
 
 pub struct Marcher {
     layout: wgpu::BindGroupLayout,
-    /// The march of scenes without surfaces, compiled without the fog's surface-shadow test
-    /// (`fog_shadows`): the dead code slows every sample on software adapters.
-    pipeline: wgpu::ComputePipeline,
-    /// The march with it, built for the first scene with surfaces.
-    with_surfaces: Option<wgpu::ComputePipeline>,
-    /// The WGSL both are built from.
+    /// The march per combination of features used so far.
+    pipelines: Vec<(MarchFeatures, wgpu::ComputePipeline)>,
+    /// The WGSL they are built from.
     code: String,
     /// Sun et al.'s F table (remapped layout) for the closed-form base fog, then the G table
     /// of their surface term.
@@ -135,14 +172,13 @@ impl Marcher {
             opv.layout_entries(EXTRA_BINDING, true),
         );
         let code = super::shaders::march(&opv);
-        let pipeline = compute_pipeline_with(device, "march", code.clone(), &layout, "main", &[("fog_shadows", 0.0)]);
         let mut tables = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE).data;
         tables.extend_from_slice(crate::surface_table::glow_table());
         tables.extend_from_slice(crate::surface_table::spec_table());
         let sun_table = super::buffers::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::buffers::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::buffers::storage_buffer(device, "surfaces", &[]);
-        Self { layout, pipeline, with_surfaces: None, code, sun_table, counters_buf, surfaces_buf }
+        Self { layout, pipelines: Vec::new(), code, sun_table, counters_buf, surfaces_buf }
     }
 
     /// Uploads the inputs of a march into `target` and returns the job; its counters start at 0.
@@ -174,12 +210,13 @@ impl Marcher {
             ],
             inputs.lookup.extra_entries(EXTRA_BINDING),
         );
-        let surfaces = !inputs.surfaces.is_empty();
-        if surfaces && self.with_surfaces.is_none() {
+        let features = inputs.features;
+        if !self.pipelines.iter().any(|(f, _)| *f == features) {
             let code = self.code.clone();
-            self.with_surfaces = Some(compute_pipeline_with(device, "march", code, &self.layout, "main", &[]));
+            let pipeline = compute_pipeline_with(device, "march", code, &self.layout, "main", &features.constants());
+            self.pipelines.push((features, pipeline));
         }
-        MarchJob { bind_group, surfaces, params: inputs.params, next_row: 0, next_col: 0 }
+        MarchJob { bind_group, features, params: inputs.params, next_row: 0, next_col: 0 }
     }
 
     /// Encodes the next band of `job`, about `pixels` pixels (at least one workgroup): whole
@@ -221,8 +258,8 @@ impl Marcher {
                 label: Some("march"),
                 timestamp_writes: timestamps,
             });
-            let pipeline = self.with_surfaces.as_ref().filter(|_| job.surfaces).unwrap_or(&self.pipeline);
-            pass.set_pipeline(pipeline);
+            let pipeline = self.pipelines.iter().find(|(f, _)| *f == job.features).map(|(_, p)| p);
+            pass.set_pipeline(pipeline.expect("begin builds the pipeline of every job's features"));
             pass.set_bind_group(0, &job.bind_group, &[]);
             pass.dispatch_workgroups(groups.0, groups.1, 1);
         }

@@ -26,7 +26,7 @@ use super::inject::{InjectInputs, InjectJob, Injector};
 use super::inject_options::{HostCounts, InjectOptions, InjectPath};
 use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
-use super::march::{ImageTarget, MarchInputs, MarchJob, Marcher, BAND_ROWS};
+use super::march::{ImageTarget, MarchFeatures, MarchInputs, MarchJob, Marcher, BAND_ROWS};
 use super::march_lookup::{LookupBuilder, LookupInputs};
 use super::opv_store::OpvLayout;
 use super::outputs::{self, Image};
@@ -717,6 +717,7 @@ impl FogPipeline {
             lookup: &g.lookup,
             brick_max: &g.brick_max,
             surfaces: &key.surfaces,
+            features: MarchFeatures::of(&key.lights, &key.surfaces, &key.grid),
             params: MarchParams { size: [target.width, target.height], ..key.params },
         };
         Ok(self.marcher.begin(&self.ctx, target, &inputs))
