@@ -85,6 +85,10 @@ fn base_fog_at(y: f32) -> f32 {
     return grid.base_extinction * exp(min(-grid.height_falloff * (y - grid.height_origin), MAX_HEIGHT_EXPONENT));
 }
 
+// False in a stage built for scenes without height fog (grid.height_falloff = 0), which then
+// compiles without its closed form below.
+override height_fog: bool = true;
+
 // Optical depth of the base fog along o + t·d (|d| = 1) for t in [0, len]; len < 0 means to
 // infinity. Closed form of physics.md §9, in log space so that neither a dense layer far
 // below y₀ nor a long path into it overflows; at least OPAQUE means opaque.
@@ -94,8 +98,8 @@ fn base_fog_depth(o: vec3f, d: vec3f, len: f32) -> f32 {
         return 0.0;
     }
     let k = grid.height_falloff;
-    if k == 0.0 && len >= 0.0 {
-        return min(beta * len, OPAQUE);
+    if !height_fog || k == 0.0 {
+        return select(OPAQUE, min(beta * len, OPAQUE), len >= 0.0);
     }
     let c = k * d.y;
     let a = min(-k * (o.y - grid.height_origin), MAX_HEIGHT_EXPONENT);

@@ -700,44 +700,51 @@ fn edits_injected_one_after_another_equal_a_fresh_bake_bit_for_bit() {
     }
 }
 
-/// The march is compiled for the light kinds, base fog and surfaces a scene uses, and any
-/// scene renders the same with the march for every kind. On random scenes, with and without
-/// base fog and surfaces, point lights inside and outside the grid render bit for bit the
-/// same when hidden lights of the other kinds join them: those need the march with spot and
-/// sun code, and add no light.
+/// The march is compiled for the light kinds and media a scene uses, and a scene renders the
+/// same with it as with the march for every scene (`set_general_march`), bit for bit. Random
+/// scenes: point, spot and sun lights alone and together, inside and outside the grid, with and
+/// without base fog, height fog and surfaces.
 #[test]
-fn the_march_built_for_a_scene_renders_like_the_march_for_every_light_kind() {
-    use fogsmith::scene::{Light, LightKind, SurfaceBox};
+fn the_march_built_for_a_scene_renders_like_the_march_for_every_scene() {
+    use fogsmith::scene::{Ground, Light, LightKind, SurfaceBox};
     let mut rng = common::Rng(0x6a1c_55e3);
-    for case in 0..4 {
-        let mut p = small_scene(24, &[rng.v(-0.7, 0.7), rng.v(-2.0, 2.0) * 1.2]);
-        p.medium.base_extinction = if case % 2 == 0 { 0.08 } else { 0.0 };
-        if case >= 2 {
-            let c = rng.v(-1.5, 1.5);
-            p.surfaces.boxes.push(SurfaceBox { min: c - 0.3, max: c + 0.3, ..SurfaceBox::default() });
-            p.surfaces.boxes.push(SurfaceBox {
-                min: Vec3::new(-1.5, -1.3, -1.5),
-                max: Vec3::new(1.5, -1.1, 1.5),
-                ..SurfaceBox::default()
-            });
-        }
-        let mut gpu = pipeline();
-        gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
-        let alone = gpu.read_image().unwrap();
-        for kind in [
-            LightKind::Spot { direction: -Vec3::Y, angle_deg: 40.0, blend: 0.2 },
-            LightKind::Directional { direction: Vec3::new(0.3, -1.0, 0.2) },
-        ] {
-            let mut light = Light::new(rng.v(-0.5, 0.5), 4.0, Vec3::ONE);
-            light.kind = kind;
-            light.hidden = true;
+    for case in 0..8u32 {
+        let mut p = small_scene(24, &[]);
+        let kinds: &[usize] = match case % 4 {
+            0 => &[0, 0],
+            1 => &[1],
+            2 => &[2],
+            _ => &[0, 1, 2],
+        };
+        for &kind in kinds {
+            let at = if rng.f() < 0.5 { rng.v(-0.7, 0.7) } else { rng.dir() * 2.0 };
+            let mut light = Light::new(at, 4.0, Vec3::ONE);
+            light.kind = match kind {
+                0 => LightKind::Point,
+                1 => LightKind::Spot { direction: -at, angle_deg: 50.0, blend: 0.3 },
+                _ => LightKind::Directional { direction: Vec3::new(0.3, -1.0, 0.2) },
+            };
             p.lights.push(light);
         }
-        let mut gpu = pipeline();
-        gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
-        let with_all = gpu.read_image().unwrap();
-        assert!(alone.rgba.iter().any(|c| c[0] > 0.0), "case {case}: the scene is dark");
-        let same = alone.rgba.iter().zip(&with_all.rgba).filter(|(a, b)| a == b).count();
-        assert_eq!(same, alone.rgba.len(), "case {case}: {same} of {} pixels agree", alone.rgba.len());
+        let sun = kinds.contains(&2);
+        p.medium.base_extinction = if sun || case % 3 == 0 { 0.0 } else { 0.08 };
+        if case % 2 == 1 && !sun {
+            p.medium.height_falloff = 0.7;
+        }
+        if case >= 4 {
+            let c = rng.v(-1.5, 1.5);
+            p.surfaces.boxes.push(SurfaceBox { min: c - 0.3, max: c + 0.3, ..SurfaceBox::default() });
+            p.surfaces.ground = Some(Ground { height: -1.2, ..Ground::default() });
+        }
+        let image = |general: bool| {
+            let mut gpu = pipeline();
+            gpu.set_general_march(general);
+            gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
+            gpu.read_image().unwrap()
+        };
+        let (built, general) = (image(false), image(true));
+        assert!(built.rgba.iter().any(|c| c[0] > 0.0), "case {case}: the scene is dark");
+        let same = built.rgba.iter().zip(&general.rgba).filter(|(a, b)| a == b).count();
+        assert_eq!(same, built.rgba.len(), "case {case}: {same} of {} pixels agree", built.rgba.len());
     }
 }

@@ -91,27 +91,35 @@ pub struct MarchFeatures {
     pub sun_lights: bool,
     /// Base fog outside the grid.
     pub base_fog: bool,
+    /// Base fog that thins with height (`shaders/common.wgsl`'s `height_fog`).
+    pub height_fog: bool,
     /// Surfaces, which shadow the fog.
     pub surfaces: bool,
 }
 
 impl MarchFeatures {
+    /// Everything: the march any scene can use.
+    pub const ALL: Self =
+        Self { spot_lights: true, sun_lights: true, base_fog: true, height_fog: true, surfaces: true };
+
     /// What a scene of these lights, surfaces and grid uses.
     pub fn of(lights: &[LightGpu], surfaces: &[SurfaceGpu], grid: &GridParams) -> Self {
         Self {
             spot_lights: lights.iter().any(|l| l.kind == LIGHT_SPOT),
             sun_lights: lights.iter().any(|l| l.kind == LIGHT_DIRECTIONAL),
             base_fog: grid.base_extinction > 0.0,
+            height_fog: grid.height_falloff != 0.0,
             surfaces: !surfaces.is_empty(),
         }
     }
 
-    fn constants(&self) -> [(&'static str, f64); 4] {
+    fn constants(&self) -> [(&'static str, f64); 5] {
         let on = |b: bool| if b { 1.0 } else { 0.0 };
         [
             ("spot_lights", on(self.spot_lights)),
             ("sun_lights", on(self.sun_lights)),
             ("base_fog", on(self.base_fog)),
+            ("height_fog", on(self.height_fog)),
             ("fog_shadows", on(self.surfaces)),
         ]
     }
@@ -144,6 +152,8 @@ pub struct Marcher {
     pipelines: Vec<(MarchFeatures, wgpu::ComputePipeline)>,
     /// The WGSL they are built from.
     code: String,
+    /// Whether every march uses [`MarchFeatures::ALL`] (`FogPipeline::set_general_march`).
+    pub general: bool,
     /// Sun et al.'s F table (remapped layout) for the closed-form base fog, then the G table
     /// of their surface term.
     sun_table: wgpu::Buffer,
@@ -178,7 +188,7 @@ impl Marcher {
         let sun_table = super::buffers::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::buffers::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::buffers::storage_buffer(device, "surfaces", &[]);
-        Self { layout, pipelines: Vec::new(), code, sun_table, counters_buf, surfaces_buf }
+        Self { layout, pipelines: Vec::new(), code, general: false, sun_table, counters_buf, surfaces_buf }
     }
 
     /// Uploads the inputs of a march into `target` and returns the job; its counters start at 0.
@@ -210,7 +220,7 @@ impl Marcher {
             ],
             inputs.lookup.extra_entries(EXTRA_BINDING),
         );
-        let features = inputs.features;
+        let features = if self.general { MarchFeatures::ALL } else { inputs.features };
         if !self.pipelines.iter().any(|(f, _)| *f == features) {
             let code = self.code.clone();
             let pipeline = compute_pipeline_with(device, "march", code, &self.layout, "main", &features.constants());

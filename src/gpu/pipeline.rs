@@ -795,7 +795,9 @@ impl FogPipeline {
             self.stage_layout = OpvLayout { textures: needed, rows, ..self.opv_layout };
             let device = &self.ctx.device;
             self.propagator = Propagator::new(device, self.stage_layout, self.sweep_cells);
+            let general = self.marcher.general;
             self.marcher = Marcher::new(device, self.stage_layout);
+            self.marcher.general = general;
             self.lookup = LookupBuilder::new(device, self.stage_layout);
             self.slicer = Slicer::new(device, self.stage_layout);
             self.baker = None;
@@ -846,6 +848,13 @@ impl FogPipeline {
     /// The particle–bin list bytes one injection chunk may use.
     pub fn inject_chunk_bytes(&self) -> u64 {
         self.inject.chunk_bytes(&self.ctx)
+    }
+
+    /// Makes every march use the march built for every light kind and medium
+    /// (`MarchFeatures::ALL`) instead of the one built for its scene, for measuring what
+    /// that saves. The image is the same. Off by default; applies to marches begun after it.
+    pub fn set_general_march(&mut self, on: bool) {
+        self.marcher.general = on;
     }
 
     /// Makes every cell evaluate every particle instead of only those binned into its brick:
