@@ -16,9 +16,12 @@
 // where its path crosses the grid and the base fog's closed form elsewhere (physics.md §9).
 //
 // Step policies inside the grid: FIXED (uniform steps), TWO_LEVEL (Tan et al.: uniform near
-// steps, then linearly growing far steps) and ADAPTIVE (step = τ_target / local max σ_t from
-// the brick occupancy grid and at most half the distance to the nearest light, clamped to
-// [¼, 4] × the fixed step). With skip_empty, bricks whose dilated maximum σ_t is 0
+// steps, then linearly growing far steps) and ADAPTIVE (step = τ_target / (local max σ_t from
+// the brick occupancy grid × √Tr), at most a tenth of the distance to the nearest light, clamped
+// to [¼, 4] × the fixed step). A step's error grows like its optical thickness squared and is
+// seen through the transmittance Tr in front of it, so optical thickness τ_target/√Tr keeps
+// every step's share of the pixel's error that of a step at the ray's start, while a ray deep in
+// dense fog takes a fraction of the steps. With skip_empty, bricks whose dilated maximum σ_t is 0
 // are jumped over (exact: every sample in them would add nothing). A ray stops once its
 // transmittance falls below tr_cutoff, and at the first surface, which is shaded by every
 // light through the fog (Lambert, shadowed by the other surfaces, plus Sun et al.'s surface
@@ -508,8 +511,8 @@ fn march_grid(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
         }
         var dt = params.step;
         if params.policy == POLICY_ADAPTIVE {
-            dt = clamp(params.tau_target / max(bmax, 1e-12), params.min_step, params.max_step);
-            // Radiance varies like 1/d² near a light: keep steps below half the distance.
+            dt = clamp(params.tau_target / (max(bmax, 1e-12) * sqrt(transmittance)), params.min_step, params.max_step);
+            // Radiance varies like 1/d² near a light: keep steps below a tenth of the distance.
             dt = max(min(dt, 0.1 * nearest_light(x)), params.min_step);
             // Do not stride past the brick: its neighbour may be denser.
             dt = min(dt, max(brick_exit(o, dir, b) - t, params.min_step));

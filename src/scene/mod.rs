@@ -629,9 +629,10 @@ pub enum StepPolicy {
     /// Tan et al.: `near_steps` uniform steps over the first `near_fraction` of the ray's path
     /// through the grid, then `far_steps` linearly growing steps.
     TwoLevel,
-    /// Steps of `tau_target` / (largest σ_t in the 8³ brick) and at most half the distance
-    /// to the nearest light, between ¼ and 4× `step_factor` cells, so each step's optical
-    /// thickness and the change of incoming light across it stay bounded.
+    /// Steps of `tau_target` / (largest σ_t in the 8³ brick × √transmittance so far) and at
+    /// most a tenth of the distance to the nearest light, between ¼ and 4× `step_factor`
+    /// cells, so each step's contribution to the pixel's error and the change of incoming
+    /// light across it stay bounded.
     #[default]
     Adaptive,
 }
@@ -649,7 +650,8 @@ pub struct RenderSettings {
     pub exposure: f32,
     /// Default `adaptive`.
     pub step_policy: StepPolicy,
-    /// Optical thickness per step of the adaptive policy. Default 0.05.
+    /// Optical thickness per step of the adaptive policy where the ray's transmittance is 1
+    /// (it grows as 1/√transmittance). Default 0.05.
     pub tau_target: f32,
     /// Two-level policy: uniform near steps (default 48), growing far steps (default 24) and
     /// the fraction of the path covered by the near level (default 0.35).
