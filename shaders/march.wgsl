@@ -345,6 +345,22 @@ fn march_growing(o: vec3f, dir: vec3f, t0: f32, t1: f32, n: u32, inside: bool) {
     }
 }
 
+// The distance to the nearest light where it can bound a step of dt from o + t·dir (a tenth of
+// it is below dt), else a lower bound that cannot: the distance found at near_t less the way
+// since (dir is a unit vector), which spares the loop over the lights on most steps.
+var<private> near_d: f32;
+var<private> near_t: f32;
+
+fn light_bound(o: vec3f, dir: vec3f, t: f32, dt: f32) -> f32 {
+    let bound = near_d - (t - near_t);
+    if 0.0999 * bound >= dt {
+        return bound;
+    }
+    near_d = nearest_light(o + dir * t);
+    near_t = t;
+    return near_d;
+}
+
 fn nearest_light(x: vec3f) -> f32 {
     var d = 3.4e38;
     for (var l = 0u; l < grid.light_count; l++) {
@@ -398,6 +414,7 @@ fn march_fog(o: vec3f, dir: vec3f, t0: f32, t1: f32, live: u32) {
     var t = t0;
     dark = 0u;
     segment_end = o + dir * t1;
+    near_d = -1.0;
     loop {
         if t >= t1 || transmittance < params.tr_cutoff {
             break;
@@ -409,7 +426,7 @@ fn march_fog(o: vec3f, dir: vec3f, t0: f32, t1: f32, live: u32) {
         }
         let to_box = length(max(max(grid.min - x, x - grid.max), vec3f(0.0)));
         var dt = max(params.step, 0.2 * to_box);
-        dt = max(min(dt, 0.1 * nearest_light(x)), params.min_step);
+        dt = max(min(dt, 0.1 * light_bound(o, dir, t, dt)), params.min_step);
         dt = min(dt, t1 - t);
         integrate(o + dir * (t + 0.5 * dt), dir, dt, false);
         t += dt;
@@ -497,6 +514,7 @@ fn march_grid(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
     }
     let eps = 1e-4 * min(grid.cell.x, min(grid.cell.y, grid.cell.z));
     var t = t0;
+    near_d = -1.0;
     loop {
         if t >= t1 || transmittance < params.tr_cutoff {
             break;
@@ -513,7 +531,7 @@ fn march_grid(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
         if params.policy == POLICY_ADAPTIVE {
             dt = clamp(params.tau_target / (max(bmax, 1e-12) * sqrt(transmittance)), params.min_step, params.max_step);
             // Radiance varies like 1/d² near a light: keep steps below a tenth of the distance.
-            dt = max(min(dt, 0.1 * nearest_light(x)), params.min_step);
+            dt = max(min(dt, 0.1 * light_bound(o, dir, t, dt)), params.min_step);
             // Do not stride past the brick: its neighbour may be denser.
             dt = min(dt, max(brick_exit(o, dir, b) - t, params.min_step));
         }
