@@ -951,7 +951,8 @@ fn particle_outlines_can_be_limited_to_the_selection() {
 /// completes once the bake has and names the file.
 #[test]
 fn an_export_waits_for_the_bake_and_can_be_cancelled() {
-    let mut h = progressive_harness();
+    // At full preview resolution: a quarter's bake can complete within the first frames.
+    let mut h = build(demo(), EditorOptions::default(), Quality::Balanced, PreviewScale::Full);
     h.step();
     assert!(!h.state().preview_status().unwrap().converged, "the first frame starts the bake");
     let dir = tempfile::tempdir().unwrap();
