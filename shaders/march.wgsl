@@ -595,15 +595,7 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
 // distance of a face, on its outer side, is not blocked by that face.
 fn shadowed(x: vec3f, n: vec3f, u: vec3f, t_max: f32) -> bool {
     let eps = 1e-5 * (1.0 + max(max(abs(x.x), abs(x.y)), abs(x.z)));
-    let o = x + n * eps;
-    let reach = t_max * (1.0 - 1e-3);
-    let inv = safe_inverse(u);
-    for (var i = 0u; i < params.surface_count; i++) {
-        if blocks(surfaces[i], o, u, inv, reach) {
-            return true;
-        }
-    }
-    return false;
+    return blocker(x + n * eps, u, t_max) != NO_SURFACE;
 }
 
 // Whether surface s blocks the path from o along unit u (inv = safe_inverse(u)) before `reach`.
@@ -666,8 +658,8 @@ fn fog_hidden(x: vec3f, inside: bool, l: u32, u: vec3f, t_max: f32) -> bool {
 
 const NO_SURFACE: u32 = 0xffffffffu;
 
-// The first surface (by index) that blocks the path from fog sample x along unit u before
-// distance t_max, or NO_SURFACE: shadowed()'s test for a point on no surface.
+// The first surface (by index) that blocks the path from x along unit u before distance
+// t_max, or NO_SURFACE: shadowed()'s test from a point already lifted off its surface.
 fn blocker(x: vec3f, u: vec3f, t_max: f32) -> u32 {
     let reach = t_max * (1.0 - 1e-3);
     let inv = safe_inverse(u);
