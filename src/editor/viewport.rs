@@ -17,6 +17,24 @@ const SELECTED: Color32 = Color32::from_rgb(255, 160, 40);
 const MAX_PATH_POINTS: i32 = 2000;
 /// Particles drawn with outlines; beyond this only the selection is outlined.
 const MAX_OUTLINES: usize = 20_000;
+/// Furthest a faint outline's polygon strays from its circle, in points.
+const OUTLINE_TOLERANCE: f32 = 0.5;
+
+/// A circle's outline as a polygon within [`OUTLINE_TOLERANCE`] of it. egui strokes circles
+/// with 64 or 128 sides at the sizes particles have on screen; hundreds of them overlapping
+/// cost a software rasteriser more than the rest of the window, for lines no one can tell from
+/// these.
+fn faint_circle(centre: Pos2, radius: f32, stroke: Line) -> egui::Shape {
+    let half_angle = (1.0 - OUTLINE_TOLERANCE / radius.max(OUTLINE_TOLERANCE)).acos();
+    let sides = (std::f32::consts::PI / half_angle.max(1e-3)).ceil().clamp(8.0, 128.0) as usize;
+    let points = (0..sides)
+        .map(|k| {
+            let a = std::f32::consts::TAU * k as f32 / sides as f32;
+            centre + radius * egui::vec2(a.cos(), a.sin())
+        })
+        .collect();
+    egui::Shape::closed_line(points, stroke)
+}
 
 pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     toolbar(state, ui);
@@ -817,7 +835,7 @@ fn overlays(state: &EditorState, painter: &egui::Painter, rect: Rect, hover: Opt
             if selected {
                 painter.circle_stroke(s, r, Line::new(1.5, SELECTED));
             } else {
-                painter.circle_stroke(s, r, outline);
+                painter.add(faint_circle(s, r, outline));
             }
         }
     }
