@@ -30,10 +30,12 @@
 // Surfaces shadow the fog as they shadow each other: a sample gets no light from a light that a
 // surface hides (fog_shadowed, by shadowed()'s rules, the bake's too). Inside the grid box each
 // light tests only the surfaces in its `occluders` mask, those that can block a path from the
-// box to it (src/gpu/frame_inputs.rs); outside the box every surface is tested, and a light
-// that one surface hides from both a base-fog sample and the end of its segment is dark for
-// the rest of the segment (the points a box or the ground hides from a light form a convex
-// set): where every marched light is dark, the march leaves the segment to the fog's closed form.
+// box to it (src/gpu/frame_inputs.rs); outside the box point and spot lights test the surfaces
+// that meet the box around the base-fog segment and those lights (fog_candidates), suns every
+// surface, and a light that one surface hides from both a base-fog sample and the end of its
+// segment is dark for the rest of the segment (the points a box or the ground hides from a light
+// form a convex set): where every marched light is dark, the march leaves the segment to the
+// fog's closed form.
 //
 // The pipeline compiles the march per combination of the features below that a scene uses
 // (src/gpu/march.rs `MarchFeatures`): everything here is inlined into one loop, and code for
@@ -44,6 +46,8 @@ override sun_lights: bool = true;
 override base_fog: bool = true;
 // Surfaces, which shadow the fog.
 override fog_shadows: bool = true;
+// Point and spot lights in base fog test only the surfaces that can hide them (fog_candidates).
+override fog_culling: bool = true;
 
 struct MarchParams {
     origin: vec3f,
@@ -448,6 +452,17 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
     let start = o + dir * t0;
     let end = o + dir * t1;
     sun_mask = 0u;
+    if fog_shadows && fog_culling && params.surface_count > 0u {
+        var lo = min(start, end);
+        var hi = max(start, end);
+        for (var l = 0u; l < grid.light_count; l++) {
+            if lights[l].kind != LIGHT_DIRECTIONAL && any(lights[l].rgb != vec3f(0.0)) {
+                lo = min(lo, lights[l].position);
+                hi = max(hi, lights[l].position);
+            }
+        }
+        fog_candidates = candidates_in(lo, hi);
+    }
     var marched = false;
     var live = 0u;
     var untracked = false;
@@ -648,12 +663,64 @@ fn fog_hidden(x: vec3f, inside: bool, l: u32, u: vec3f, t_max: f32) -> bool {
     if !fog_shadows || params.surface_count == 0u {
         return false;
     }
-    let i = blocker(x, u, t_max);
+    var candidates = 0xffffffffu;
+    if fog_culling && lights[l].kind != LIGHT_DIRECTIONAL {
+        candidates = fog_candidates;
+    }
+    let i = blocker_among(candidates, x, u, t_max);
     if i == NO_SURFACE {
         return false;
     }
     note_blocker(i, l);
     return true;
+}
+
+// Surfaces (bit i for surface i < 32) that can hide a point or spot light from a sample of the
+// current base-fog segment: those that meet the box around the segment and those lights, which
+// holds every such light path (padded against rounding). A sun's paths leave any box: it tests
+// every surface.
+var<private> fog_candidates: u32;
+
+fn candidates_in(lo: vec3f, hi: vec3f) -> u32 {
+    let pad = 1e-4 * (1.0 + max(max(max(abs(lo.x), abs(lo.y)), abs(lo.z)), max(max(abs(hi.x), abs(hi.y)), abs(hi.z))));
+    var mask = 0u;
+    for (var i = 0u; i < min(params.surface_count, 32u); i++) {
+        let s = surfaces[i];
+        var meets: bool;
+        if s.kind == SURFACE_GROUND {
+            meets = s.min.y > lo.y - pad;
+        } else {
+            meets = all(s.min <= hi + pad) && all(s.max >= lo - pad);
+        }
+        if meets {
+            mask |= 1u << i;
+        }
+    }
+    return mask;
+}
+
+// blocker() among the surfaces of `mask` (bit i: surface i < 32) and those from the 33rd on, in
+// the same order, so the same surface is found where a skipped one cannot block.
+fn blocker_among(mask: u32, x: vec3f, u: vec3f, t_max: f32) -> u32 {
+    let reach = t_max * (1.0 - 1e-3);
+    let inv = safe_inverse(u);
+    var m = mask;
+    while m != 0u {
+        let i = firstTrailingBit(m);
+        m &= m - 1u;
+        if i >= params.surface_count {
+            break;
+        }
+        if blocks(surfaces[i], x, u, inv, reach) {
+            return i;
+        }
+    }
+    for (var i = 32u; i < params.surface_count; i++) {
+        if blocks(surfaces[i], x, u, inv, reach) {
+            return i;
+        }
+    }
+    return NO_SURFACE;
 }
 
 const NO_SURFACE: u32 = 0xffffffffu;

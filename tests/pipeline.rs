@@ -748,3 +748,71 @@ fn the_march_built_for_a_scene_renders_like_the_march_for_every_scene() {
         assert_eq!(same, built.rgba.len(), "case {case}: {same} of {} pixels agree", built.rgba.len());
     }
 }
+
+/// Base fog outside the grid tests only the surfaces that can hide a point or spot light from
+/// the segment it marches, and renders bit for bit like the march that tests every surface
+/// (`set_exhaustive_fog_shadows`). Random scenes: lights inside the grid and outside it, boxes
+/// between them and the view, a box with a light on its face, with and without the ground and a
+/// sun; the surfaces must change the image, or the comparison would prove nothing.
+#[test]
+fn base_fog_tests_only_the_surfaces_that_can_hide_a_light_and_renders_the_same() {
+    use fogsmith::scene::{Ground, Light, LightKind, SurfaceBox};
+    let mut rng = common::Rng(0x5eed_f0c5);
+    let mut gpus = [pipeline(), pipeline()];
+    gpus[1].set_exhaustive_fog_shadows(true);
+    for case in 0..10u32 {
+        let mut p = small_scene(20, &[]);
+        p.render.width = 64;
+        p.render.height = 48;
+        p.medium.base_extinction = rng.range(0.04, 0.15);
+        for k in 0..2 + case % 2 {
+            let at = if k == 0 { rng.v(-0.7, 0.7) } else { rng.dir() * rng.range(1.4, 2.6) };
+            let mut light = Light::new(at, 4.0, Vec3::ONE);
+            if k == 2 {
+                light.kind = LightKind::Spot { direction: -at, angle_deg: 40.0, blend: 0.3 };
+            }
+            p.lights.push(light);
+            if k > 0 {
+                // Between the light and the fog in view.
+                let c = at.lerp(rng.v(-1.2, 1.2), rng.range(0.3, 0.6));
+                let half = Vec3::splat(rng.range(0.15, 0.4));
+                p.surfaces.boxes.push(SurfaceBox { min: c - half, max: c + half, ..SurfaceBox::default() });
+            }
+        }
+        // A light exactly on a box's face.
+        let on_face = p.lights[1].position;
+        p.surfaces.boxes.push(SurfaceBox {
+            min: on_face + Vec3::new(0.0, -0.3, -0.3),
+            max: on_face + Vec3::new(0.4, 0.3, 0.3),
+            ..SurfaceBox::default()
+        });
+        for _ in 0..case % 3 {
+            let c = rng.v(-2.5, 2.5);
+            let half = rng.v(0.1, 0.6);
+            p.surfaces.boxes.push(SurfaceBox { min: c - half, max: c + half, ..SurfaceBox::default() });
+        }
+        if case % 2 == 0 {
+            p.surfaces.ground = Some(Ground { height: rng.range(-1.8, -1.0), ..Ground::default() });
+        }
+        if case % 4 == 3 {
+            let mut sun = Light::new(Vec3::ZERO, 2.0, Vec3::ONE);
+            sun.kind = LightKind::Directional { direction: Vec3::new(0.4, -1.0, 0.3) };
+            p.lights.push(sun);
+        }
+        let mut image = |p: &fogsmith::scene::Project, exhaustive: bool| {
+            let gpu = &mut gpus[exhaustive as usize];
+            gpu.update(p, &request(p, Scheme::Sweep)).unwrap();
+            gpu.read_image().unwrap()
+        };
+        let (culled, exhaustive) = (image(&p, false), image(&p, true));
+        let mut bare = p.clone();
+        bare.surfaces = Default::default();
+        let without = image(&bare, false);
+        assert!(
+            culled.rgba.iter().zip(&without.rgba).any(|(a, b)| a != b),
+            "case {case}: the surfaces change nothing in view"
+        );
+        let same = culled.rgba.iter().zip(&exhaustive.rgba).filter(|(a, b)| a == b).count();
+        assert_eq!(same, culled.rgba.len(), "case {case}: {same} of {} pixels agree", culled.rgba.len());
+    }
+}

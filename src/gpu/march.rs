@@ -95,12 +95,22 @@ pub struct MarchFeatures {
     pub height_fog: bool,
     /// Surfaces, which shadow the fog.
     pub surfaces: bool,
+    /// In base fog outside the grid, point and spot lights test only the surfaces that can hide
+    /// them from the segment marched; off, every surface (the same image, for tests).
+    pub cull_fog_surfaces: bool,
 }
 
 impl MarchFeatures {
     /// Everything: the march any scene can use.
     pub const ALL: Self =
-        Self { spot_lights: true, sun_lights: true, base_fog: true, height_fog: true, surfaces: true };
+        Self {
+            spot_lights: true,
+            sun_lights: true,
+            base_fog: true,
+            height_fog: true,
+            surfaces: true,
+            cull_fog_surfaces: true,
+        };
 
     /// What a scene of these lights, surfaces and grid uses.
     pub fn of(lights: &[LightGpu], surfaces: &[SurfaceGpu], grid: &GridParams) -> Self {
@@ -110,10 +120,11 @@ impl MarchFeatures {
             base_fog: grid.base_extinction > 0.0,
             height_fog: grid.height_falloff != 0.0,
             surfaces: !surfaces.is_empty(),
+            cull_fog_surfaces: true,
         }
     }
 
-    fn constants(&self) -> [(&'static str, f64); 5] {
+    fn constants(&self) -> [(&'static str, f64); 6] {
         let on = |b: bool| if b { 1.0 } else { 0.0 };
         [
             ("spot_lights", on(self.spot_lights)),
@@ -121,6 +132,7 @@ impl MarchFeatures {
             ("base_fog", on(self.base_fog)),
             ("height_fog", on(self.height_fog)),
             ("fog_shadows", on(self.surfaces)),
+            ("fog_culling", on(self.cull_fog_surfaces)),
         ]
     }
 }
@@ -154,6 +166,8 @@ pub struct Marcher {
     code: String,
     /// Whether every march uses [`MarchFeatures::ALL`] (`FogPipeline::set_general_march`).
     pub general: bool,
+    /// Whether base fog tests every surface (`FogPipeline::set_exhaustive_fog_shadows`).
+    pub exhaustive_fog_shadows: bool,
     /// Sun et al.'s F table (remapped layout) for the closed-form base fog, then the G table
     /// of their surface term.
     sun_table: wgpu::Buffer,
@@ -188,7 +202,16 @@ impl Marcher {
         let sun_table = super::buffers::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::buffers::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::buffers::storage_buffer(device, "surfaces", &[]);
-        Self { layout, pipelines: Vec::new(), code, general: false, sun_table, counters_buf, surfaces_buf }
+        Self {
+            layout,
+            pipelines: Vec::new(),
+            code,
+            general: false,
+            exhaustive_fog_shadows: false,
+            sun_table,
+            counters_buf,
+            surfaces_buf,
+        }
     }
 
     /// Uploads the inputs of a march into `target` and returns the job; its counters start at 0.
@@ -220,7 +243,10 @@ impl Marcher {
             ],
             inputs.lookup.extra_entries(EXTRA_BINDING),
         );
-        let features = if self.general { MarchFeatures::ALL } else { inputs.features };
+        let features = MarchFeatures {
+            cull_fog_surfaces: !self.exhaustive_fog_shadows,
+            ..if self.general { MarchFeatures::ALL } else { inputs.features }
+        };
         if !self.pipelines.iter().any(|(f, _)| *f == features) {
             let code = self.code.clone();
             let pipeline = compute_pipeline_with(device, "march", code, &self.layout, "main", &features.constants());

@@ -795,9 +795,10 @@ impl FogPipeline {
             self.stage_layout = OpvLayout { textures: needed, rows, ..self.opv_layout };
             let device = &self.ctx.device;
             self.propagator = Propagator::new(device, self.stage_layout, self.sweep_cells);
-            let general = self.marcher.general;
+            let (general, exhaustive) = (self.marcher.general, self.marcher.exhaustive_fog_shadows);
             self.marcher = Marcher::new(device, self.stage_layout);
             self.marcher.general = general;
+            self.marcher.exhaustive_fog_shadows = exhaustive;
             self.lookup = LookupBuilder::new(device, self.stage_layout);
             self.slicer = Slicer::new(device, self.stage_layout);
             self.baker = None;
@@ -855,6 +856,13 @@ impl FogPipeline {
     /// that saves. The image is the same. Off by default; applies to marches begun after it.
     pub fn set_general_march(&mut self, on: bool) {
         self.marcher.general = on;
+    }
+
+    /// Makes base fog outside the grid test every surface for every light, instead of only
+    /// those that can hide a point or spot light from the segment marched. The image is the
+    /// same. Off by default; applies to marches begun after it.
+    pub fn set_exhaustive_fog_shadows(&mut self, on: bool) {
+        self.marcher.exhaustive_fog_shadows = on;
     }
 
     /// Makes every cell evaluate every particle instead of only those binned into its brick:
