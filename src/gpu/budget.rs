@@ -5,6 +5,9 @@ use std::time::{Duration, Instant};
 
 /// Share of a bounded budget the quick preview march may take.
 pub(super) const QUICK_SHARE: f64 = 0.4;
+/// ...and at most this share of the full march still to come: a preview that cost more would
+/// mostly delay the image it stands in for.
+pub(super) const QUICK_OF_FULL: f64 = 0.1;
 
 /// Milliseconds since `t`.
 pub(super) fn ms(t: Instant) -> f64 {

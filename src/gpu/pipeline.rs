@@ -17,7 +17,7 @@
 use super::as_baked::{AsBakedInputs, AsBakedRenderer};
 use super::bake::{BakeInputs, BakePhase, Baker};
 use super::binning;
-use super::budget::{ms, Clock, Rate, QUICK_SHARE};
+use super::budget::{ms, Clock, Rate, QUICK_OF_FULL, QUICK_SHARE};
 use super::buffers::storage_buffer;
 use super::error::ErrorScope;
 use super::frame_inputs::{FrameInputs, FrameRequest, Settings};
@@ -388,7 +388,7 @@ impl FogPipeline {
     /// be propagated or the full march does not fit the time left. Its resolution never
     /// steps down while the scene stays the same (only optical depths progressing), and
     /// steps up, to at least twice the pixels, when a call has the time for it, until the
-    /// full image is half marched.
+    /// full image is half marched. It costs at most [`QUICK_OF_FULL`] of the full march left.
     fn preview_stage(
         &mut self,
         inputs: &FrameInputs,
@@ -403,8 +403,14 @@ impl FogPipeline {
             _ => None,
         };
         let t = Instant::now();
-        let budget = clock.left_ms(t).map(|ms| ms * QUICK_SHARE);
-        let (w, h) = self.rates[timer::MARCH as usize].quick_size(width, height, budget);
+        let rate = &self.rates[timer::MARCH as usize];
+        let full_left = match &self.jobs.march {
+            Some((job, k)) if *k == key => 1.0 - job.fraction(),
+            _ => 1.0,
+        };
+        let cap = QUICK_OF_FULL * full_left * rate.ms_for(width as u64 * height as u64);
+        let budget = clock.left_ms(t).map(|ms| (ms * QUICK_SHARE).min(cap));
+        let (w, h) = rate.quick_size(width, height, budget);
         let march = if self.baked.shown.as_ref().is_some_and(|(k, _)| *k == key) {
             // A step up, but not once the full image is more than half marched: it is close
             // to replacing the quick one.
