@@ -205,7 +205,7 @@ fn bake(@builtin(global_invocation_id) gid: vec3u) {
     if any(id >= grid.dims) || gid.z >= params.size.y {
         return;
     }
-    let sigma = textureLoad(ev, id, 0).r;
+    let sigma = textureLoad(ev, id).r;
     var j = vec3f(0.0);
     if sigma > 0.0 && params.albedo > 0.0 {
         let c = cell_center(id);

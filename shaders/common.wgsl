@@ -195,3 +195,13 @@ fn sun_mean_extinction(depth: f32, x: vec3f, towards: vec3f) -> f32 {
     let b = sun_beyond(x, towards);
     return max(depth - b, 0.0) / max(e, 1e-30);
 }
+
+// Trilinear interpolation of corners c (x fastest, then y, then z) at fractions f: along x, then
+// y, then z.
+fn lerp3(c: array<f32, 8>, f: vec3f) -> f32 {
+    let x00 = mix(c[0], c[1], f.x);
+    let x10 = mix(c[2], c[3], f.x);
+    let x01 = mix(c[4], c[5], f.x);
+    let x11 = mix(c[6], c[7], f.x);
+    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
+}

@@ -88,7 +88,8 @@ struct Surface {
 }
 
 @group(0) @binding(1) var<uniform> params: MarchParams;
-@group(0) @binding(2) var ev: texture_3d<f32>;
+// Read-only storage: on llvmpipe its loads cost less than a sampled texture's.
+@group(0) @binding(2) var ev: texture_storage_3d<r32float, read>;
 @group(0) @binding(3) var<storage, read> lights: array<LightGpu>;
 // binding 4: `lookup`, the per-light lookup volumes (shaders/march_lookup.wgsl), declared with
 // its helper lookup_load by src/gpu/opv_store.rs.
@@ -135,7 +136,7 @@ fn corner(t: Trilinear, n: u32) -> vec3u {
 fn ev_at(t: Trilinear) -> f32 {
     var c: array<f32, 8>;
     for (var n = 0u; n < 8u; n++) {
-        c[n] = textureLoad(ev, corner(t, n), 0).r;
+        c[n] = textureLoad(ev, corner(t, n)).r;
     }
     return lerp3(c, t.f);
 }

@@ -55,7 +55,7 @@ impl AsBakedRenderer {
         let layout = super::layout::bind_group_layout_with(
             device,
             "as baked",
-            &[Slot::Uniform, Slot::Uniform, Slot::Texture3d],
+            &[Slot::Uniform, Slot::Uniform, Slot::StorageTexture3dRead(wgpu::TextureFormat::R32Float)],
             extra,
         );
         let pipeline = compute_pipeline_entry(device, "as baked", super::shaders::as_baked(&opv), &layout, "as_baked");

@@ -69,7 +69,13 @@ impl Baker {
         let layout = super::layout::bind_group_layout_with(
             device,
             "bake",
-            &[Slot::Uniform, Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::Opv { read_only: true }],
+            &[
+                Slot::Uniform,
+                Slot::Uniform,
+                Slot::StorageTexture3dRead(wgpu::TextureFormat::R32Float),
+                Slot::StorageRead,
+                Slot::Opv { read_only: true },
+            ],
             extra,
         );
         let pipeline = compute_pipeline_entry(device, "bake", super::shaders::bake(&opv), &layout, "bake");

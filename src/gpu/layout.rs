@@ -20,6 +20,9 @@ pub enum Slot {
         filtering: bool,
     },
     StorageTexture3d(wgpu::TextureFormat),
+    /// A 3D storage texture read with `textureLoad` only (on llvmpipe cheaper than a sampled
+    /// texture's loads).
+    StorageTexture3dRead(wgpu::TextureFormat),
     StorageTexture2d(wgpu::TextureFormat),
     /// Texture 0 of an array of optical-depth volumes (see `opv_store`).
     Opv {
@@ -83,6 +86,11 @@ pub fn bind_group_layout_with(
                 Slot::Opv { read_only } => super::opv_store::OpvLayout::binding_type(read_only),
                 Slot::StorageTexture3d(format) => BindingType::StorageTexture {
                     access: wgpu::StorageTextureAccess::WriteOnly,
+                    format,
+                    view_dimension: wgpu::TextureViewDimension::D3,
+                },
+                Slot::StorageTexture3dRead(format) => BindingType::StorageTexture {
+                    access: wgpu::StorageTextureAccess::ReadOnly,
                     format,
                     view_dimension: wgpu::TextureViewDimension::D3,
                 },

@@ -102,15 +102,14 @@ pub struct MarchFeatures {
 
 impl MarchFeatures {
     /// Everything: the march any scene can use.
-    pub const ALL: Self =
-        Self {
-            spot_lights: true,
-            sun_lights: true,
-            base_fog: true,
-            height_fog: true,
-            surfaces: true,
-            cull_fog_surfaces: true,
-        };
+    pub const ALL: Self = Self {
+        spot_lights: true,
+        sun_lights: true,
+        base_fog: true,
+        height_fog: true,
+        surfaces: true,
+        cull_fog_surfaces: true,
+    };
 
     /// What a scene of these lights, surfaces and grid uses.
     pub fn of(lights: &[LightGpu], surfaces: &[SurfaceGpu], grid: &GridParams) -> Self {
@@ -183,7 +182,7 @@ impl Marcher {
             &[
                 Slot::Uniform,
                 Slot::Uniform,
-                Slot::Texture3d,
+                Slot::StorageTexture3dRead(wgpu::TextureFormat::R32Float),
                 Slot::StorageRead,
                 Slot::Opv { read_only: true },
                 Slot::StorageTexture2d(wgpu::TextureFormat::Rgba32Float),

@@ -108,7 +108,6 @@ pub fn propagate_directional(opv: &OpvLayout) -> String {
 pub fn march(opv: &OpvLayout) -> String {
     assemble(&[
         &opv.wgsl("lookup", 4, EXTRA_BINDING, false),
-        EV_TRILINEAR,
         include_str!("../../shaders/sun.wgsl"),
         include_str!("../../shaders/surface_glow.wgsl"),
         include_str!("../../shaders/march.wgsl"),
