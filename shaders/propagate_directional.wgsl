@@ -39,7 +39,12 @@ struct PlaneParams {
     _pad1: u32,
 }
 
-@group(0) @binding(1) var ev: texture_3d<f32>;
+// Read-only storage: on llvmpipe its loads cost less than a sampled texture's.
+@group(0) @binding(1) var ev: texture_storage_3d<r32float, read>;
+
+fn ev_texel(c: vec3i) -> f32 {
+    return textureLoad(ev, c).r;
+}
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> plane: PlaneParams;
 // binding 4: `opv`, declared with its helpers by src/gpu/opv_store.rs.

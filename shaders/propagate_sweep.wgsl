@@ -84,6 +84,10 @@ struct SweepBox {
 }
 
 @group(0) @binding(1) var ev: texture_3d<f32>;
+
+fn ev_texel(c: vec3i) -> f32 {
+    return textureLoad(ev, c, 0).r;
+}
 @group(0) @binding(2) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(3) var<uniform> step: SweepStep;
 // bindings 4, 5: `opv` and `mean_in`, declared with their helpers by src/gpu/opv_store.rs.

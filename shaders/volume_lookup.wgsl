@@ -10,7 +10,7 @@ fn sigma_cell(c: vec3i) -> f32 {
     if !in_grid(c) {
         return grid.base_extinction;
     }
-    return textureLoad(ev, c, 0).r;
+    return ev_texel(c);
 }
 
 // Trilinear σ_t at a world position; base fog outside the grid box.

@@ -132,7 +132,13 @@ impl Propagator {
         let exact_layout = bind_group_layout_with(
             device,
             "propagate_exact",
-            &[Slot::Uniform, Slot::Texture3d, Slot::StorageRead, Slot::UniformDynamic, Slot::Opv { read_only: false }],
+            &[
+                Slot::Uniform,
+                Slot::StorageTexture3dRead(wgpu::TextureFormat::R32Float),
+                Slot::StorageRead,
+                Slot::UniformDynamic,
+                Slot::Opv { read_only: false },
+            ],
             opv.layout_entries(EXTRA_BINDING, false),
         );
         let exact = compute_pipeline(device, "propagate_exact", shaders::propagate_exact(&opv), &exact_layout);
