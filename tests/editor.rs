@@ -1596,3 +1596,26 @@ fn the_analytic_scheme_is_offered_only_where_it_can_represent_the_medium() {
     h.run_steps(3);
     assert_eq!(scheme(&h), Scheme::Sweep, "undo restores the sweep");
 }
+
+/// A frame whose first pass egui discards (the Inspector's grid for a newly selected light
+/// sizing itself) runs the UI twice; the pipeline still advances once in it, so the frame
+/// keeps to one budget of work.
+#[test]
+fn a_frame_of_two_passes_advances_the_preview_once() {
+    let mut h = build(demo(), EditorOptions::default(), Quality::Balanced, PreviewScale::Full);
+    h.step();
+    let status = |h: &Harness<'_, EditorApp>| h.state().preview_status().unwrap();
+    assert!(!status(&h).converged, "the preview is refining");
+    let mut two_passes = false;
+    for light in 0..h.state().session().project().lights.len() {
+        h.state_mut().session_mut().selection.lights.clear();
+        h.state_mut().session_mut().selection.lights.insert(light);
+        let (calls, passes) = (status(&h).calls, h.ctx.cumulative_pass_nr());
+        h.step();
+        let passes = h.ctx.cumulative_pass_nr() - passes;
+        assert!(!status(&h).converged, "still refining after light {light}'s frame");
+        assert_eq!(status(&h).calls - calls, 1, "light {light}: one call into the pipeline in {passes} passes");
+        two_passes |= passes > 1;
+    }
+    assert!(two_passes, "no frame ran two passes: the test shows nothing");
+}

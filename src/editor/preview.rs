@@ -52,6 +52,8 @@ pub struct PreviewStatus {
     pub shown_size: [u32; 2],
     /// Images shown so far.
     pub renders: u64,
+    /// Calls into the pipeline so far: at most one per frame.
+    pub calls: u64,
     /// In an animation: the frame of the fog on show, and of its shadows (an earlier one
     /// while propagation catches up with playback or a scrub).
     pub shown_frame: Option<i32>,
@@ -71,6 +73,7 @@ impl GpuView {
             progress: Progress::default(),
             error: None,
             renders: 0,
+            calls: 0,
             update_ms: 0.0,
             frame_update_ms: 0.0,
             budget_ms: None,
@@ -105,6 +108,7 @@ impl GpuView {
             return false;
         }
         self.converged = None;
+        self.calls += 1;
         let request =
             FrameRequest { width: size[0], height: size[1], scheme: project.propagation.scheme, force: false };
         if let Some(phase) = as_baked {
@@ -328,6 +332,7 @@ impl EditorState {
             shadows_stale: gpu.progress.shadows_stale,
             shown_size: gpu.progress.shown_size,
             renders: gpu.renders,
+            calls: gpu.calls,
             shown_frame: gpu.frames.fog,
             shadows_frame: gpu.frames.shadows,
         })

@@ -158,6 +158,8 @@ pub(crate) struct GpuView {
     pub error: Option<String>,
     /// Images shown so far.
     pub renders: u64,
+    /// Calls into the pipeline so far.
+    pub calls: u64,
     /// Wall time of the last pipeline call, all items and waits included.
     pub update_ms: f64,
     /// Wall time of this frame's pipeline call, ms: 0 when the frame made none (converged).
@@ -549,8 +551,12 @@ impl EditorState {
     }
 
     pub(super) fn begin_frame(&mut self, ctx: &Context) {
-        self.view.clock.tick();
-        self.frames += 1;
+        // A frame whose first pass is discarded (a new grid or window sizing itself) runs the UI
+        // again: that is still one frame, whose pipeline work the first pass did.
+        if ctx.current_pass_index() == 0 {
+            self.view.clock.tick();
+            self.frames += 1;
+        }
         while let Ok(result) = self.jobs.rx.try_recv() {
             self.finish_job(result);
         }
