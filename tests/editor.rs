@@ -927,8 +927,17 @@ fn without_a_portal_save_as_and_export_use_the_built_in_dialog() {
     assert_eq!(grids.len(), 3, "density and one optical depth per light");
 }
 
+/// Circles and unfilled closed paths: the selection's outlines and the faint polygons of the rest.
 fn circles(h: &Harness<'_, EditorApp>) -> usize {
-    h.output().shapes.iter().filter(|c| matches!(c.shape, egui::Shape::Circle(_))).count()
+    h.output()
+        .shapes
+        .iter()
+        .filter(|c| match &c.shape {
+            egui::Shape::Circle(_) => true,
+            egui::Shape::Path(p) => p.closed && p.fill == egui::Color32::TRANSPARENT,
+            _ => false,
+        })
+        .count()
 }
 
 /// View → Particle outlines off leaves only the selection outlined.
