@@ -62,6 +62,11 @@ pub struct FogPipeline {
     /// lookup also reads the EV, at a light exactly on a cell centre; any EV change
     /// re-propagates every light, which marks them.
     lookup_stale: Vec<bool>,
+    /// Per light, whether its lookup volume has been built since its OPV was allocated.
+    lookup_built: Vec<bool>,
+    /// Per light, whether propagation has written its OPV since the last propagation of it
+    /// that completed: the OPV is then part old, part new.
+    opv_partial: Vec<bool>,
     /// The lights and grid parameters last uploaded, to tell a change from a rewrite.
     uploaded: (Vec<LightGpu>, Option<GridParams>),
     slicer: Slicer,
@@ -122,6 +127,8 @@ impl FogPipeline {
             marcher,
             lookup,
             lookup_stale: Vec::new(),
+            lookup_built: Vec::new(),
+            opv_partial: Vec::new(),
             uploaded: (Vec::new(), None),
             slicer,
             baker: None,
@@ -455,6 +462,9 @@ impl FogPipeline {
             if let Some((_, keys)) = self.jobs.propagate.take_if(|(job, _)| job.done()) {
                 for (i, k) in keys {
                     self.baked.opvs[i] = Some(k);
+                    if let Some(p) = self.opv_partial.get_mut(i) {
+                        *p = false;
+                    }
                 }
                 self.volumes_generation += 1;
             } else if let Some((job, _)) = self.jobs.propagate.as_ref().filter(|_| clock.spent()) {
@@ -683,6 +693,9 @@ impl FogPipeline {
                 if let Some(s) = self.lookup_stale.get_mut(i) {
                     *s = true;
                 }
+                if let Some(p) = self.opv_partial.get_mut(i) {
+                    *p = true;
+                }
             }
         }
         // A lost device surfaces as an error of the next readback or update.
@@ -691,16 +704,24 @@ impl FogPipeline {
     }
 
     /// Rebuilds the lookup volumes of the lights whose OPV, light or grid parameters changed
-    /// since their last build.
+    /// since their last build, except, once built, those whose OPV propagation has partly
+    /// rewritten: a quick image marched meanwhile reads the optical depths of the last complete
+    /// propagation rather than a half-written OPV (and skips the rebuild), and the full march,
+    /// which waits for propagation to complete, rebuilds them.
     fn refresh_lookup(&mut self) {
         let Some(g) = self.grid.as_ref() else { return };
         self.lookup_stale.resize(g.light_count, true);
-        if !self.lookup_stale.contains(&true) {
+        self.lookup_built.resize(g.light_count, false);
+        self.opv_partial.resize(g.light_count, false);
+        let rebuild: Vec<bool> = (0..g.light_count)
+            .map(|i| self.lookup_stale[i] && !(self.lookup_built[i] && self.opv_partial[i]))
+            .collect();
+        if !rebuild.contains(&true) {
             return;
         }
         let inputs = LookupInputs {
             spec: g.spec,
-            stale: &self.lookup_stale,
+            stale: &rebuild,
             grid_buf: &g.grid_buf,
             ev_view: &g.ev_view,
             lights_buf: &g.lights_buf,
@@ -710,7 +731,12 @@ impl FogPipeline {
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         self.lookup.encode(&self.ctx, &mut encoder, &inputs);
         self.ctx.queue.submit([encoder.finish()]);
-        self.lookup_stale.fill(false);
+        for (i, rebuilt) in rebuild.into_iter().enumerate() {
+            if rebuilt {
+                self.lookup_stale[i] = false;
+                self.lookup_built[i] = true;
+            }
+        }
     }
 
     fn begin_march(&mut self, target: &ImageTarget, key: &ImageKey) -> Result<MarchJob, GpuError> {
@@ -786,6 +812,8 @@ impl FogPipeline {
         let layout = self.stages_for(&spec, light_count);
         self.grid = Some(GridResources::new(&self.ctx.device, spec, light_count, layout));
         self.lookup_stale = vec![true; light_count];
+        self.lookup_built = vec![false; light_count];
+        self.opv_partial = vec![false; light_count];
         self.baked = Baked::default();
         self.jobs = Jobs::default();
     }
@@ -822,6 +850,8 @@ impl FogPipeline {
         let Some(g) = &mut self.grid else { return };
         g.resize_lights(&self.ctx, layout, light_count);
         self.lookup_stale = vec![true; light_count];
+        self.lookup_built = vec![false; light_count];
+        self.opv_partial = vec![false; light_count];
         self.baked.opvs.truncate(light_count);
         // In-flight work binds the old buffers.
         self.jobs.propagate = None;
