@@ -637,22 +637,7 @@ fn fog_shadowed(x: vec3f, l: u32, u: vec3f, t_max: f32) -> bool {
     if !inside_grid(x) {
         return shadowed(x, vec3f(0.0), u, t_max);
     }
-    let reach = t_max * (1.0 - 1e-3);
-    let inv = safe_inverse(u);
-    var mask = lights[l].occluders;
-    while mask != 0u {
-        let i = firstTrailingBit(mask);
-        mask &= mask - 1u;
-        if blocks(surfaces[i], x, u, inv, reach) {
-            return true;
-        }
-    }
-    for (var i = 32u; i < params.surface_count; i++) {
-        if blocks(surfaces[i], x, u, inv, reach) {
-            return true;
-        }
-    }
-    return false;
+    return blocker_among(lights[l].occluders, x, u, t_max) != NO_SURFACE;
 }
 
 // fog_shadowed for a sample of the march: in base fog outside the grid, a light found hidden is
