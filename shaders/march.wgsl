@@ -453,17 +453,9 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
     let start = o + dir * t0;
     let end = o + dir * t1;
     sun_mask = 0u;
-    if fog_shadows && fog_culling && params.surface_count > 0u {
-        var lo = min(start, end);
-        var hi = max(start, end);
-        for (var l = 0u; l < grid.light_count; l++) {
-            if lights[l].kind != LIGHT_DIRECTIONAL && any(lights[l].rgb != vec3f(0.0)) {
-                lo = min(lo, lights[l].position);
-                hi = max(hi, lights[l].position);
-            }
-        }
-        fog_candidates = candidates_in(lo, hi);
-    }
+    // The box around the segment and the point and spot lights (fog_candidates).
+    var around_lo = min(start, end);
+    var around_hi = max(start, end);
     var marched = false;
     var live = 0u;
     var untracked = false;
@@ -471,6 +463,10 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
         let light = lights[l];
         if all(light.rgb == vec3f(0.0)) {
             continue;
+        }
+        if light.kind != LIGHT_DIRECTIONAL {
+            around_lo = min(around_lo, light.position);
+            around_hi = max(around_hi, light.position);
         }
         let lo = min(min(start, end), light.position);
         let hi = max(max(start, end), light.position);
@@ -492,6 +488,9 @@ fn fog_segment(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
         }
     }
     if marched {
+        if fog_shadows && fog_culling && params.surface_count > 0u {
+            fog_candidates = candidates_in(around_lo, around_hi);
+        }
         march_fog(o, dir, t0, t1, select(live, 0u, untracked));
     } else {
         transmittance *= exp(-base_fog_depth(start, dir, t1 - t0));
@@ -649,7 +648,7 @@ fn fog_hidden(x: vec3f, inside: bool, l: u32, u: vec3f, t_max: f32) -> bool {
     if !fog_shadows || params.surface_count == 0u {
         return false;
     }
-    var candidates = 0xffffffffu;
+    var candidates = ALL_SURFACES;
     if fog_culling && lights[l].kind != LIGHT_DIRECTIONAL {
         candidates = fog_candidates;
     }
@@ -685,8 +684,10 @@ fn candidates_in(lo: vec3f, hi: vec3f) -> u32 {
     return mask;
 }
 
-// blocker() among the surfaces of `mask` (bit i: surface i < 32) and those from the 33rd on, in
-// the same order, so the same surface is found where a skipped one cannot block.
+// The first surface (by index) among those of `mask` (bit i: surface i < 32) and those from the
+// 33rd on that blocks the path from x along unit u before distance t_max, or NO_SURFACE. The
+// order is the index order, so a mask that leaves out only surfaces that cannot block finds the
+// same one.
 fn blocker_among(mask: u32, x: vec3f, u: vec3f, t_max: f32) -> u32 {
     let reach = t_max * (1.0 - 1e-3);
     let inv = safe_inverse(u);
@@ -710,9 +711,11 @@ fn blocker_among(mask: u32, x: vec3f, u: vec3f, t_max: f32) -> u32 {
 }
 
 const NO_SURFACE: u32 = 0xffffffffu;
+const ALL_SURFACES: u32 = 0xffffffffu;
 
-// The first surface (by index) that blocks the path from x along unit u before distance
-// t_max, or NO_SURFACE: shadowed()'s test from a point already lifted off its surface.
+// blocker_among(ALL_SURFACES, x, u, t_max) as a plain loop over the surfaces: shadowed()'s test
+// from a point already lifted off its surface. Through blocker_among the march took about 5 %
+// longer on llvmpipe (cornell, street).
 fn blocker(x: vec3f, u: vec3f, t_max: f32) -> u32 {
     let reach = t_max * (1.0 - 1e-3);
     let inv = safe_inverse(u);

@@ -50,6 +50,25 @@ struct Jobs {
 /// A stage a call left unfinished when its budget ran out, and the fraction of it done.
 type Unfinished = Option<(Stage, f64)>;
 
+/// One light's lookup volume (`march_lookup`) against its OPV.
+#[derive(Clone, Copy, Debug)]
+struct LookupState {
+    /// The volume may differ from what its OPV, the light and the grid parameters on the GPU
+    /// give (set by every write to them, cleared by a rebuild). A lookup also reads the EV, at a
+    /// light exactly on a cell centre; any EV change re-propagates every light, which marks it.
+    stale: bool,
+    /// The volume has been built since the OPV was allocated.
+    built: bool,
+    /// Propagation has written the OPV since its last propagation that completed: the OPV is
+    /// then part old, part new.
+    opv_partial: bool,
+}
+
+impl LookupState {
+    /// A newly allocated OPV's.
+    const NEW: Self = Self { stale: true, built: false, opv_partial: false };
+}
+
 /// The GPU fog pipeline: injection → propagation → ray march, plus readback.
 pub struct FogPipeline {
     ctx: GpuContext,
@@ -57,16 +76,8 @@ pub struct FogPipeline {
     propagator: Propagator,
     marcher: Marcher,
     lookup: LookupBuilder,
-    /// Per light, whether its lookup volume may differ from what its OPV, the light and the
-    /// grid parameters on the GPU give (set by every write to them, cleared by a rebuild). A
-    /// lookup also reads the EV, at a light exactly on a cell centre; any EV change
-    /// re-propagates every light, which marks them.
-    lookup_stale: Vec<bool>,
-    /// Per light, whether its lookup volume has been built since its OPV was allocated.
-    lookup_built: Vec<bool>,
-    /// Per light, whether propagation has written its OPV since the last propagation of it
-    /// that completed: the OPV is then part old, part new.
-    opv_partial: Vec<bool>,
+    /// Per light, the state of its lookup volume and OPV.
+    lookups: Vec<LookupState>,
     /// The lights and grid parameters last uploaded, to tell a change from a rewrite.
     uploaded: (Vec<LightGpu>, Option<GridParams>),
     slicer: Slicer,
@@ -126,9 +137,7 @@ impl FogPipeline {
             propagator,
             marcher,
             lookup,
-            lookup_stale: Vec::new(),
-            lookup_built: Vec::new(),
-            opv_partial: Vec::new(),
+            lookups: Vec::new(),
             uploaded: (Vec::new(), None),
             slicer,
             baker: None,
@@ -411,20 +420,20 @@ impl FogPipeline {
         };
         let t = Instant::now();
         let rate = &self.rates[timer::MARCH as usize];
+        let full_ms = rate.ms_for(width as u64 * height as u64);
+        // The share of this scene's full march still to do.
         let full_left = match &self.jobs.march {
             Some((job, k)) if *k == key => 1.0 - job.fraction(),
             _ => 1.0,
         };
-        let cap = QUICK_OF_FULL * full_left * rate.ms_for(width as u64 * height as u64);
-        let budget = clock.left_ms(t).map(|ms| (ms * QUICK_SHARE).min(cap));
+        let budget = clock.left_ms(t).map(|ms| (ms * QUICK_SHARE).min(QUICK_OF_FULL * full_left * full_ms));
         let (w, h) = rate.quick_size(width, height, budget);
         let march = if self.baked.shown.as_ref().is_some_and(|(k, _)| *k == key) {
             // A step up, but not once the full image is more than half marched: it is close
             // to replacing the quick one.
-            let nearly_full = self.jobs.march.as_ref().is_some_and(|(job, k)| *k == key && job.fraction() > 0.5);
+            let nearly_full = full_left < 0.5;
             shown_quick.is_some_and(|(w0, h0)| !nearly_full && w as u64 * h as u64 >= 2 * (w0 as u64 * h0 as u64))
         } else {
-            let full_ms = self.rates[timer::MARCH as usize].ms_for(width as u64 * height as u64);
             let fits = clock.left_ms(t).is_some_and(|ms| full_ms <= ms);
             propagating || !fits
         };
@@ -462,8 +471,8 @@ impl FogPipeline {
             if let Some((_, keys)) = self.jobs.propagate.take_if(|(job, _)| job.done()) {
                 for (i, k) in keys {
                     self.baked.opvs[i] = Some(k);
-                    if let Some(p) = self.opv_partial.get_mut(i) {
-                        *p = false;
+                    if let Some(s) = self.lookups.get_mut(i) {
+                        s.opv_partial = false;
                     }
                 }
                 self.volumes_generation += 1;
@@ -690,11 +699,9 @@ impl FogPipeline {
         self.ctx.queue.submit([encoder.finish()]);
         if let Some((_, targets)) = &self.jobs.propagate {
             for &(i, _) in targets {
-                if let Some(s) = self.lookup_stale.get_mut(i) {
-                    *s = true;
-                }
-                if let Some(p) = self.opv_partial.get_mut(i) {
-                    *p = true;
+                if let Some(s) = self.lookups.get_mut(i) {
+                    s.stale = true;
+                    s.opv_partial = true;
                 }
             }
         }
@@ -710,12 +717,8 @@ impl FogPipeline {
     /// which waits for propagation to complete, rebuilds them.
     fn refresh_lookup(&mut self) {
         let Some(g) = self.grid.as_ref() else { return };
-        self.lookup_stale.resize(g.light_count, true);
-        self.lookup_built.resize(g.light_count, false);
-        self.opv_partial.resize(g.light_count, false);
-        let rebuild: Vec<bool> = (0..g.light_count)
-            .map(|i| self.lookup_stale[i] && !(self.lookup_built[i] && self.opv_partial[i]))
-            .collect();
+        self.lookups.resize(g.light_count, LookupState::NEW);
+        let rebuild: Vec<bool> = self.lookups.iter().map(|s| s.stale && !(s.built && s.opv_partial)).collect();
         if !rebuild.contains(&true) {
             return;
         }
@@ -731,10 +734,10 @@ impl FogPipeline {
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         self.lookup.encode(&self.ctx, &mut encoder, &inputs);
         self.ctx.queue.submit([encoder.finish()]);
-        for (i, rebuilt) in rebuild.into_iter().enumerate() {
+        for (s, rebuilt) in self.lookups.iter_mut().zip(rebuild) {
             if rebuilt {
-                self.lookup_stale[i] = false;
-                self.lookup_built[i] = true;
+                s.stale = false;
+                s.built = true;
             }
         }
     }
@@ -811,9 +814,7 @@ impl FogPipeline {
         }
         let layout = self.stages_for(&spec, light_count);
         self.grid = Some(GridResources::new(&self.ctx.device, spec, light_count, layout));
-        self.lookup_stale = vec![true; light_count];
-        self.lookup_built = vec![false; light_count];
-        self.opv_partial = vec![false; light_count];
+        self.lookups = vec![LookupState::NEW; light_count];
         self.baked = Baked::default();
         self.jobs = Jobs::default();
     }
@@ -849,9 +850,7 @@ impl FogPipeline {
         let layout = self.stages_for(&spec, light_count);
         let Some(g) = &mut self.grid else { return };
         g.resize_lights(&self.ctx, layout, light_count);
-        self.lookup_stale = vec![true; light_count];
-        self.lookup_built = vec![false; light_count];
-        self.opv_partial = vec![false; light_count];
+        self.lookups = vec![LookupState::NEW; light_count];
         self.baked.opvs.truncate(light_count);
         // In-flight work binds the old buffers.
         self.jobs.propagate = None;
@@ -863,11 +862,11 @@ impl FogPipeline {
         if let Some(g) = &self.grid {
             g.write_uniforms(&self.ctx.queue, &inputs.lights, &inputs.grid);
             let (lights, grid) = &mut self.uploaded;
-            self.lookup_stale.resize(inputs.lights.len(), true);
+            self.lookups.resize(inputs.lights.len(), LookupState::NEW);
             let same_grid = grid.is_some_and(|g| bytemuck::bytes_of(&g) == bytemuck::bytes_of(&inputs.grid));
             for (i, l) in inputs.lights.iter().enumerate() {
                 if !same_grid || lights.get(i).is_none_or(|old| bytemuck::bytes_of(old) != bytemuck::bytes_of(l)) {
-                    self.lookup_stale[i] = true;
+                    self.lookups[i].stale = true;
                 }
             }
             *lights = inputs.lights.clone();
