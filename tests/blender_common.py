@@ -1,18 +1,36 @@
-"""What the Blender checks share: Fogsmith's volume placed on its voxel centres, a black
-world, and Cycles set to single scattering with no filtering or clamping, so its image can be
-compared pixel for pixel with `fogsmith render`."""
+"""What the Blender checks share: the import through Fogsmith's add-on alone
+(integrations/blender/fogsmith_import: material, half-voxel placement, light falloff, frame
+rate), a black world, and Cycles set to single scattering with no filtering or clamping, so
+its image can be compared pixel for pixel with `fogsmith render`."""
+
+import os
+import sys
 
 import bpy
 import numpy as np
 
+ADDON_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "integrations", "blender")
 
-def centre_voxels(vol):
-    """Blender puts a VDB voxel's value at its corner, OpenVDB (and Fogsmith) at its centre:
-    move the volume back by half a voxel (the density grid's index-to-object matrix)."""
-    vol.data.grids.load()
-    m = vol.data.grids["density"].matrix_object
-    half_voxel = [0.5 * (m[r][0] + m[r][1] + m[r][2]) for r in range(3)]
-    vol.location = [vol.location[r] - half_voxel[r] for r in range(3)]
+
+def import_with_addon(path, lighting="AUTO"):
+    """A factory-fresh scene with `path` imported by the add-on's operator, as a user's
+    File > Import > Fogsmith Fog does; fails unless the operator finished."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sys.path.insert(0, ADDON_DIR)
+    import fogsmith_import
+
+    fogsmith_import.register()
+    result = bpy.ops.import_scene.fogsmith(filepath=path, lighting=lighting)
+    assert result == {"FINISHED"}, f"the add-on's import of {path} ended {result}"
+    return bpy.context.scene
+
+
+def finish():
+    """Ends the process now that its output is written: bpy 4.5 can hang at interpreter exit
+    (a destructor waits on its own file-closing thread), which would stall the test."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
 
 
 def black_world(scene):
@@ -64,29 +82,3 @@ def the_volume(scene):
     vols = [o for o in scene.objects if o.type == "VOLUME"]
     assert len(vols) == 1, f"expected one volume, found {[o.name for o in vols]}"
     return vols[0]
-
-
-def fog_material(vol, name, albedo, anisotropy):
-    """A Principled Volume whose density is the `density` grid, the fog's albedo as its
-    colour and its g as the anisotropy; returns the node tree, its Principled Volume node."""
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    nodes = mat.node_tree.nodes
-    nodes.clear()
-    pv = nodes.new("ShaderNodeVolumePrincipled")
-    pv.inputs["Density"].default_value = 1.0
-    pv.inputs["Density Attribute"].default_value = "density"
-    pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
-    pv.inputs["Anisotropy"].default_value = anisotropy
-    outn = nodes.new("ShaderNodeOutputMaterial")
-    mat.node_tree.links.new(pv.outputs["Volume"], outn.inputs["Volume"])
-    vol.data.materials.clear()
-    vol.data.materials.append(mat)
-    return mat.node_tree, pv
-
-
-def hard_point_lights(scene):
-    """Point and spot lights without Blender's soft falloff, as Fogsmith's lights are."""
-    for o in scene.objects:
-        if o.type == "LIGHT":
-            o.data.use_soft_falloff = False

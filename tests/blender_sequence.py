@@ -6,7 +6,8 @@ Prints one JSON line: the scene's frame range and fps, the volume's sequence set
 (is_sequence, frame_start, frame_duration) and the file it shows at each rendered frame, the
 world position of every light and of the camera at every frame of the stage, and per
 rendered frame the mean linear radiance; writes each render as OUT_PREFIX<frame>.f32 (linear
-RGB float32, rows top to bottom). The volume is set up as in tests/blender_render.py.
+RGB float32, rows top to bottom). The stage is imported by
+Fogsmith's Blender add-on alone, as in tests/blender_render.py.
 """
 import json
 import sys
@@ -19,25 +20,11 @@ from pxr import Usd
 stage, prefix, width, height, samples = sys.argv[1], sys.argv[2], *map(int, sys.argv[3:6])
 render_frames = [int(a) for a in sys.argv[6:]]
 
-bpy.ops.wm.read_factory_settings(use_empty=True)
-bpy.ops.wm.usd_import(filepath=stage)
-scene = bpy.context.scene
+scene = blender_common.import_with_addon(stage)
 usd_stage = Usd.Stage.Open(stage)
 start, end = int(usd_stage.GetStartTimeCode()), int(usd_stage.GetEndTimeCode())
 
 vol = blender_common.the_volume(scene)
-prim = usd_stage.GetPrimAtPath("/World/Fog")
-albedo = prim.GetAttribute("fogsmith:albedo").Get()
-anisotropy = prim.GetAttribute("fogsmith:anisotropy").Get()
-
-blender_common.fog_material(vol, "FogsmithFog", albedo, anisotropy)
-
-scene.frame_set(start)
-blender_common.centre_voxels(vol)
-
-blender_common.hard_point_lights(scene)
-cams = [o for o in scene.objects if o.type == "CAMERA"]
-scene.camera = cams[0]
 
 out = {
     "scene_frames": [scene.frame_start, scene.frame_end],
@@ -69,3 +56,4 @@ for f in render_frames:
     np.ascontiguousarray(px).tofile(path + ".f32")
     out["renders"][str(f)] = float(px.mean())
 print(json.dumps(out))
+blender_common.finish()

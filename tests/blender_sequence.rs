@@ -1,6 +1,7 @@
 //! An animated stage in Blender 4.5 (`bpy` from the project's test venv, ./setup.sh): a small
 //! fog scene whose particles, lights and camera move over frames 1-4 is exported with
-//! `--frames 1-4 --preset blender --usd`, imported by Blender, and checked: the volume is a
+//! `--frames 1-4 --preset blender --usd`, imported by Fogsmith's Blender add-on alone, and
+//! checked: the scene plays at the project's frame rate, the volume is a
 //! VDB sequence starting at frame 1 with one frame per file, the lights and the camera move as
 //! keyed, and Cycles renders frames 1 and 4 within 5 % in mean of `fogsmith render --frames`
 //! of the same frames.
@@ -115,6 +116,8 @@ fn blender_imports_the_animated_stage_and_cycles_matches_each_frame() {
     assert_eq!(b["frame_start"], 1, "{b}");
     assert_eq!(b["frame_duration"], 4, "{b}");
     assert_eq!(b["scene_frames"], serde_json::json!([1, 4]), "{b}");
+    let fps = b["fps"].as_f64().unwrap();
+    assert!((fps - 12.0).abs() < 1e-6, "the scene plays at {fps} frames/s, the project at 12: {b}");
     for f in [1, 4] {
         let shown = PathBuf::from(b["shown"][f.to_string()].as_str().unwrap());
         let want = dir.join(format!("anim.{f:04}.vdb"));
