@@ -1,5 +1,7 @@
 //! Whether an output file is complete: its checksum sidecar (`NAME.crc32`, written after the
-//! file is in place) when there is one, else the file read back by its own format.
+//! file is in place) when there is one, else the file read back by its own format, with every
+//! size its header claims checked against the file before anything is allocated: a damaged
+//! file is reported damaged (and baked again), never an abort.
 //!
 //! A farm task reruns after a failure or preemption; it must skip exactly the frames whose
 //! files are whole. Exports already move files into place only once written, so a killed task
@@ -80,8 +82,8 @@ pub fn file_state(path: &Path) -> FileState {
     }
 }
 
-/// Parses the file by its extension: every grid of a VDB, every layer of an EXR, a PNG's
-/// pixels, a USD stage's text.
+/// Parses the file by its extension: every grid of a VDB, every layer of an EXR (its
+/// header's sizes checked against the file first), a PNG's pixels, a USD stage's text.
 fn read_back(path: &Path, bytes: &[u8]) -> Result<(), String> {
     if bytes.is_empty() {
         return Err("the file is empty".into());
@@ -95,7 +97,7 @@ fn read_back(path: &Path, bytes: &[u8]) -> Result<(), String> {
             }
             Ok(())
         }
-        Some("exr") => exr::prelude::read_all_data_from_file(path).map(drop).map_err(|e| e.to_string()),
+        Some("exr") => crate::export::exr_read::read_exr_back(bytes),
         Some("png") => image::load_from_memory(bytes).map(drop).map_err(|e| e.to_string()),
         Some("usda") => match std::str::from_utf8(bytes) {
             Ok(text) if text.starts_with("#usda") && text.matches('{').count() == text.matches('}').count() => Ok(()),
