@@ -4,7 +4,11 @@
 //! folder that does not exist.
 //! Each damaged input is kept, minimised, under `tests/corpus/damaged/`.
 
+use fogsmith::export::vdb::{encode_vdb, VdbCompression, VdbGrid, VdbOptions};
+use fogsmith::export::vdb_read::read_vdb_grid_from_bytes;
 use fogsmith::farm::check::{file_state, FileState};
+use fogsmith::scene::{GridSpec, Volume, Volume3};
+use glam::{UVec3, Vec3};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -77,4 +81,56 @@ fn the_farm_check_reports_damaged_exr_headers_without_allocating_them() {
     let whole = dir.path().join("whole.exr");
     std::fs::copy(corpus("render.exr"), &whole).unwrap();
     assert_eq!(file_state(&whole), FileState::Done);
+}
+
+/// `tests/corpus/damaged/openvdb-root-tile-count.vdb`: an uncompressed float grid written by
+/// OpenVDB (vdb_tool `codec=none`) whose root tile count (offset 566) is 1 instead of 0, so
+/// its root child is read as a tile and the rest of its tree one tile late.
+#[test]
+fn a_vdb_whose_topology_runs_into_its_buffers_is_refused() {
+    let damaged = read(&corpus("damaged/openvdb-root-tile-count.vdb"));
+    let mut whole = damaged.clone();
+    assert_eq!(whole[566..570], [1, 0, 0, 0], "the damaged root tile count");
+    whole[566] = 0;
+    let grid = read_vdb_grid_from_bytes(Path::new("whole.vdb"), &whole, None).expect("the undamaged file reads");
+    assert_eq!(grid.active_voxel_count(), 120);
+    let err = read_vdb_grid_from_bytes(Path::new("bad.vdb"), &damaged, None).expect_err("a damaged tree").to_string();
+    assert!(err.contains("bad.vdb") && err.contains("topology") && !err.contains('\n'), "{err}");
+}
+
+fn light_bake_grids() -> (Volume, Volume3) {
+    let grid = GridSpec { min: Vec3::splat(-1.0), max: Vec3::ONE, resolution: UVec3::new(12, 9, 10) };
+    let n = grid.cell_count() as usize;
+    let density = Volume::new(grid, (0..n).map(|i| (i % 7) as f32 * 0.25).collect());
+    let emission = Volume3::new(grid, (0..n).map(|i| [(i % 5) as f32, 0.5, (i % 3) as f32 * 0.125]).collect());
+    (density, emission)
+}
+
+#[test]
+fn the_farm_check_reads_a_light_bake_in_every_codec_and_precision() {
+    let dir = tempfile::tempdir().unwrap();
+    let (density, emission) = light_bake_grids();
+    let grids = [VdbGrid::from_volume("density", &density), VdbGrid::from_volume3("emission", &emission)];
+    for compression in [VdbCompression::None, VdbCompression::Zip] {
+        for half in [false, true] {
+            let path = dir.path().join(format!("bake-{compression:?}-{half}.vdb"));
+            let opts = VdbOptions { compression, half, ..VdbOptions::default() };
+            let (bytes, _) = encode_vdb(&path, &grids, &opts).unwrap();
+            std::fs::write(&path, &bytes).unwrap();
+            assert_eq!(file_state(&path), FileState::Done, "{}", path.display());
+            std::fs::write(&path, &bytes[..bytes.len() - 9]).unwrap();
+            assert!(matches!(file_state(&path), FileState::Damaged(_)), "{} truncated", path.display());
+        }
+    }
+}
+
+#[test]
+fn resuming_a_light_bake_skips_its_complete_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = dir.path().join("bake.vdb");
+    let first = export(&["--bake-light", "--vdb", s(&vdb)]);
+    assert!(first.status.success(), "{}", text(&first));
+    let again = export(&["--bake-light", "--vdb", s(&vdb), "--resume"]);
+    assert!(again.status.success(), "{}", text(&again));
+    assert!(text(&again).contains("complete, skipped"), "{}", text(&again));
 }
