@@ -4,9 +4,11 @@
 //! folder that does not exist.
 //! Each damaged input is kept, minimised, under `tests/corpus/damaged/`.
 
+use fogsmith::export::sequence::FrameSet;
 use fogsmith::export::vdb::{encode_vdb, VdbCompression, VdbGrid, VdbOptions};
 use fogsmith::export::vdb_read::read_vdb_grid_from_bytes;
 use fogsmith::farm::check::{file_state, FileState};
+use fogsmith::farm::FarmJob;
 use fogsmith::scene::{GridSpec, Volume, Volume3};
 use glam::{UVec3, Vec3};
 use std::path::{Path, PathBuf};
@@ -133,4 +135,15 @@ fn resuming_a_light_bake_skips_its_complete_frame() {
     let again = export(&["--bake-light", "--vdb", s(&vdb), "--resume"]);
     assert!(again.status.success(), "{}", text(&again));
     assert!(text(&again).contains("complete, skipped"), "{}", text(&again));
+}
+
+/// `tests/corpus/damaged/farm-frames.json`: a bundle's `farm.json` whose frames read
+/// `1-2147483647`; `farm status` listed every frame before it looked at one.
+#[test]
+fn a_frame_range_of_billions_is_refused_before_it_is_listed() {
+    let job: FarmJob = serde_json::from_slice(&read(&corpus("damaged/farm-frames.json"))).unwrap();
+    let err = job.frame_set().unwrap_err();
+    assert!(err.contains("1-2147483647") && err.contains("1000000"), "{err}");
+    assert_eq!(FrameSet::parse("1-1000000").unwrap().len(), 1_000_000);
+    assert!(FrameSet::parse("-2147483648-2147483647x1000").is_err());
 }
