@@ -137,6 +137,17 @@ fn resuming_a_light_bake_skips_its_complete_frame() {
     assert!(text(&again).contains("complete, skipped"), "{}", text(&again));
 }
 
+#[test]
+fn an_export_creates_the_folders_it_writes_into() {
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = dir.path().join("out/fog/fog.vdb");
+    let exr = dir.path().join("renders/r.exr");
+    let out = export(&["--vdb", s(&vdb), "--exr-render", s(&exr)]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert_eq!(file_state(&vdb), FileState::Done);
+    assert_eq!(file_state(&exr), FileState::Done);
+}
+
 /// `tests/corpus/damaged/farm-frames.json`: a bundle's `farm.json` whose frames read
 /// `1-2147483647`; `farm status` listed every frame before it looked at one.
 #[test]
