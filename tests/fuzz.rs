@@ -102,6 +102,9 @@ enum Kind {
     Text,
 }
 
+/// A reader under test: the outcome of one file's bytes.
+type Reader = Box<dyn Fn(&[u8]) -> Outcome>;
+
 struct Target {
     name: &'static str,
     /// The extension of its files in `tests/corpus/`.
@@ -110,7 +113,7 @@ struct Target {
     /// Every byte is needed: a truncated file must be refused.
     whole: bool,
     seeds: Vec<(String, Vec<u8>)>,
-    read: Box<dyn Fn(&[u8]) -> Outcome>,
+    read: Reader,
 }
 
 fn hash(bytes: &[u8]) -> u64 {
