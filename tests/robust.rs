@@ -158,3 +158,17 @@ fn a_frame_range_of_billions_is_refused_before_it_is_listed() {
     assert_eq!(FrameSet::parse("1-1000000").unwrap().len(), 1_000_000);
     assert!(FrameSet::parse("-2147483648-2147483647x1000").is_err());
 }
+
+/// `tests/corpus/damaged/vdb-no-grids.vdb`: `half_none.vdb` with 27 bytes of its file
+/// metadata deleted (found by the fuzzer), so its header reads as a file without grids,
+/// which the farm check took for a complete output.
+#[test]
+fn a_vdb_whose_header_lost_its_grids_is_damaged() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fog.vdb");
+    std::fs::copy(corpus("damaged/vdb-no-grids.vdb"), &path).unwrap();
+    match file_state(&path) {
+        FileState::Damaged(why) => assert!(why.contains("no grids"), "{why}"),
+        other => panic!("{other:?}"),
+    }
+}

@@ -339,10 +339,17 @@ pub fn read_vdb_grid_from_bytes(path: &Path, bytes: &[u8], name: Option<&str>) -
 }
 
 /// Reads every grid of a VDB file in memory, float and vec3s, float or half (every grid type
-/// Fogsmith writes), to tell a whole file from a damaged one; `path` names errors. A grid of
-/// another type, or an instance, is refused as one this check cannot read.
+/// Fogsmith writes), to tell a whole file from a damaged one; `path` names errors. A file
+/// without grids, and a grid of another type or an instance, are refused.
 pub fn check_vdb_bytes(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
     let file = parse_header(path, bytes)?;
+    if file.descriptors.is_empty() {
+        return Err(ExportError::invalid(
+            path,
+            "the file holds no grids (a damaged header?); every VDB Fogsmith writes holds at least one",
+            "export it again",
+        ));
+    }
     for desc in &file.descriptors {
         let kind = value_type(&desc.tree_type).filter(|_| desc.instance_parent.is_empty()).ok_or_else(|| {
             ExportError::unsupported(
