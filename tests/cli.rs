@@ -154,13 +154,14 @@ fn errors_are_clear_and_exit_nonzero() {
                 "export".into(),
                 demo("cornell.ron").display().to_string(),
                 "--vdb".into(),
-                "/nonexistent-dir/x.vdb".into(),
+                // A folder cannot be made inside a file.
+                format!("{}/Cargo.toml/x.vdb", env!("CARGO_MANIFEST_DIR")),
                 "--width".into(),
                 "16".into(),
                 "--height".into(),
                 "16".into(),
             ],
-            "/nonexistent-dir/x.vdb",
+            "Cargo.toml/x.vdb: cannot create its folder",
         ),
     ];
     for (args, needle) in cases {

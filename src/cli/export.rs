@@ -241,6 +241,7 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
         Some(set) => frame_plans(&plan, set)?,
         None => vec![plan.clone()],
     };
+    plan.create_folders()?;
     let fps = session.project.animation.map(|a| a.fps);
     let mut bar = Bar::new(args.bake.quiet);
     let mut summaries = Vec::new();

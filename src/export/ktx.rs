@@ -42,7 +42,8 @@ pub const VK_FORMAT_R8_UNORM: u32 = 9;
 /// `VK_FORMAT_R16_SFLOAT`.
 pub const VK_FORMAT_R16_SFLOAT: u32 = 76;
 
-const IDENTIFIER: [u8; 12] = [0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A];
+/// The twelve bytes every KTX2 file starts with.
+pub(crate) const IDENTIFIER: [u8; 12] = [0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A];
 
 /// Texel format of the KTX2 export.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize, serde::Deserialize)]

@@ -25,6 +25,7 @@
 //! and [`LightInfo`].
 
 pub mod exr;
+pub mod exr_read;
 pub mod frame;
 pub mod godot;
 pub mod ktx;

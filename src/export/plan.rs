@@ -214,6 +214,18 @@ impl ExportPlan {
         out
     }
 
+    /// Creates the folders the plan's files go into, as Houdini and Blender do; the error
+    /// names the file and the folder that cannot be made.
+    pub fn create_folders(&self) -> Result<(), String> {
+        for file in self.files() {
+            if let Some(dir) = file.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir)
+                    .map_err(|e| format!("{}: cannot create its folder {}: {e}", file.display(), dir.display()))?;
+            }
+        }
+        Ok(())
+    }
+
     /// What cannot be written, in the order `fogsmith export` checks it; empty when all can.
     pub fn problems(&self) -> Vec<ExportProblem> {
         let s = &self.settings;
@@ -256,6 +268,7 @@ pub fn write_plan(
     let vdb_path = plan.vdb_path();
     let mut steps = Steps { progress, done: 0.0, total: plan.files().len().max(1) as f32 };
     let mut written = Written::default();
+    plan.create_folders().map_err(ExportRunError::Failed)?;
 
     let mut fields = Vec::new();
     if let Some(path) = &vdb_path {

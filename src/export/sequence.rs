@@ -26,6 +26,11 @@ pub struct FrameTime {
     pub fps: f32,
 }
 
+/// Most frames a [`FrameSet`] may hold: a million frames is over nine hours at 30 fps, and a
+/// range such as `1-2147483647` (a typo, or a damaged `farm.json`) is refused before its
+/// frames are listed.
+pub const MAX_FRAMES: u64 = 1_000_000;
+
 /// Frames to bake, ascending, each once.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FrameSet {
@@ -81,6 +86,12 @@ impl FrameSet {
                 )));
             }
             let step = step.unwrap_or(1);
+            let count = (last as i64 - first as i64) / step + 1;
+            if frames.len() as u64 + count as u64 > MAX_FRAMES {
+                return Err(err(format!(
+                    "--frames {trimmed:?}: {range:?} lists {count} frames, more than the {MAX_FRAMES} a sequence may have"
+                )));
+            }
             let mut f = first as i64;
             while f <= last as i64 {
                 frames.insert(f as i32);

@@ -1,5 +1,7 @@
 //! Whether an output file is complete: its checksum sidecar (`NAME.crc32`, written after the
-//! file is in place) when there is one, else the file read back by its own format.
+//! file is in place) when there is one, else the file read back by its own format, with every
+//! size its header claims checked against the file before anything is allocated: a damaged
+//! file is reported damaged (and baked again), never an abort.
 //!
 //! A farm task reruns after a failure or preemption; it must skip exactly the frames whose
 //! files are whole. Exports already move files into place only once written, so a killed task
@@ -80,22 +82,17 @@ pub fn file_state(path: &Path) -> FileState {
     }
 }
 
-/// Parses the file by its extension: every grid of a VDB, every layer of an EXR, a PNG's
-/// pixels, a USD stage's text.
+/// Parses the file by its extension: every grid of a VDB (float and vec3s, float or half),
+/// every layer of an EXR (its header's sizes checked against the file first), a KTX2's
+/// header and level index, a PNG's pixels, a USD stage's text.
 fn read_back(path: &Path, bytes: &[u8]) -> Result<(), String> {
     if bytes.is_empty() {
         return Err("the file is empty".into());
     }
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-        Some("vdb") => {
-            let grids = crate::export::vdb_read::list_vdb_grids(path).map_err(|e| e.to_string())?;
-            for g in &grids {
-                crate::export::vdb_read::read_vdb_grid_from_bytes(path, bytes, Some(&g.name))
-                    .map_err(|e| e.to_string())?;
-            }
-            Ok(())
-        }
-        Some("exr") => exr::prelude::read_all_data_from_file(path).map(drop).map_err(|e| e.to_string()),
+        Some("vdb") => crate::export::vdb_read::check_vdb_bytes(path, bytes).map_err(|e| e.to_string()),
+        Some("exr") => crate::export::exr_read::read_exr_back(bytes),
+        Some("ktx2") => check_ktx2(bytes),
         Some("png") => image::load_from_memory(bytes).map(drop).map_err(|e| e.to_string()),
         Some("usda") => match std::str::from_utf8(bytes) {
             Ok(text) if text.starts_with("#usda") && text.matches('{').count() == text.matches('}').count() => Ok(()),
@@ -103,6 +100,56 @@ fn read_back(path: &Path, bytes: &[u8]) -> Result<(), String> {
         },
         _ => Ok(()),
     }
+}
+
+/// A KTX2 file's header, descriptor ranges and level index lie within the file, and for the
+/// uncompressed formats Fogsmith writes, each level holds exactly its texels.
+fn check_ktx2(bytes: &[u8]) -> Result<(), String> {
+    use crate::export::ktx::{IDENTIFIER, VK_FORMAT_R16G16B16A16_SFLOAT, VK_FORMAT_R16_SFLOAT, VK_FORMAT_R8_UNORM};
+    const HEADER: usize = 80;
+    if bytes.len() < HEADER || bytes[..12] != IDENTIFIER {
+        return Err(format!("not a KTX2 file ({} bytes without its 80-byte header)", bytes.len()));
+    }
+    let u32_at = |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]) as u64;
+    let u64_at = |at: usize| u32_at(at) | (u32_at(at + 4) << 32);
+    let (format, width, height, depth) = (u32_at(12), u32_at(20), u32_at(24), u32_at(28));
+    let (layers, faces, levels, scheme) = (u32_at(32), u32_at(36), u32_at(40).max(1), u32_at(44));
+    let len = bytes.len() as u64;
+    let index_end = HEADER as u64 + levels * 24;
+    if index_end > len {
+        return Err(format!("its level index ({levels} levels) runs past the end of the {len}-byte file"));
+    }
+    let within = |what: &str, offset: u64, size: u64| match offset.checked_add(size) {
+        Some(end) if size == 0 || (offset >= index_end && end <= len) => Ok(()),
+        _ => Err(format!("its {what} (bytes {offset} + {size}) lies outside the {len}-byte file")),
+    };
+    within("data format descriptor", u32_at(48), u32_at(52))?;
+    within("key/value data", u32_at(56), u32_at(60))?;
+    within("supercompression data", u64_at(64), u64_at(72))?;
+    let texel = match u32::try_from(format).unwrap_or(0) {
+        VK_FORMAT_R8_UNORM => Some(1),
+        VK_FORMAT_R16_SFLOAT => Some(2),
+        VK_FORMAT_R16G16B16A16_SFLOAT => Some(8),
+        _ => None,
+    };
+    for level in 0..levels {
+        let at = HEADER + level as usize * 24;
+        let (offset, size) = (u64_at(at), u64_at(at + 8));
+        within(&format!("level {level}"), offset, size)?;
+        if let (Some(texel), 0) = (texel, scheme) {
+            let side = |n: u64| n.checked_shr(level as u32).unwrap_or(0).max(1);
+            let expected = [side(width), side(height), side(depth), layers.max(1), faces.max(1), texel]
+                .iter()
+                .try_fold(1u64, |a, &b| a.checked_mul(b));
+            if expected != Some(size) {
+                let need = expected.map_or("more than 2^64".to_string(), |n| n.to_string());
+                return Err(format!(
+                    "level {level} holds {size} bytes, its {width}×{height}×{depth} texels need {need}"
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

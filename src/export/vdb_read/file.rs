@@ -2,6 +2,7 @@
 //! transform, and the export frame the metadata names.
 
 use super::cursor::Cursor;
+use super::tree::ValueType;
 use super::VdbTransform;
 use crate::export::frame::Frame;
 use crate::export::vdb::VDB_MAGIC;
@@ -9,11 +10,19 @@ use crate::export::ExportError;
 use std::path::Path;
 
 pub(super) fn float_type(tree_type: &str) -> Option<bool> {
-    match tree_type {
-        "Tree_float_5_4_3" => Some(false),
-        "Tree_float_5_4_3_HalfFloat" => Some(true),
-        _ => None,
-    }
+    value_type(tree_type).filter(|t| t.components == 1).map(|t| t.half)
+}
+
+/// The value type of the trees this reader parses: float and vec3s, each float or half.
+pub(super) fn value_type(tree_type: &str) -> Option<ValueType> {
+    let (components, half) = match tree_type {
+        "Tree_float_5_4_3" => (1, false),
+        "Tree_float_5_4_3_HalfFloat" => (1, true),
+        "Tree_vec3s_5_4_3" => (3, false),
+        "Tree_vec3s_5_4_3_HalfFloat" => (3, true),
+        _ => return None,
+    };
+    Some(ValueType { half, components })
 }
 
 pub(super) struct Descriptor {
@@ -22,6 +31,7 @@ pub(super) struct Descriptor {
     pub(super) instance_parent: String,
     pub(super) grid_pos: usize,
     pub(super) block_pos: usize,
+    pub(super) end_pos: usize,
 }
 
 pub(super) struct FileHeader {
@@ -88,6 +98,7 @@ pub(super) fn parse_header(path: &Path, bytes: &[u8]) -> Result<FileHeader, Expo
             instance_parent,
             grid_pos: grid_pos as usize,
             block_pos: block_pos as usize,
+            end_pos: end_pos as usize,
         });
         cur.pos = end_pos as usize;
     }

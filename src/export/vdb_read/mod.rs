@@ -42,8 +42,14 @@
 //!
 //! The whole file is read into memory (bounded by its real size); every count and size read
 //! from it is checked against the bytes left before anything is allocated, decompressed blocks
-//! have a fixed expected size (at most 32768 values) and a grid may hold at most
-//! [`MAX_LEAVES`] leaves and [`MAX_TILES`] tiles. Nothing here panics on any input.
+//! have a fixed expected size (at most 32768 values of three components) and a grid may hold
+//! at most [`MAX_LEAVES`] leaves and [`MAX_TILES`] tiles, so that memory stays within a small
+//! multiple of the file's size and those limits. Each grid's topology must end where its
+//! descriptor puts its values and its values where it puts its end (OpenVDB's own check), and
+//! its tree must match the voxel count and bounds its metadata records: a damaged count is
+//! refused rather than read as a different volume. Nothing here panics on any input.
+//!
+//! [`check_vdb_bytes`] reads every grid, vec3s ones included, for the farm's completeness check.
 //!
 //! # Parts
 //!
@@ -63,10 +69,10 @@ use super::frame::Frame;
 use super::ExportError;
 use crate::scene::{GridSpec, Volume};
 use cursor::{checked_pos, Cursor};
-use file::{float_type, parse_header};
+use file::{float_type, parse_header, value_type};
 use std::collections::HashMap;
 use std::path::Path;
-use tree::read_grid;
+use tree::{read_grid, ValueType};
 
 /// Most leaves (8³ voxels) one imported grid may have: 2¹⁹ leaves = 268 M voxels (1 GiB).
 pub const MAX_LEAVES: usize = 1 << 19;
@@ -329,5 +335,31 @@ pub fn read_vdb_grid_from_bytes(path: &Path, bytes: &[u8], name: Option<&str>) -
     })?;
     let mut cur = Cursor { path, bytes, pos: desc.grid_pos, version: file.version, grid: desc.name.clone() };
     cur.pos = checked_pos(&cur, desc.grid_pos)?;
-    read_grid(&mut cur, desc, half)
+    read_grid(&mut cur, desc, ValueType { half, components: 1 })
+}
+
+/// Reads every grid of a VDB file in memory, float and vec3s, float or half (every grid type
+/// Fogsmith writes), to tell a whole file from a damaged one; `path` names errors. A file
+/// without grids, and a grid of another type or an instance, are refused.
+pub fn check_vdb_bytes(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
+    let file = parse_header(path, bytes)?;
+    if file.descriptors.is_empty() {
+        return Err(ExportError::invalid(
+            path,
+            "the file holds no grids (a damaged header?); every VDB Fogsmith writes holds at least one",
+            "export it again",
+        ));
+    }
+    for desc in &file.descriptors {
+        let kind = value_type(&desc.tree_type).filter(|_| desc.instance_parent.is_empty()).ok_or_else(|| {
+            ExportError::unsupported(
+                path,
+                format!("grid {:?} has type {}, which this check does not read", desc.name, desc.tree_type),
+                "check the file with OpenVDB's vdb_print",
+            )
+        })?;
+        let mut cur = Cursor { path, bytes, pos: desc.grid_pos, version: file.version, grid: desc.name.clone() };
+        read_grid(&mut cur, desc, kind)?;
+    }
+    Ok(())
 }

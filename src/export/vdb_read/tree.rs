@@ -1,16 +1,21 @@
 //! A grid's tree: the root's tiles and children, the internal nodes' masks and tiles, and the
-//! leaves' values (float or half, through `compression`), each size checked against the bytes
-//! left and the grid's limits ([`MAX_LEAVES`](super::MAX_LEAVES), [`MAX_TILES`](super::MAX_TILES)).
+//! leaves' values (float or half, one or three components, through `compression`), each size
+//! checked against the bytes left and the grid's limits ([`MAX_LEAVES`](super::MAX_LEAVES),
+//! [`MAX_TILES`](super::MAX_TILES)). The topology must end where the grid's descriptor puts
+//! its values, the values where it puts the grid's end, and the tree must match the voxel
+//! count and bounds its metadata records: otherwise a damaged count would be read as a
+//! different volume.
 
 use super::compression::read_data;
-use super::cursor::{checked_pos, Cursor};
+use super::cursor::Cursor;
 use super::file::{frame_of, read_transform, skip_metadata, Descriptor};
 use super::{Leaf, VdbFloatGrid, MAX_LEAVES, MAX_TILES};
 use crate::export::vdb::{COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP};
 use crate::export::ExportError;
 use std::collections::HashMap;
 
-pub(super) fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Result<VdbFloatGrid, ExportError> {
+pub(super) fn read_grid(cur: &mut Cursor, desc: &Descriptor, kind: ValueType) -> Result<VdbFloatGrid, ExportError> {
+    let half = kind.half;
     let compression = cur.u32("the compression flags")?;
     if compression & !(COMPRESS_ZIP | COMPRESS_ACTIVE_MASK | COMPRESS_BLOSC) != 0 {
         return Err(cur.corrupt(format!("unknown compression flags {compression:#x}")));
@@ -23,13 +28,13 @@ pub(super) fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Resu
     if buffer_count != 1 {
         return Err(cur.corrupt(format!("buffer count {buffer_count}, expected 1")));
     }
-    let background = cur.f32("the background value")?;
-    let num_tiles = cur.count(17, "the root tile count")?;
+    let background = read_value(cur, kind.components, "the background value")?;
+    let num_tiles = cur.count(13 + 4 * kind.components, "the root tile count")?;
     let num_children = cur.u32("the root child count")? as usize;
     let mut tiles = HashMap::new();
     for _ in 0..num_tiles {
         let origin = [cur.i32("a root tile")?, cur.i32("a root tile")?, cur.i32("a root tile")?];
-        let value = cur.f32("a root tile value")?;
+        let value = read_value(cur, kind.components, "a root tile value")?;
         let active = cur.u8("a root tile state")? != 0;
         if origin.iter().any(|c| c & 4095 != 0) {
             return Err(cur.corrupt(format!("root tile origin {origin:?} is not a multiple of 4096")));
@@ -42,7 +47,7 @@ pub(super) fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Resu
     if num_children.saturating_mul(12 + 8192) > cur.remaining() {
         return Err(cur.corrupt(format!("the root child count is {num_children}, more than the file can hold")));
     }
-    let ctx = Ctx { compression, half, background };
+    let ctx = Ctx { compression, half, components: kind.components, background };
     // Leaf origins in file order, with their topology masks.
     let mut leaf_order: Vec<[i32; 3]> = Vec::new();
     for _ in 0..num_children {
@@ -54,8 +59,14 @@ pub(super) fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Resu
         read_internal(cur, &ctx, origin, 5, &mut tiles, &mut leaf_order)?;
     }
 
-    // Buffers.
-    cur.pos = checked_pos(cur, desc.block_pos)?;
+    // The topology ends where the descriptor says the buffers begin, as OpenVDB checks: a
+    // count or mask changed in the file reads past it or stops short.
+    if cur.pos != desc.block_pos {
+        return Err(cur.corrupt(format!(
+            "the tree's topology ends at byte {}, but the grid's descriptor puts its values at byte {}",
+            cur.pos, desc.block_pos
+        )));
+    }
     let mut leaves = HashMap::with_capacity(leaf_order.len());
     let mut values = vec![0.0f32; 512];
     for origin in leaf_order {
@@ -67,13 +78,67 @@ pub(super) fn read_grid(cur: &mut Cursor, desc: &Descriptor, half: bool) -> Resu
         boxed.copy_from_slice(&values);
         leaves.insert(origin, Leaf { mask, values: boxed });
     }
+    if cur.pos != desc.end_pos {
+        return Err(cur.corrupt(format!(
+            "the grid's values end at byte {}, but its descriptor puts its end at byte {}",
+            cur.pos, desc.end_pos
+        )));
+    }
     let frame = frame_of(&metadata);
-    Ok(VdbFloatGrid { name: desc.name.clone(), background, transform, half, metadata, frame, leaves, tiles })
+    let grid = VdbFloatGrid { name: desc.name.clone(), background, transform, half, metadata, frame, leaves, tiles };
+    check_statistics(cur, &grid)?;
+    Ok(grid)
+}
+
+/// What kind of values a tree holds: float or half in the file, 1 (float) or 3 (vec3s)
+/// components. A vec3s grid is read for its structure; its first component stands for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct ValueType {
+    pub(super) half: bool,
+    pub(super) components: usize,
+}
+
+/// One value at full precision (backgrounds, tiles and inactive values are never half).
+fn read_value(cur: &mut Cursor, components: usize, what: &str) -> Result<f32, ExportError> {
+    let first = cur.f32(what)?;
+    for _ in 1..components {
+        cur.f32(what)?;
+    }
+    Ok(first)
+}
+
+/// The voxel count and bounds that OpenVDB (and our writer) record in a grid's metadata
+/// (`file_voxel_count`, `file_bbox_min`, `file_bbox_max`) match the tree read: a changed mask
+/// or value in the file's topology shows as a different count.
+fn check_statistics(cur: &Cursor, grid: &VdbFloatGrid) -> Result<(), ExportError> {
+    let get =
+        |name: &str, ty: &str| grid.metadata.iter().find(|(n, t, _)| n == name && t == ty).map(|m| m.2.as_slice());
+    if let Some(count) = get("file_voxel_count", "int64").and_then(|v| <[u8; 8]>::try_from(v).ok()) {
+        let (recorded, read) = (i64::from_le_bytes(count), grid.active_voxel_count());
+        if recorded >= 0 && recorded as u64 != read {
+            return Err(cur.corrupt(format!("the tree holds {read} active voxels, its metadata records {recorded}")));
+        }
+    }
+    let vec3i = |name: &str| {
+        get(name, "vec3i")
+            .filter(|v| v.len() == 12)
+            .map(|v| [0, 1, 2].map(|c| i32::from_le_bytes([v[4 * c], v[4 * c + 1], v[4 * c + 2], v[4 * c + 3]])))
+    };
+    if let (Some(lo), Some(hi), Some(bbox)) = (vec3i("file_bbox_min"), vec3i("file_bbox_max"), grid.active_bbox()) {
+        if (lo, hi) != bbox {
+            return Err(cur.corrupt(format!(
+                "the tree's active voxels span {:?} to {:?}, its metadata records {lo:?} to {hi:?}",
+                bbox.0, bbox.1
+            )));
+        }
+    }
+    Ok(())
 }
 
 struct Ctx {
     compression: u32,
     half: bool,
+    components: usize,
     background: f32,
 }
 
@@ -161,9 +226,9 @@ fn read_values(cur: &mut Cursor, ctx: &Ctx, dest: &mut [f32], value_mask: &[u64]
     let mut inactive0 = if meta == 1 { -bg } else { bg };
     let mut inactive1 = bg;
     if meta == 2 || meta == 4 || meta == 5 {
-        inactive0 = cur.f32("an inactive value")?;
+        inactive0 = read_value(cur, ctx.components, "an inactive value")?;
         if meta == 5 {
-            inactive1 = cur.f32("an inactive value")?;
+            inactive1 = read_value(cur, ctx.components, "an inactive value")?;
         }
     }
     let selection =
@@ -171,16 +236,17 @@ fn read_values(cur: &mut Cursor, ctx: &Ctx, dest: &mut [f32], value_mask: &[u64]
     let mask_compressed = ctx.compression & COMPRESS_ACTIVE_MASK != 0 && meta != 6;
     let count = if mask_compressed { value_mask.iter().map(|w| w.count_ones() as usize).sum() } else { dest.len() };
     let mut temp = vec![0.0f32; count];
+    let n = ctx.components;
     if ctx.half {
         if count > 0 {
-            let raw = read_data(cur, ctx.compression, count * 2)?;
-            for (t, c) in temp.iter_mut().zip(raw.chunks_exact(2)) {
+            let raw = read_data(cur, ctx.compression, count * n * 2)?;
+            for (t, c) in temp.iter_mut().zip(raw.chunks_exact(2 * n)) {
                 *t = half::f16::from_le_bytes([c[0], c[1]]).to_f32();
             }
         }
     } else {
-        let raw = read_data(cur, ctx.compression, count * 4)?;
-        for (t, c) in temp.iter_mut().zip(raw.chunks_exact(4)) {
+        let raw = read_data(cur, ctx.compression, count * n * 4)?;
+        for (t, c) in temp.iter_mut().zip(raw.chunks_exact(4 * n)) {
             *t = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
         }
     }
