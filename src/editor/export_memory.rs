@@ -3,7 +3,7 @@
 //! the session. A file that cannot be read is ignored with a note and replaced at the next
 //! export.
 
-use super::export::ExportChoices;
+use super::export_choices::ExportChoices;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -98,7 +98,7 @@ fn canonical(path: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::editor::export::ExportFormat;
+    use crate::editor::export_choices::ExportFormat;
 
     fn ktx2() -> ExportChoices {
         ExportChoices { format: ExportFormat::Ktx2, ..ExportChoices::default() }
