@@ -141,7 +141,7 @@ impl EditorApp {
             built_in_explained: false,
             base_loaded: None,
             import: None,
-            export: super::export_choices::ExportUi::new(state_dir),
+            export: super::export_memory::ExportUi::new(state_dir),
             last_command: None,
             dock_commands: Vec::new(),
             timeline: super::playback::TimelineState {

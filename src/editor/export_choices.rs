@@ -1,10 +1,8 @@
 //! The export choices: the format, its options, the frames and the destination that File →
 //! Export… picks, what plan they make for [`crate::export::write_plan`] and what stops them
-//! being written; and the Export window's state (open or not, remembered choices). Plain
-//! data, read by the window (`export`), the jobs and the remembered choices
-//! (`export_memory`).
+//! being written. Plain data, read by the window (`export`), the jobs and the remembered
+//! choices (`export_memory`).
 
-use super::export_memory::ExportMemory;
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use crate::export::ktx::Ktx2Format;
 use crate::export::plan::{ExportPlan, ExportProblem, ExportSettings};
@@ -228,18 +226,6 @@ fn problem_text(problem: &ExportProblem) -> String {
             "The USD stage's volume is the density grid: tick “density grid” under Grids.".into()
         }
         ExportProblem::Threshold(t) => format!("The threshold must be a finite number ≥ 0, got {t}."),
-    }
-}
-
-/// The Export window while open, and the remembered choices.
-pub(crate) struct ExportUi {
-    pub window: Option<ExportChoices>,
-    pub memory: ExportMemory,
-}
-
-impl ExportUi {
-    pub fn new(state_dir: PathBuf) -> Self {
-        Self { window: None, memory: ExportMemory::new(state_dir) }
     }
 }
 

@@ -235,7 +235,7 @@ pub(super) fn gizmo_overlay(state: &EditorState, painter: &egui::Painter, rect: 
     let Some(g) = shown_gizmo(state, &vp) else { return };
     let (active, drag) = match &state.view.gesture {
         Some(Gesture::Gizmo { handle, applied, snap, .. }) => (Some(*handle), Some((*applied, *snap))),
-        None => (pointer.filter(|p| rect.contains(*p)).and_then(|p| g.pick(&vp, p)), None),
+        None => (pointer.filter(|p| rect.contains(*p)).and_then(|p| g.handle_at(p)), None),
         _ => (None, None),
     };
     let colour = |a: usize, lit: bool| {
@@ -265,14 +265,14 @@ pub(super) fn gizmo_overlay(state: &EditorState, painter: &egui::Painter, rect: 
         }
     }
     for n in 0..3 {
-        let Some(q) = g.square(&vp, n) else { continue };
+        let Some(q) = g.square(n) else { continue };
         let lit = active == Some(Handle::Plane(n));
         let c = colour(n, lit);
         let fill = Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), if lit { 150 } else { 70 });
         painter.add(egui::Shape::convex_polygon(q.to_vec(), fill, Line::new(1.0, c)));
     }
     for a in 0..3 {
-        let Some((from, tip)) = g.arrow(&vp, a) else { continue };
+        let Some((from, tip)) = g.arrow(a) else { continue };
         let lit = active == Some(Handle::Axis(a));
         let c = colour(a, lit);
         let dir = (tip - from).normalized();

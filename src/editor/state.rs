@@ -5,7 +5,8 @@
 //! each an `impl EditorState` that imports this module and not the app.
 
 use super::commands::Command;
-use super::export_choices::{ExportChoices, ExportUi};
+use super::export_choices::ExportChoices;
+use super::export_memory::ExportUi;
 use super::files::{DialogSpec, FileDialogs};
 use super::session::{Session, Version};
 use super::slices::{Slice, SliceSettings};

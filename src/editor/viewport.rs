@@ -393,7 +393,7 @@ impl Wheel {
 
 fn wheel_scale(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, scroll: f32, density: bool, now: f64) {
     let targets = if state.session.selection.particles.is_empty() {
-        tools::under_brush(state.session.project(), vp, pos, state.view.brush.radius)
+        view::under_brush(state.session.project(), vp, pos, state.view.brush.radius)
     } else {
         state.session.selection.particles.clone()
     };
@@ -433,7 +433,7 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
     }
     // A press on a handle of the move gizmo drags the selection along its axis or plane.
     if let Some(g) = shown_gizmo(state, vp) {
-        if let Some((handle, grab)) = g.pick(vp, pos).and_then(|h| Some((h, gizmo::drag_point(h, g.center, vp, pos)?)))
+        if let Some((handle, grab)) = g.handle_at(pos).and_then(|h| Some((h, gizmo::drag_point(h, g.center, vp, pos)?)))
         {
             let tag = state.session.new_tag();
             state.view.gesture =
@@ -445,7 +445,7 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
     let index = if state.view.tool == Tool::Select { state.particle_index() } else { None };
     let project = state.session.project();
     state.view.gesture = match state.view.tool {
-        Tool::Select => match tools::pick_with(project, index.as_deref(), vp, pos) {
+        Tool::Select => match view::pick_with(project, index.as_deref(), vp, pos) {
             Some(hit) => {
                 let selected = match hit {
                     Hit::Particle(i) => state.session.selection.particles.contains(&i),
@@ -481,7 +481,7 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
         }
         Tool::Scale => {
             let targets = if state.session.selection.particles.is_empty() {
-                tools::under_brush(project, vp, pos, state.view.brush.radius)
+                view::under_brush(project, vp, pos, state.view.brush.radius)
             } else {
                 state.session.selection.particles.clone()
             };
@@ -490,7 +490,7 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
         Tool::Light => {
             // Press on a light: drag it. Press on empty space: add a light there (a drag
             // then places it).
-            let hit = tools::pick(project, vp, pos);
+            let hit = view::pick(project, vp, pos);
             let point = tools::working_plane_point(project, vp, pos);
             let tag = state.session.new_tag();
             let light = match hit {
@@ -624,7 +624,7 @@ fn finish_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Option<Pos2
         let r = Rect::from_two_pos(*start, end);
         if r.area() > 4.0 {
             let index = state.particle_index();
-            let (particles, lights) = tools::box_select_with(state.session.project(), index.as_deref(), vp, r);
+            let (particles, lights) = view::box_select_with(state.session.project(), index.as_deref(), vp, r);
             if !(modifiers.shift || modifiers.command) {
                 state.session.selection.clear();
             }
