@@ -5,12 +5,12 @@
 //! An animated project exports the frame on show or a range of frames, each frame's file
 //! named by a frame pattern (`fog.####.vdb`) as `fogsmith export --frames` names them.
 
-use super::export_choices::{sequence_plans, ExportChoices, ExportFormat, FrameRange, ImageFormat};
+use super::export_choices::{ExportChoices, ExportFormat, FrameRange, ImageFormat};
 use super::files::DialogSpec;
 use super::state::{EditorState, Pick};
 use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use crate::export::ktx::Ktx2Format;
-use crate::export::plan::ExportPlan;
+use crate::export::sequence::suggest_pattern;
 use crate::export::vdb::VdbCompression;
 use crate::gpu::BakePhase;
 use egui::Context;

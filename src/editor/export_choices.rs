@@ -3,16 +3,12 @@
 //! being written. Plain data, read by the window (`export`), the jobs and the remembered
 //! choices (`export_memory`).
 
-use crate::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
-use crate::export::ktx::Ktx2Format;
+use crate::export::frame::Preset;
 use crate::export::plan::{ExportPlan, ExportProblem, ExportSettings};
 use crate::export::sequence::{suggest_pattern, FramePattern};
-use crate::export::vdb::VdbCompression;
-use crate::gpu::BakePhase;
 use crate::scene::Project;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-
 
 /// What the Export window writes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -128,8 +128,11 @@ impl History {
     /// The step Undo restores, taken off the history; the state it replaces goes to
     /// [`Self::undone`].
     pub fn pop_undo(&mut self) -> Option<Snapshot> {
-        self.open_tag = None;
-        self.undo.pop()
+        let step = self.undo.pop();
+        if step.is_some() {
+            self.open_tag = None;
+        }
+        step
     }
 
     /// The state an undo replaced: Redo brings it back.
@@ -140,8 +143,11 @@ impl History {
     /// The step Redo restores, taken off the history; the state it replaces goes to
     /// [`Self::redone`].
     pub fn pop_redo(&mut self) -> Option<Snapshot> {
-        self.open_tag = None;
-        self.redo.pop()
+        let step = self.redo.pop();
+        if step.is_some() {
+            self.open_tag = None;
+        }
+        step
     }
 
     /// The state a redo replaced: Undo takes it back again.
@@ -166,7 +172,6 @@ impl History {
         })
     }
 }
-
 
 /// Replace `len` particles at `at` of the later state by `old` to get the earlier one.
 #[derive(Clone, Debug, PartialEq)]

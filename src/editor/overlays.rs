@@ -3,10 +3,10 @@
 //! animated particles and lights. They read the editor's state and change nothing.
 
 use super::gizmo::{self, Gizmo, Handle};
-use super::state::EditorState;
+use super::state::{EditorState, Gesture};
 use super::timeline::MOTION_PATH;
 use super::tools::{self, Tool};
-use super::view::{self, ViewProjection};
+use super::view::ViewProjection;
 use egui::{Color32, Pos2, Rect, Stroke as Line};
 use glam::Vec3;
 

@@ -122,7 +122,7 @@ pub struct ScrubBar {
 }
 
 impl ScrubBar {
-    const MARGIN: f32 = 10.0;
+    pub(super) const MARGIN: f32 = 10.0;
 
     /// The x of `frame`'s tick.
     pub fn x_of(&self, frame: i32) -> f32 {
@@ -169,6 +169,7 @@ impl TimelineState {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use egui::{Pos2, Vec2};
 
     const A: Animation = Animation { fps: 24.0, start: 1, end: 10 };
 

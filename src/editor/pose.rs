@@ -245,7 +245,7 @@ mod tests {
 
     impl Session {
         fn value_now(&self, c: Channel) -> Option<KeyValue> {
-            self.project.value_of(c)
+            self.project().value_of(c)
         }
     }
 

@@ -6,14 +6,11 @@
 //! follows any edit.
 
 use super::commands::Command;
+use super::playback::{frames_skipped, next_frame, step_frame, KeyDrag, RealTimeClock};
 pub use super::playback::{PlayMode, ScrubBar};
-use super::playback::{next_frame, step_frame, KeyDrag, RealTimeClock};
-use super::session::EditTag;
 use super::state::EditorState;
 use crate::scene::animation::{Animation, Interp, Object};
-use egui::{Color32, DragValue, Pos2, Rect, Sense, Stroke, Ui, Vec2};
-use serde::{Deserialize, Serialize};
-use std::collections::VecDeque;
+use egui::{Color32, DragValue, Pos2, Sense, Stroke, Ui, Vec2};
 
 impl EditorState {
     /// Shows `frame`, saying which unkeyed edits that dropped.

@@ -3,13 +3,12 @@
 //! too for the tools' callers.
 //! Pure functions of the project and the view, so tests can check them without a window.
 
-pub use super::view::{box_select, box_select_with, pick, pick_with, under_brush, Hit, LIGHT_PICK_RADIUS};
 use super::view::ViewProjection;
+pub use super::view::{box_select, box_select_with, pick, pick_with, under_brush, Hit, LIGHT_PICK_RADIUS};
 use crate::scene::{Particle, Project};
-use egui::{Pos2, Rect};
+use egui::Pos2;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeSet;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Tool {

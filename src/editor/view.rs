@@ -4,7 +4,7 @@
 //! bins of `pick_index` in large scenes, with the same answer), and the orbit / pan / zoom
 //! camera moves that change it.
 
-use super::pick_index::{ParticleIndex, SLACK};
+use super::pick_index::{Bin, ParticleIndex, SLACK};
 use crate::scene::{Camera, GridSpec, Particle, Project};
 use egui::{Pos2, Rect};
 use glam::Vec3;

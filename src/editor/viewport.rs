@@ -6,11 +6,10 @@ use super::commands::Command;
 use super::gizmo;
 use super::overlays::{self, shown_gizmo, AIM_HANDLE_RADIUS};
 use super::state::{EditorState, Gesture};
-use super::timeline::MOTION_PATH;
 use super::tools::{self, Hit, Stroke, Tool};
 use super::view::{self, ViewProjection};
 use crate::scene::FitKeep;
-use egui::{Color32, Pos2, Rect, Sense, Stroke as Line, Ui};
+use egui::{Color32, Pos2, Rect, Sense, Ui};
 use glam::Vec3;
 
 pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
