@@ -16,7 +16,7 @@ use egui_dock::{DockArea, DockState};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-pub use super::export::{ExportChoices, ExportFormat, ImageFormat};
+pub use super::export_choices::{ExportChoices, ExportFormat, ImageFormat};
 pub use super::preview::{PreviewStatus, FRAME_BUDGET_MS};
 pub use super::state::{Action, EditorState, PreviewScale, Quality};
 
@@ -66,7 +66,7 @@ struct Persisted {
     /// existed get it under the viewport).
     timeline_added: bool,
     looping: Option<bool>,
-    play_mode: super::timeline::PlayMode,
+    play_mode: super::playback::PlayMode,
 }
 
 const STORAGE_KEY: &str = "fogsmith-editor";
@@ -141,13 +141,13 @@ impl EditorApp {
             built_in_explained: false,
             base_loaded: None,
             import: None,
-            export: super::export::ExportUi::new(state_dir),
+            export: super::export_memory::ExportUi::new(state_dir),
             last_command: None,
             dock_commands: Vec::new(),
-            timeline: super::timeline::TimelineState {
+            timeline: super::playback::TimelineState {
                 looping: persisted.looping.unwrap_or(true),
                 mode: persisted.play_mode,
-                ..super::timeline::TimelineState::new()
+                ..super::playback::TimelineState::new()
             },
             still: None,
         };
@@ -297,14 +297,14 @@ impl EditorApp {
         &self.state.title
     }
     /// Where the Timeline's scrub bar was drawn last, to point at frames and key markers.
-    pub fn scrub_bar(&self) -> Option<super::timeline::ScrubBar> {
+    pub fn scrub_bar(&self) -> Option<super::playback::ScrubBar> {
         self.state.timeline.bar
     }
     /// Whether playback is running.
     pub fn playing(&self) -> bool {
         self.state.timeline.playing.is_some()
     }
-    pub fn set_play_mode(&mut self, mode: super::timeline::PlayMode) {
+    pub fn set_play_mode(&mut self, mode: super::playback::PlayMode) {
         self.state.timeline.mode = mode;
     }
     pub fn set_looping(&mut self, looping: bool) {

@@ -155,7 +155,7 @@ impl EditorState {
             Command::AutoKey => self.session.auto_key = !self.session.auto_key,
             Command::LoopPlayback => self.timeline.looping = !self.timeline.looping,
             Command::PlayEveryFrame => {
-                use super::timeline::PlayMode;
+                use super::playback::PlayMode;
                 self.timeline.mode = match self.timeline.mode {
                     PlayMode::RealTime => PlayMode::EveryFrame,
                     PlayMode::EveryFrame => PlayMode::RealTime,

@@ -1,9 +1,9 @@
 //! The Export window's last choices per project, in one small RON file in the editor's state
 //! directory, keyed by the project file's canonical path; an unsaved project's choices last for
 //! the session. A file that cannot be read is ignored with a note and replaced at the next
-//! export.
+//! export. With them, the Export window's state: open on some choices or closed.
 
-use super::export::ExportChoices;
+use super::export_choices::ExportChoices;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -95,10 +95,22 @@ fn canonical(path: &Path) -> PathBuf {
     std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
 }
 
+/// The Export window while open, and the remembered choices.
+pub(crate) struct ExportUi {
+    pub window: Option<ExportChoices>,
+    pub memory: ExportMemory,
+}
+
+impl ExportUi {
+    pub fn new(state_dir: PathBuf) -> Self {
+        Self { window: None, memory: ExportMemory::new(state_dir) }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::editor::export::ExportFormat;
+    use crate::editor::export_choices::ExportFormat;
 
     fn ktx2() -> ExportChoices {
         ExportChoices { format: ExportFormat::Ktx2, ..ExportChoices::default() }

@@ -1,7 +1,8 @@
 //! The move gizmo at the selection's centre: three axis arrows (x red, y green, z blue, the
 //! slice plane's colours) and three plane squares, drawn at a constant size on screen.
-//! Picking a handle, and turning the pointer into a displacement along its axis (the point of
-//! the axis nearest the pointer's ray) or in its plane (where the ray meets the plane).
+//! Its handles' places on screen (laid out once per view), picking one, and turning the
+//! pointer into a displacement along its axis (the point of the axis nearest the pointer's
+//! ray) or in its plane (where the ray meets the plane).
 //! Pure geometry, so tests can check it without a window.
 
 use super::view::ViewProjection;
@@ -39,53 +40,63 @@ impl Handle {
     }
 }
 
-/// The gizmo at `center` as seen through a view.
+/// The gizmo at `center` as seen through a view, with its handles laid out on screen.
 #[derive(Clone, Copy, Debug)]
 pub struct Gizmo {
     pub center: Vec3,
     /// The arrows' length in metres: [`ARROW_POINTS`] on screen at the centre's depth.
     pub length: f32,
     pub screen: Pos2,
+    arrows: [Option<(Pos2, Pos2)>; 3],
+    squares: [Option<[Pos2; 4]>; 3],
 }
 
 impl Gizmo {
     /// None when the centre is behind the camera.
     pub fn new(center: Vec3, vp: &ViewProjection) -> Option<Self> {
         let (screen, z) = vp.project(center)?;
-        Some(Self { center, length: ARROW_POINTS / vp.points_per_metre(z), screen })
+        let length = ARROW_POINTS / vp.points_per_metre(z);
+        let arrow = |a: usize| {
+            let (tip, _) = vp.project(center + Vec3::AXES[a] * length)?;
+            (tip.distance(screen) >= MIN_SCREEN).then_some((screen, tip))
+        };
+        let square = |n: usize| {
+            let (u, v) = (Vec3::AXES[(n + 1) % 3] * length, Vec3::AXES[(n + 2) % 3] * length);
+            let (a, b) = PLANE_SPAN;
+            let corners = [u * a + v * a, u * b + v * a, u * b + v * b, u * a + v * b];
+            let mut out = [Pos2::ZERO; 4];
+            for (o, c) in out.iter_mut().zip(corners) {
+                *o = vp.project(center + c)?.0;
+            }
+            let area =
+                0.5 * ((out[2] - out[0]).x * (out[3] - out[1]).y - (out[2] - out[0]).y * (out[3] - out[1]).x).abs();
+            (area >= MIN_SCREEN * MIN_SCREEN * 0.25).then_some(out)
+        };
+        Some(Self { center, length, screen, arrows: [0, 1, 2].map(arrow), squares: [0, 1, 2].map(square) })
     }
 
     /// The arrow of axis `a` on screen (from the centre to its tip), if it is long enough
     /// to pick.
-    pub fn arrow(&self, vp: &ViewProjection, a: usize) -> Option<(Pos2, Pos2)> {
-        let (tip, _) = vp.project(self.center + Vec3::AXES[a] * self.length)?;
-        (tip.distance(self.screen) >= MIN_SCREEN).then_some((self.screen, tip))
+    pub fn arrow(&self, a: usize) -> Option<(Pos2, Pos2)> {
+        self.arrows[a]
     }
 
     /// The square of the plane with normal `n` on screen, if it is not seen edge-on.
-    pub fn square(&self, vp: &ViewProjection, n: usize) -> Option<[Pos2; 4]> {
-        let (u, v) = (Vec3::AXES[(n + 1) % 3] * self.length, Vec3::AXES[(n + 2) % 3] * self.length);
-        let (a, b) = PLANE_SPAN;
-        let corners = [u * a + v * a, u * b + v * a, u * b + v * b, u * a + v * b];
-        let mut out = [Pos2::ZERO; 4];
-        for (o, c) in out.iter_mut().zip(corners) {
-            *o = vp.project(self.center + c)?.0;
-        }
-        let area = 0.5 * ((out[2] - out[0]).x * (out[3] - out[1]).y - (out[2] - out[0]).y * (out[3] - out[1]).x).abs();
-        (area >= MIN_SCREEN * MIN_SCREEN * 0.25).then_some(out)
+    pub fn square(&self, n: usize) -> Option<[Pos2; 4]> {
+        self.squares[n]
     }
 
     /// The handle under `pos`: a plane square containing it, else the nearest arrow within
     /// [`PICK_POINTS`] (past the squares' inner corner, so the centre stays free).
-    pub fn pick(&self, vp: &ViewProjection, pos: Pos2) -> Option<Handle> {
+    pub fn handle_at(&self, pos: Pos2) -> Option<Handle> {
         for n in 0..3 {
-            if self.square(vp, n).is_some_and(|q| inside_convex(&q, pos)) {
+            if self.square(n).is_some_and(|q| inside_convex(&q, pos)) {
                 return Some(Handle::Plane(n));
             }
         }
         let mut best: Option<(f32, Handle)> = None;
         for a in 0..3 {
-            let Some((from, tip)) = self.arrow(vp, a) else { continue };
+            let Some((from, tip)) = self.arrow(a) else { continue };
             let d = distance_to_segment(pos, from + (tip - from) * 0.15, tip + (tip - from).normalized() * 6.0);
             if d <= PICK_POINTS && best.is_none_or(|(bd, _)| d < bd) {
                 best = Some((d, Handle::Axis(a)));
@@ -177,14 +188,14 @@ mod tests {
     fn arrows_pick_and_drag_along_their_axis_only() {
         let vp = front_view();
         let g = Gizmo::new(Vec3::ZERO, &vp).unwrap();
-        let (_, tip) = g.arrow(&vp, 0).unwrap();
+        let (_, tip) = g.arrow(0).unwrap();
         assert!((tip.x - g.screen.x - ARROW_POINTS).abs() < 1e-3 && (tip.y - g.screen.y).abs() < 1e-3, "{tip:?}");
-        assert!(g.arrow(&vp, 2).is_none(), "the z arrow points at the viewer");
+        assert!(g.arrow(2).is_none(), "the z arrow points at the viewer");
         let grab_pos = g.screen + egui::vec2(60.0, 3.0);
-        assert_eq!(g.pick(&vp, grab_pos), Some(Handle::Axis(0)));
-        assert_eq!(g.pick(&vp, g.screen + egui::vec2(3.0, -60.0)), Some(Handle::Axis(1)));
-        assert_eq!(g.pick(&vp, g.screen + egui::vec2(30.0, -30.0)), Some(Handle::Plane(2)));
-        assert_eq!(g.pick(&vp, g.screen + egui::vec2(60.0, 40.0)), None);
+        assert_eq!(g.handle_at(grab_pos), Some(Handle::Axis(0)));
+        assert_eq!(g.handle_at(g.screen + egui::vec2(3.0, -60.0)), Some(Handle::Axis(1)));
+        assert_eq!(g.handle_at(g.screen + egui::vec2(30.0, -30.0)), Some(Handle::Plane(2)));
+        assert_eq!(g.handle_at(g.screen + egui::vec2(60.0, 40.0)), None);
         let grab = drag_point(Handle::Axis(0), g.center, &vp, g.screen + egui::vec2(60.0, 0.0)).unwrap();
         let to = drag_point(Handle::Axis(0), g.center, &vp, g.screen + egui::vec2(140.0, 0.0)).unwrap();
         let d = displacement(Handle::Axis(0), grab, to, None);

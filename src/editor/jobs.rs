@@ -3,7 +3,7 @@
 //! size, written beside the target, moved onto it unless cancelled) and exact optical depths
 //! for the slice views.
 
-use super::export::ExportChoices;
+use super::export_choices::ExportChoices;
 use super::files::FileDialogs;
 use super::state::{EditorState, ExactKey, ExportJob, JobResult};
 use crate::export::plan::{write_plan, ExportInputs, ExportPlan, ExportRunError, Written};
@@ -163,7 +163,7 @@ impl EditorState {
     fn export_sequence(&mut self, ctx: GpuContext, plan: ExportPlan, path: PathBuf, frames: Vec<i32>) {
         let project = self.session.project().clone();
         let project_path = self.session.path().map(Path::to_owned);
-        let plans = super::export::sequence_plans(&plan, &frames);
+        let plans = super::export_choices::sequence_plans(&plan, &frames);
         let job = ExportJob {
             path: path.clone(),
             fraction: Arc::new(AtomicU32::new(0)),

@@ -69,7 +69,7 @@ impl EditorState {
         let toggles = [
             (Command::AutoKey, self.session.auto_key),
             (Command::LoopPlayback, self.timeline.looping),
-            (Command::PlayEveryFrame, self.timeline.mode == super::timeline::PlayMode::EveryFrame),
+            (Command::PlayEveryFrame, self.timeline.mode == super::playback::PlayMode::EveryFrame),
         ];
         for (command, on) in toggles {
             if command.menu_checkbox(ui, on) {

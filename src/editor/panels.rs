@@ -99,18 +99,9 @@ fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
             .on_hover_text("Visible: untick to hide (kept in the file, contributes nothing)")
             .changed()
         {
-            let p = state.session.edit(NEW_STEP);
             match hit {
-                Hit::Particle(i) => {
-                    if let Some(q) = p.particles.get_mut(i) {
-                        q.hidden = !visible;
-                    }
-                }
-                Hit::Light(i) => {
-                    if let Some(l) = p.lights.get_mut(i) {
-                        l.hidden = !visible;
-                    }
-                }
+                Hit::Particle(i) => state.session.edit_particle(NEW_STEP, i, |q| q.hidden = !visible),
+                Hit::Light(i) => state.session.edit_light(NEW_STEP, i, |l| l.hidden = !visible),
             }
         }
         if let Some((h, text)) = &mut state.view.rename {
@@ -123,18 +114,9 @@ fn row(state: &mut EditorState, ui: &mut Ui, hit: Hit) {
                     state.view.rename = None;
                     if committed && new != name {
                         let name = (!new.is_empty()).then_some(new);
-                        let p = state.session.edit(NEW_STEP);
                         match hit {
-                            Hit::Particle(i) => {
-                                if let Some(q) = p.particles.get_mut(i) {
-                                    q.name = name;
-                                }
-                            }
-                            Hit::Light(i) => {
-                                if let Some(l) = p.lights.get_mut(i) {
-                                    l.name = name;
-                                }
-                            }
+                            Hit::Particle(i) => state.session.edit_particle(NEW_STEP, i, |q| q.name = name),
+                            Hit::Light(i) => state.session.edit_light(NEW_STEP, i, |l| l.name = name),
                         }
                     }
                 }
@@ -285,26 +267,26 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             if let Some((v, t)) =
                 drag(ui, m.base_extinction, 0.002, 0.0..=100.0, " 1/m", "Homogeneous fog σt filling all space")
             {
-                state.session.edit(t).medium.base_extinction = v;
+                state.session.edit_medium(t, |m| m.base_extinction = v);
             }
             ui.end_row();
             keyed_label(state, ui, Channel(Object::Medium, Prop::HeightFalloff), "height falloff");
             let tip = "k in base extinction · exp(−k·(y − y₀)): 0 keeps the base fog homogeneous";
             if let Some((v, t)) = drag(ui, m.height_falloff, 0.01, 0.0..=crate::scene::MAX_HEIGHT_FALLOFF, " 1/m", tip)
             {
-                state.session.edit(t).medium.height_falloff = v;
+                state.session.edit_medium(t, |m| m.height_falloff = v);
             }
             ui.end_row();
             keyed_label(state, ui, Channel(Object::Medium, Prop::HeightOrigin), "height origin");
             let limit = crate::scene::MAX_COORDINATE;
             let tip = "y₀: the height at which the base fog has its base extinction";
             if let Some((v, t)) = drag(ui, m.height_origin, 0.01, -limit..=limit, " m", tip) {
-                state.session.edit(t).medium.height_origin = v;
+                state.session.edit_medium(t, |m| m.height_origin = v);
             }
             ui.end_row();
             ui.label("albedo");
             if let Some((v, t)) = drag(ui, m.albedo, 0.01, 0.0..=1.0, "", "Single-scattering albedo σs/σt") {
-                state.session.edit(t).medium.albedo = v;
+                state.session.edit_medium(t, |m| m.albedo = v);
             }
             ui.end_row();
             ui.label("anisotropy g");
@@ -316,7 +298,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 "",
                 "Henyey–Greenstein asymmetry: 0 isotropic, > 0 forward scattering",
             ) {
-                state.session.edit(t).medium.anisotropy = v;
+                state.session.edit_medium(t, |m| m.anisotropy = v);
             }
             ui.end_row();
         });
@@ -326,11 +308,11 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
         let g = state.session.project().grid;
         ui.label("min");
         if let Some((v, t)) = drag_vec3(ui, g.min, 0.01, " m", "Lower corner of the baked box") {
-            state.session.edit(t).grid.min = v.min(g.max - Vec3::splat(1e-3));
+            state.session.edit_grid(t, |grid| grid.min = v.min(g.max - Vec3::splat(1e-3)));
         }
         ui.label("max");
         if let Some((v, t)) = drag_vec3(ui, g.max, 0.01, " m", "Upper corner of the baked box") {
-            state.session.edit(t).grid.max = v.max(g.min + Vec3::splat(1e-3));
+            state.session.edit_grid(t, |grid| grid.max = v.max(g.min + Vec3::splat(1e-3)));
         }
         ui.horizontal(|ui| {
             ui.label("resolution");
@@ -350,7 +332,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 let refused = grid_fit_warning(state, &new, state.session.project().lights.len());
                 ui.data_mut(|d| d.insert_temp(egui::Id::new("grid-refused"), refused.clone()));
                 if refused.is_none() {
-                    state.session.edit(t).grid.resolution = new.resolution;
+                    state.session.edit_grid(t, |grid| grid.resolution = new.resolution);
                 }
             }
         });
@@ -382,7 +364,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             if let Some((v, t)) =
                 drag(ui, r.exposure, 0.02, 0.0..=100.0, "", "Tone mapping: 1 − exp(−exposure · radiance)")
             {
-                state.session.edit(t).render.exposure = v;
+                state.session.set_exposure(t, v);
             }
             ui.end_row();
             ui.label("step factor");
@@ -394,13 +376,13 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                 "× cell",
                 "Ray-march step as a fraction of the smallest cell edge",
             ) {
-                state.session.edit(t).render.step_factor = v;
+                state.session.edit_render(t, |r| r.step_factor = v);
             }
             ui.end_row();
             keyed_label(state, ui, Channel(Object::Camera, Prop::FovYDeg), "field of view");
             if let Some((v, t)) = drag(ui, cam.fov_y_deg, 0.2, 1.0..=170.0, "°", "Vertical field of view of the camera")
             {
-                state.session.edit(t).camera.fov_y_deg = v;
+                state.session.edit_camera(t, |c| c.fov_y_deg = v);
             }
             ui.end_row();
             keyed_label(state, ui, Channel(Object::Camera, Prop::Position), "camera position");
@@ -408,14 +390,14 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
             if let Some((v, t)) = drag_vec3(ui, cam.position, 0.01, " m", tip) {
                 // The camera must look somewhere: a position on its target is not applied.
                 if v != cam.target {
-                    state.session.edit(t).camera.position = v;
+                    state.session.edit_camera(t, |c| c.position = v);
                 }
             }
             ui.end_row();
             keyed_label(state, ui, Channel(Object::Camera, Prop::Target), "camera target");
             if let Some((v, t)) = drag_vec3(ui, cam.target, 0.01, " m", "The point the camera looks at") {
                 if v != cam.position {
-                    state.session.edit(t).camera.target = v;
+                    state.session.edit_camera(t, |c| c.target = v);
                 }
             }
             ui.end_row();
@@ -430,9 +412,10 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                     .on_hover_text("Height of `fogsmith render` images and of the image the Export window renders");
                 if a.changed() || b.changed() {
                     let t = if a.changed() { a.id.value() } else { b.id.value() };
-                    let p = state.session.edit(t);
-                    p.render.width = w;
-                    p.render.height = h;
+                    state.session.edit_render(t, |r| {
+                        r.width = w;
+                        r.height = h;
+                    });
                 }
             });
             ui.end_row();
@@ -453,7 +436,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                     _ => r,
                 };
                 if r.clicked() && *s != current {
-                    state.session.edit(NEW_STEP).propagation.scheme = *s;
+                    state.session.edit_propagation(NEW_STEP, |p| p.scheme = *s);
                 }
             }
         })
@@ -466,7 +449,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                  wide, noise), take it from farther or integrate the path directly. Off: faster, up to a few 1e-2 off there",
             );
             if r.changed() {
-                state.session.edit(NEW_STEP).propagation.sweep_refine = refine;
+                state.session.edit_propagation(NEW_STEP, |p| p.sweep_refine = refine);
             }
             if refine {
                 let mut tolerance = state.session.project().propagation.sweep_tolerance;
@@ -482,7 +465,7 @@ pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
                          a small multiple of it. Lower for final bakes, higher for speed",
                     );
                 if r.changed() {
-                    state.session.edit(r.id.value()).propagation.sweep_tolerance = tolerance;
+                    state.session.edit_propagation(r.id.value(), |p| p.sweep_tolerance = tolerance);
                 }
             }
         }
@@ -507,17 +490,11 @@ fn noise_inspector(state: &mut EditorState, ui: &mut Ui) {
         }
         let size = grid.size().min_element().max(1e-3);
         let fresh = Noise::new(0.8, 4.0 / size, 4, 1);
-        let project = state.session.edit(NEW_STEP);
-        project.medium.noise = on.then(|| last.unwrap_or(fresh));
-        project.drop_inapplicable_tracks();
+        state.session.set_noise(on.then(|| last.unwrap_or(fresh)));
     }
     if let Some(n) = noise {
         egui::Grid::new("noise").num_columns(2).show(ui, |ui| {
-            let set = |state: &mut EditorState, tag: u64, f: &dyn Fn(&mut Noise)| {
-                if let Some(m) = state.session.edit(tag).medium.noise.as_mut() {
-                    f(m);
-                }
-            };
+            let set = |state: &mut EditorState, tag: u64, f: &dyn Fn(&mut Noise)| state.session.edit_noise(tag, f);
             keyed_label(state, ui, Channel(Object::Medium, Prop::NoiseAmplitude), "amplitude");
             if let Some((v, t)) = drag(
                 ui,
@@ -586,13 +563,7 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
                 }
             };
             if ui.selectable_label(kind == choice, choice.label()).on_hover_text(tip).clicked() && kind != choice {
-                if let Some(new) = state.session.project().light_as_kind(i, choice) {
-                    let project = state.session.edit(NEW_STEP);
-                    if let Some(q) = project.lights.get_mut(i) {
-                        *q = new;
-                    }
-                    project.drop_inapplicable_tracks();
-                }
+                state.session.set_light_kind(NEW_STEP, i, choice);
             }
         }
     });
@@ -600,9 +571,7 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
     if kind != LightKindChoice::Sun {
         keyed_label(state, ui, Channel(Object::Light(id), Prop::Position), "position");
         if let Some((v, t)) = drag_vec3(ui, l.position, 0.005, " m", "Position of the light") {
-            if let Some(q) = state.session.edit(t).lights.get_mut(i) {
-                q.position = v;
-            }
+            state.session.edit_light(t, i, |q| q.position = v);
         }
     }
     let direction = match l.kind {
@@ -616,33 +585,31 @@ fn light_kind_and_aim(state: &mut EditorState, ui: &mut Ui, i: usize, l: &crate:
     keyed_label(state, ui, Channel(Object::Light(id), prop), name);
     let tip = "Direction the light travels (normalised when used); drag the light in the viewport to aim it";
     if let Some((v, t)) = drag_vec3(ui, direction, 0.01, "", tip) {
-        if let Some(q) = state.session.edit(t).lights.get_mut(i) {
-            match &mut q.kind {
-                LightKind::Spot { direction, .. } | LightKind::Directional { direction } => *direction = v,
-                LightKind::Point => {}
-            }
-        }
+        state.session.edit_light(t, i, |q| match &mut q.kind {
+            LightKind::Spot { direction, .. } | LightKind::Directional { direction } => *direction = v,
+            LightKind::Point => {}
+        });
     }
     if let LightKind::Spot { angle_deg, blend, .. } = l.kind {
         egui::Grid::new("spot").num_columns(2).show(ui, |ui| {
             keyed_label(state, ui, Channel(Object::Light(id), Prop::AngleDeg), "angle");
             let tip = "Half-angle of the cone: no light beyond it";
             if let Some((v, t)) = drag(ui, angle_deg, 0.2, 0.1..=90.0, "°", tip) {
-                if let Some(LightKind::Spot { angle_deg, .. }) =
-                    state.session.edit(t).lights.get_mut(i).map(|q| &mut q.kind)
-                {
-                    *angle_deg = v;
-                }
+                state.session.edit_light(t, i, |q| {
+                    if let LightKind::Spot { angle_deg, .. } = &mut q.kind {
+                        *angle_deg = v;
+                    }
+                });
             }
             ui.end_row();
             keyed_label(state, ui, Channel(Object::Light(id), Prop::Blend), "blend");
             let tip = "Fraction of the cone over which the light fades out towards its edge";
             if let Some((v, t)) = drag(ui, blend, 0.005, 0.0..=1.0, "", tip) {
-                if let Some(LightKind::Spot { blend, .. }) =
-                    state.session.edit(t).lights.get_mut(i).map(|q| &mut q.kind)
-                {
-                    *blend = v;
-                }
+                state.session.edit_light(t, i, |q| {
+                    if let LightKind::Spot { blend, .. } = &mut q.kind {
+                        *blend = v;
+                    }
+                });
             }
             ui.end_row();
         });
@@ -662,23 +629,17 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
         let object = Object::Particle(p.id);
         keyed_label(state, ui, Channel(object, Prop::Center), "centre");
         if let Some((v, t)) = drag_vec3(ui, p.center, 0.005, " m", "Centre of the gaussian") {
-            if let Some(q) = state.session.edit(t).particles.get_mut(i) {
-                q.center = v;
-            }
+            state.session.edit_particle(t, i, |q| q.center = v);
         }
         egui::Grid::new("particle").num_columns(2).show(ui, |ui| {
             keyed_label(state, ui, Channel(object, Prop::Radius), "radius");
             if let Some((v, t)) = drag(ui, p.radius, 0.002, 1e-3..=100.0, " m", "r in σ = c·exp(−d²/r²)") {
-                if let Some(q) = state.session.edit(t).particles.get_mut(i) {
-                    q.radius = v;
-                }
+                state.session.edit_particle(t, i, |q| q.radius = v);
             }
             ui.end_row();
             keyed_label(state, ui, Channel(object, Prop::Density), "density");
             if let Some((v, t)) = drag(ui, p.density, 0.02, 0.0..=1e4, " 1/m", "Peak extinction c") {
-                if let Some(q) = state.session.edit(t).particles.get_mut(i) {
-                    q.density = v;
-                }
+                state.session.edit_particle(t, i, |q| q.density = v);
             }
             ui.end_row();
         });
@@ -698,18 +659,14 @@ fn selection_inspector(state: &mut EditorState, ui: &mut Ui) {
             };
             keyed_label(state, ui, Channel(Object::Light(l.id), Prop::Intensity), label);
             if let Some((v, t)) = drag(ui, l.intensity, 0.05, 0.0..=1e5, kind.intensity_unit(), tip) {
-                if let Some(q) = state.session.edit(t).lights.get_mut(i) {
-                    q.intensity = v;
-                }
+                state.session.edit_light(t, i, |q| q.intensity = v);
             }
             ui.end_row();
             keyed_label(state, ui, Channel(Object::Light(l.id), Prop::Color), "colour");
             let mut c = l.color.to_array();
             let r = ui.color_edit_button_rgb(&mut c).on_hover_text("Per-channel scale of the intensity (linear RGB)");
             if r.changed() {
-                if let Some(q) = state.session.edit(r.id.value()).lights.get_mut(i) {
-                    q.color = Vec3::from_array(c);
-                }
+                state.session.edit_light(r.id.value(), i, |q| q.color = Vec3::from_array(c));
             }
             ui.end_row();
         });
@@ -765,12 +722,7 @@ fn particles_noise(state: &mut EditorState, ui: &mut Ui, indices: &[usize]) {
         "Whether the medium's noise modulates this particle (the medium has no noise now: see Medium › noise detail)"
     };
     if ui.checkbox(&mut on, "takes noise").on_hover_text(tip).changed() {
-        let project = state.session.edit(NEW_STEP);
-        for &i in indices {
-            if let Some(p) = project.particles.get_mut(i) {
-                p.noise = on;
-            }
-        }
+        state.session.edit_particles(indices, |p| p.noise = on);
     }
 }
 

@@ -4,13 +4,11 @@
 //! that pass. The bins depend on the particles alone, so one build serves every view until
 //! the particles change (the editor keys it by the content generation). The injection's
 //! bricks hold cut-off spheres on the GPU grid, not centres, and only for particles inside
-//! it, so picking bins on its own.
+//! it, so picking bins on its own. The bins know particles, not views: the queries through
+//! a view are `view`'s.
 
-use super::view::ViewProjection;
 use crate::scene::Particle;
-use egui::{Pos2, Rect};
 use glam::Vec3;
-use std::collections::BTreeSet;
 
 /// Scenes with fewer particles are scanned: binning them would cost more than it saves.
 pub const INDEX_FROM: usize = 4096;
@@ -20,14 +18,14 @@ const PER_BIN: usize = 32;
 
 /// Relative slack on the bin tests, far above f32's rounding in the projection, so that a
 /// particle the scan accepts is never in a bin that is skipped.
-const SLACK: f32 = 1e-3;
+pub(super) const SLACK: f32 = 1e-3;
 
-struct Bin {
+pub(super) struct Bin {
     /// Bounding sphere of the centres in the bin.
-    center: Vec3,
-    radius: f32,
+    pub center: Vec3,
+    pub radius: f32,
     /// The largest particle radius in the bin.
-    max_particle: f32,
+    pub max_particle: f32,
     /// Range of `order`.
     start: u32,
     end: u32,
@@ -120,7 +118,7 @@ impl ParticleIndex {
     }
 
     /// The particles of every bin `keep` accepts, then the loose ones, in no particular order.
-    fn candidates(&self, mut keep: impl FnMut(&Bin) -> bool) -> impl Iterator<Item = usize> + '_ {
+    pub(super) fn candidates(&self, mut keep: impl FnMut(&Bin) -> bool) -> impl Iterator<Item = usize> + '_ {
         let ranges: Vec<(u32, u32)> = self.bins.iter().filter(|b| keep(b)).map(|b| (b.start, b.end)).collect();
         ranges
             .into_iter()
@@ -128,103 +126,4 @@ impl ParticleIndex {
             .chain(self.loose.iter())
             .map(|&i| i as usize)
     }
-
-    /// The particle [`tools::pick`](super::tools::pick) picks at `pos` among `particles` (its
-    /// view depth and index), or None; exactly the full scan's answer, ties included.
-    pub fn pick(&self, particles: &[Particle], view: &ViewProjection, pos: Pos2) -> Option<(f32, usize)> {
-        self.pick_counted(particles, view, pos).0
-    }
-
-    /// [`pick`](Self::pick), and how many particles it tested (for tests and benchmarks).
-    pub fn pick_counted(
-        &self,
-        particles: &[Particle],
-        view: &ViewProjection,
-        pos: Pos2,
-    ) -> (Option<(f32, usize)>, usize) {
-        let degenerate = degenerate(view);
-        let dir = view.ray(pos);
-        let a = view.points_per_metre(1.0);
-        let mut best: Option<(f32, usize)> = None;
-        let mut tested = 0;
-        let keep = |b: &Bin| {
-            if degenerate {
-                return true;
-            }
-            let d = b.center - view.position;
-            let slack = SLACK * (d.length() + b.radius);
-            let z_far = d.dot(view.forward) + b.radius + slack;
-            if z_far <= 1e-4 {
-                return false;
-            }
-            // A hit lies within max(radius, 4 points at its depth) of the ray, sideways at its
-            // depth, so at least that close to the ray's line.
-            let reach = b.max_particle.max(4.0 * z_far / a);
-            let off_line = (d - dir * d.dot(dir)).length();
-            off_line - b.radius <= reach * (1.0 + SLACK) + slack
-        };
-        for i in self.candidates(keep) {
-            tested += 1;
-            if let Some(z) = pick_depth(&particles[i], view, pos) {
-                if best.is_none_or(|(bz, bi)| z < bz || (z == bz && i < bi)) {
-                    best = Some((z, i));
-                }
-            }
-        }
-        (best, tested)
-    }
-
-    /// The visible particles whose centres project inside `rect`: exactly
-    /// [`tools::box_select`](super::tools::box_select)'s particles.
-    pub fn box_select(&self, particles: &[Particle], view: &ViewProjection, rect: Rect) -> BTreeSet<usize> {
-        let degenerate = degenerate(view) || !rect.is_finite();
-        // The wedge of the rect's screen bounds: X ≥ x0·Z, X ≤ x1·Z, likewise Y, in camera terms.
-        let (kx, ky) = (1.0 / view.points_per_metre(1.0), 1.0 / view.points_per_metre(1.0));
-        let centre = view.rect.center();
-        let x0 = (rect.min.x - centre.x) * kx;
-        let x1 = (rect.max.x - centre.x) * kx;
-        let y0 = (centre.y - rect.max.y) * ky;
-        let y1 = (centre.y - rect.min.y) * ky;
-        let planes = [
-            view.right - view.forward * x0,
-            view.forward * x1 - view.right,
-            view.up - view.forward * y0,
-            view.forward * y1 - view.up,
-        ];
-        let keep = |b: &Bin| {
-            if degenerate {
-                return true;
-            }
-            let d = b.center - view.position;
-            let slack = SLACK * (d.length() + b.radius);
-            if d.dot(view.forward) + b.radius + slack <= 1e-4 {
-                return false;
-            }
-            planes.iter().all(|n| n.dot(d) + b.radius * n.length() >= -slack * n.length())
-        };
-        self.candidates(keep).filter(|&i| in_box(&particles[i], view, rect)).collect()
-    }
-}
-
-/// Whether the bin tests' geometry (screen offset = points_per_metre(z) × sideways offset)
-/// fails for this view: below a point of width or height, or past the aspect's clamp. The
-/// bins then all pass and the query is the scan.
-fn degenerate(view: &ViewProjection) -> bool {
-    let (w, h) = (view.rect.width(), view.rect.height());
-    !(w >= 1.0 && h >= 1.0 && w / h >= 1e-3 && w.is_finite() && h.is_finite())
-}
-
-/// The scan's pick test for one particle: its view depth when `pos` falls on its footprint.
-pub fn pick_depth(p: &Particle, view: &ViewProjection, pos: Pos2) -> Option<f32> {
-    if p.hidden {
-        return None;
-    }
-    let (s, z) = view.project(p.center)?;
-    let r = (p.radius * view.points_per_metre(z)).max(4.0);
-    (s.distance(pos) <= r).then_some(z)
-}
-
-/// The scan's box test for one particle.
-pub fn in_box(p: &Particle, view: &ViewProjection, rect: Rect) -> bool {
-    !p.hidden && view.project(p.center).is_some_and(|(s, _)| rect.contains(s))
 }

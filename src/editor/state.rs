@@ -5,7 +5,8 @@
 //! each an `impl EditorState` that imports this module and not the app.
 
 use super::commands::Command;
-use super::export::{ExportChoices, ExportUi};
+use super::export_choices::ExportChoices;
+use super::export_memory::ExportUi;
 use super::files::{DialogSpec, FileDialogs};
 use super::session::{Session, Version};
 use super::slices::{Slice, SliceSettings};
@@ -341,7 +342,7 @@ pub struct EditorState {
     /// Layout commands (View → Panels, Reset layout) for the app to apply to the dock.
     pub(super) dock_commands: Vec<Command>,
     /// The Timeline: playback and the selected key marker.
-    pub(crate) timeline: super::timeline::TimelineState,
+    pub(crate) timeline: super::playback::TimelineState,
     /// The still of the frame on show, for the preview, and the state it was made from.
     pub(super) still: Option<(Version, Project)>,
 }

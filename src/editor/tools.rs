@@ -1,14 +1,14 @@
-//! Viewport tools and the geometry behind them: brush dabs, picking, box selection (through
-//! `pick_index`'s bins in large scenes).
+//! Viewport tools and the geometry behind them: the tools, the brush and its dabs, where paint
+//! lands (the fog's depth or the working plane). Picking is the view's (`view`), named here
+//! too for the tools' callers.
 //! Pure functions of the project and the view, so tests can check them without a window.
 
-use super::pick_index::{in_box, pick_depth, ParticleIndex};
 use super::view::ViewProjection;
+pub use super::view::{box_select, box_select_with, pick, pick_with, under_brush, Hit, LIGHT_PICK_RADIUS};
 use crate::scene::{Particle, Project};
-use egui::{Pos2, Rect};
+use egui::Pos2;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeSet;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Tool {
@@ -174,86 +174,6 @@ impl Stroke {
         }
         out
     }
-}
-
-/// What a click hit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Hit {
-    Particle(usize),
-    Light(usize),
-}
-
-/// Screen radius under which a light gizmo is picked.
-pub const LIGHT_PICK_RADIUS: f32 = 10.0;
-
-/// The nearest item to the camera whose screen footprint contains `pos`.
-pub fn pick(project: &Project, view: &ViewProjection, pos: Pos2) -> Option<Hit> {
-    pick_with(project, None, view, pos)
-}
-
-/// [`pick`], through `index` (built from the project's particles) when given: the same answer.
-pub fn pick_with(project: &Project, index: Option<&ParticleIndex>, view: &ViewProjection, pos: Pos2) -> Option<Hit> {
-    let mut best: Option<(f32, Hit)> = None;
-    for (i, l) in project.lights.iter().enumerate() {
-        if let Some((s, z)) = view.project(project.light_anchor(l)) {
-            if s.distance(pos) <= LIGHT_PICK_RADIUS && best.is_none_or(|(bz, _)| z < bz) {
-                best = Some((z, Hit::Light(i)));
-            }
-        }
-    }
-    if best.is_some() {
-        return best.map(|b| b.1);
-    }
-    if let Some(index) = index.filter(|ix| ix.fits(&project.particles)) {
-        return index.pick(&project.particles, view, pos).map(|(_, i)| Hit::Particle(i));
-    }
-    for (i, p) in project.particles.iter().enumerate() {
-        if let Some(z) = pick_depth(p, view, pos) {
-            if best.is_none_or(|(bz, _)| z < bz) {
-                best = Some((z, Hit::Particle(i)));
-            }
-        }
-    }
-    best.map(|b| b.1)
-}
-
-/// Items whose centres project inside `rect`.
-pub fn box_select(project: &Project, view: &ViewProjection, rect: Rect) -> (BTreeSet<usize>, BTreeSet<usize>) {
-    box_select_with(project, None, view, rect)
-}
-
-/// [`box_select`], through `index` (built from the project's particles) when given: the same
-/// answer.
-pub fn box_select_with(
-    project: &Project,
-    index: Option<&ParticleIndex>,
-    view: &ViewProjection,
-    rect: Rect,
-) -> (BTreeSet<usize>, BTreeSet<usize>) {
-    let inside = |c: Vec3| view.project(c).is_some_and(|(s, _)| rect.contains(s));
-    let particles = match index.filter(|ix| ix.fits(&project.particles)) {
-        Some(index) => index.box_select(&project.particles, view, rect),
-        None => (0..project.particles.len()).filter(|&i| in_box(&project.particles[i], view, rect)).collect(),
-    };
-    let lights =
-        project.lights.iter().enumerate().filter(|(_, l)| inside(project.light_anchor(l))).map(|(i, _)| i).collect();
-    (particles, lights)
-}
-
-/// Visible particles whose centre lies within `radius` metres of the ray through `pos`.
-pub fn under_brush(project: &Project, view: &ViewProjection, pos: Pos2, radius: f32) -> BTreeSet<usize> {
-    let dir = view.ray(pos);
-    project
-        .particles
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| {
-            let d = p.center - view.position;
-            let t = d.dot(dir);
-            !p.hidden && t > 0.0 && (d - dir * t).length_squared() <= radius * radius
-        })
-        .map(|(i, _)| i)
-        .collect()
 }
 
 /// The working plane: through the grid centre, facing the camera.

@@ -1,10 +1,14 @@
-//! Viewport geometry: projecting the scene through the project camera onto the viewport
-//! rectangle (for overlays and picking, matching [`Camera::ray_dir`] exactly), and the
-//! orbit / pan / zoom camera moves.
+//! The view: the project camera mapped onto the viewport rectangle. Projecting the scene
+//! onto it (for overlays, matching [`Camera::ray_dir`] exactly), the ray through a point of
+//! it, what lies under a point or inside a box of it (picking: the scan, or the particle
+//! bins of `pick_index` in large scenes, with the same answer), and the orbit / pan / zoom
+//! camera moves that change it.
 
-use crate::scene::{Camera, GridSpec};
+use super::pick_index::{Bin, ParticleIndex, SLACK};
+use crate::scene::{Camera, GridSpec, Particle, Project};
 use egui::{Pos2, Rect};
 use glam::Vec3;
+use std::collections::BTreeSet;
 
 /// The project camera mapped onto a screen rectangle.
 #[derive(Clone, Copy, Debug)]
@@ -77,6 +81,188 @@ impl ViewProjection {
         let s = 1.0 / self.points_per_metre(z);
         self.right * (delta.x * s) - self.up * (delta.y * s)
     }
+}
+
+/// What a click hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Hit {
+    Particle(usize),
+    Light(usize),
+}
+
+/// Screen radius under which a light gizmo is picked.
+pub const LIGHT_PICK_RADIUS: f32 = 10.0;
+
+/// The nearest item to the camera whose screen footprint contains `pos`.
+pub fn pick(project: &Project, view: &ViewProjection, pos: Pos2) -> Option<Hit> {
+    pick_with(project, None, view, pos)
+}
+
+/// [`pick`], through `index` (built from the project's particles) when given: the same answer.
+pub fn pick_with(project: &Project, index: Option<&ParticleIndex>, view: &ViewProjection, pos: Pos2) -> Option<Hit> {
+    let mut best: Option<(f32, Hit)> = None;
+    for (i, l) in project.lights.iter().enumerate() {
+        if let Some((s, z)) = view.project(project.light_anchor(l)) {
+            if s.distance(pos) <= LIGHT_PICK_RADIUS && best.is_none_or(|(bz, _)| z < bz) {
+                best = Some((z, Hit::Light(i)));
+            }
+        }
+    }
+    if best.is_some() {
+        return best.map(|b| b.1);
+    }
+    if let Some(index) = index.filter(|ix| ix.fits(&project.particles)) {
+        return index.pick(&project.particles, view, pos).map(|(_, i)| Hit::Particle(i));
+    }
+    for (i, p) in project.particles.iter().enumerate() {
+        if let Some(z) = pick_depth(p, view, pos) {
+            if best.is_none_or(|(bz, _)| z < bz) {
+                best = Some((z, Hit::Particle(i)));
+            }
+        }
+    }
+    best.map(|b| b.1)
+}
+
+/// Items whose centres project inside `rect`.
+pub fn box_select(project: &Project, view: &ViewProjection, rect: Rect) -> (BTreeSet<usize>, BTreeSet<usize>) {
+    box_select_with(project, None, view, rect)
+}
+
+/// [`box_select`], through `index` (built from the project's particles) when given: the same
+/// answer.
+pub fn box_select_with(
+    project: &Project,
+    index: Option<&ParticleIndex>,
+    view: &ViewProjection,
+    rect: Rect,
+) -> (BTreeSet<usize>, BTreeSet<usize>) {
+    let inside = |c: Vec3| view.project(c).is_some_and(|(s, _)| rect.contains(s));
+    let particles = match index.filter(|ix| ix.fits(&project.particles)) {
+        Some(index) => index.box_select(&project.particles, view, rect),
+        None => (0..project.particles.len()).filter(|&i| in_box(&project.particles[i], view, rect)).collect(),
+    };
+    let lights =
+        project.lights.iter().enumerate().filter(|(_, l)| inside(project.light_anchor(l))).map(|(i, _)| i).collect();
+    (particles, lights)
+}
+
+/// Visible particles whose centre lies within `radius` metres of the ray through `pos`.
+pub fn under_brush(project: &Project, view: &ViewProjection, pos: Pos2, radius: f32) -> BTreeSet<usize> {
+    let dir = view.ray(pos);
+    project
+        .particles
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| {
+            let d = p.center - view.position;
+            let t = d.dot(dir);
+            !p.hidden && t > 0.0 && (d - dir * t).length_squared() <= radius * radius
+        })
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// What a view picks through the bins.
+impl ParticleIndex {
+    /// The particle [`tools::pick`](super::tools::pick) picks at `pos` among `particles` (its
+    /// view depth and index), or None; exactly the full scan's answer, ties included.
+    pub fn pick(&self, particles: &[Particle], view: &ViewProjection, pos: Pos2) -> Option<(f32, usize)> {
+        self.pick_counted(particles, view, pos).0
+    }
+
+    /// [`pick`](Self::pick), and how many particles it tested (for tests and benchmarks).
+    pub fn pick_counted(
+        &self,
+        particles: &[Particle],
+        view: &ViewProjection,
+        pos: Pos2,
+    ) -> (Option<(f32, usize)>, usize) {
+        let degenerate = degenerate(view);
+        let dir = view.ray(pos);
+        let a = view.points_per_metre(1.0);
+        let mut best: Option<(f32, usize)> = None;
+        let mut tested = 0;
+        let keep = |b: &Bin| {
+            if degenerate {
+                return true;
+            }
+            let d = b.center - view.position;
+            let slack = SLACK * (d.length() + b.radius);
+            let z_far = d.dot(view.forward) + b.radius + slack;
+            if z_far <= 1e-4 {
+                return false;
+            }
+            // A hit lies within max(radius, 4 points at its depth) of the ray, sideways at its
+            // depth, so at least that close to the ray's line.
+            let reach = b.max_particle.max(4.0 * z_far / a);
+            let off_line = (d - dir * d.dot(dir)).length();
+            off_line - b.radius <= reach * (1.0 + SLACK) + slack
+        };
+        for i in self.candidates(keep) {
+            tested += 1;
+            if let Some(z) = pick_depth(&particles[i], view, pos) {
+                if best.is_none_or(|(bz, bi)| z < bz || (z == bz && i < bi)) {
+                    best = Some((z, i));
+                }
+            }
+        }
+        (best, tested)
+    }
+
+    /// The visible particles whose centres project inside `rect`: exactly
+    /// [`tools::box_select`](super::tools::box_select)'s particles.
+    pub fn box_select(&self, particles: &[Particle], view: &ViewProjection, rect: Rect) -> BTreeSet<usize> {
+        let degenerate = degenerate(view) || !rect.is_finite();
+        // The wedge of the rect's screen bounds: X ≥ x0·Z, X ≤ x1·Z, likewise Y, in camera terms.
+        let (kx, ky) = (1.0 / view.points_per_metre(1.0), 1.0 / view.points_per_metre(1.0));
+        let centre = view.rect.center();
+        let x0 = (rect.min.x - centre.x) * kx;
+        let x1 = (rect.max.x - centre.x) * kx;
+        let y0 = (centre.y - rect.max.y) * ky;
+        let y1 = (centre.y - rect.min.y) * ky;
+        let planes = [
+            view.right - view.forward * x0,
+            view.forward * x1 - view.right,
+            view.up - view.forward * y0,
+            view.forward * y1 - view.up,
+        ];
+        let keep = |b: &Bin| {
+            if degenerate {
+                return true;
+            }
+            let d = b.center - view.position;
+            let slack = SLACK * (d.length() + b.radius);
+            if d.dot(view.forward) + b.radius + slack <= 1e-4 {
+                return false;
+            }
+            planes.iter().all(|n| n.dot(d) + b.radius * n.length() >= -slack * n.length())
+        };
+        self.candidates(keep).filter(|&i| in_box(&particles[i], view, rect)).collect()
+    }
+}
+
+/// Whether the bin tests' geometry (screen offset = points_per_metre(z) × sideways offset)
+/// fails for this view: below a point of width or height, or past the aspect's clamp. The
+/// bins then all pass and the query is the scan.
+fn degenerate(view: &ViewProjection) -> bool {
+    let (w, h) = (view.rect.width(), view.rect.height());
+    !(w >= 1.0 && h >= 1.0 && w / h >= 1e-3 && w.is_finite() && h.is_finite())
+}
+
+/// The scan's pick test for one particle: its view depth when `pos` falls on its footprint.
+pub fn pick_depth(p: &Particle, view: &ViewProjection, pos: Pos2) -> Option<f32> {
+    if p.hidden {
+        return None;
+    }
+    let (s, z) = view.project(p.center)?;
+    let r = (p.radius * view.points_per_metre(z)).max(4.0);
+    (s.distance(pos) <= r).then_some(z)
+}
+
+/// The scan's box test for one particle.
+pub fn in_box(p: &Particle, view: &ViewProjection, rect: Rect) -> bool {
+    !p.hidden && view.project(p.center).is_some_and(|(s, _)| rect.contains(s))
 }
 
 /// Rotates the camera about its target: `dx`, `dy` in radians (yaw about +y, pitch).

@@ -65,6 +65,15 @@ impl Project {
         }
     }
 
+    /// Puts `light` in the place of light `i` (a light made as another kind) and drops the
+    /// animation tracks that no longer apply to it.
+    pub fn replace_light(&mut self, i: usize, light: Light) {
+        if let Some(l) = self.lights.get_mut(i) {
+            *l = light;
+        }
+        self.drop_inapplicable_tracks();
+    }
+
     /// Moves light `i`'s anchor by `delta`: a point or spot light moves; a sun turns to shine
     /// from the moved anchor towards the grid's centre.
     pub fn move_light(&mut self, i: usize, delta: Vec3) {
