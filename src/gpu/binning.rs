@@ -10,7 +10,12 @@
 //! smaller than memory allows. The lists are a CSR pair
 //! (offsets, items) built for one chunk of 8³ bricks at a time, so a chunk's lists fit a
 //! storage binding whatever the scene. Work is dispatched, and edits tracked, in bricks.
+//!
+//! Below every stage and the project's translation (`frame_inputs`), it reads only the scene
+//! and the GPU's data layouts (`gpu_types`), including the particles' own
+//! ([`particle_gpu`]).
 
+use super::gpu_types::ParticleGpu;
 use crate::scene::{GridSpec, Particle};
 use glam::{UVec3, Vec3};
 
@@ -25,6 +30,20 @@ pub fn cutoff_epsilon(density: f32) -> f32 {
 /// Cut-off radius of a particle in metres under [`cutoff_epsilon`].
 pub fn cutoff_radius(p: &Particle) -> f32 {
     p.cutoff_radius(cutoff_epsilon(p.density))
+}
+
+/// A particle in the injection's layout: its density counts as noisy when the medium has
+/// noise and the particle takes it.
+pub fn particle_gpu(p: &Particle, noise: bool) -> ParticleGpu {
+    let r = cutoff_radius(p);
+    let density = if p.hidden { 0.0 } else { p.density };
+    ParticleGpu {
+        center: p.center.to_array(),
+        inv_r2: 1.0 / (p.radius * p.radius),
+        density: if noise && p.noise { [0.0, density] } else { [density, 0.0] },
+        cutoff2: r * r,
+        _pad: 0.0,
+    }
 }
 
 /// Indices of the 8³ bricks a particle's cut-off sphere overlaps, or None if it misses the grid.

@@ -3,14 +3,13 @@
 //! surfaces, march parameters) and every stage's key. The scheduler and the stages read it;
 //! nothing translates the project a second time.
 
-use super::binning;
-use super::gpu_types::{GridParams, LightGpu, MarchParams, ParticleGpu, SurfaceGpu};
+use super::gpu_types::{GridParams, LightGpu, MarchParams, SurfaceGpu};
 use super::keys::{EvKey, ImageKey, OpvKey};
 use super::layout::{
     LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT, POLICY_ADAPTIVE, POLICY_FIXED, POLICY_TWO_LEVEL, SURFACE_BOX,
     SURFACE_GROUND,
 };
-use crate::scene::{Light, LightKind, Noise, Particle, Project, Scheme, StepPolicy};
+use crate::scene::{Light, LightKind, Noise, Project, Scheme, StepPolicy};
 
 /// What to render this frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -197,20 +196,6 @@ fn sun_direction(l: &Light) -> Option<glam::Vec3> {
     match l.kind {
         LightKind::Directional { direction } => Some(direction.normalize_or_zero()),
         _ => None,
-    }
-}
-
-/// A particle in the injection's layout: its density counts as noisy when the medium has
-/// noise and the particle takes it.
-pub(super) fn particle_gpu(p: &Particle, noise: bool) -> ParticleGpu {
-    let r = binning::cutoff_radius(p);
-    let density = if p.hidden { 0.0 } else { p.density };
-    ParticleGpu {
-        center: p.center.to_array(),
-        inv_r2: 1.0 / (p.radius * p.radius),
-        density: if noise && p.noise { [0.0, density] } else { [density, 0.0] },
-        cutoff2: r * r,
-        _pad: 0.0,
     }
 }
 

@@ -1,11 +1,12 @@
-//! How the injection runs: where it sums the particles (host or adapter), the bin edge of
-//! its particle lists, the size of its memory chunks, and brute force for measurements.
+//! How the injection runs, as the [`Tuning`] says: where it sums the particles (host or
+//! adapter), the bin edge of its particle lists, the size of its memory chunks, and brute
+//! force for measurements.
 
-use super::binning::{self, BinCounts};
-use super::frame_inputs::particle_gpu;
+use super::binning::{self, particle_gpu, BinCounts};
 use super::gpu_types::ParticleGpu;
 use super::host_sums;
 use super::inject::{InjectJob, Injector};
+use super::tuning::{InjectPath, Tuning};
 use super::GpuContext;
 use crate::scene::{GridSpec, Project};
 
@@ -56,23 +57,7 @@ impl HostCounts {
     }
 }
 
-/// Where injection sums the particles' gaussians into each cell.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum InjectPath {
-    /// The host on a software adapter (which runs on the same cores, where native loops over
-    /// each particle's cells beat the shader's list walk many times over) for scenes dense
-    /// in particles ([`HOST_MIN_ENTRIES_PER_BRICK`]), the adapter otherwise. Brute-force
-    /// injection and a fixed bin edge measure the adapter's path, so they select it.
-    #[default]
-    Auto,
-    /// `host_sums`: the host scatters each particle over its cells; the adapter adds the
-    /// base fog, layer and noise.
-    Host,
-    /// `shaders/inject.wgsl`: each cell evaluates the particles binned around it.
-    Adapter,
-}
-
-/// The injection's settings (see `FogPipeline`'s setters).
+/// The injection's part of the [`Tuning`].
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct InjectOptions {
     pub brute_force: bool,
@@ -83,6 +68,15 @@ pub(super) struct InjectOptions {
 }
 
 impl InjectOptions {
+    pub fn of(tuning: &Tuning) -> Self {
+        Self {
+            brute_force: tuning.brute_force_injection,
+            bin_edge: tuning.inject_bin_edge,
+            path: tuning.inject_path,
+            chunk_limit: tuning.inject_chunk_bytes,
+        }
+    }
+
     /// The particle–bin list bytes one injection chunk may use.
     pub fn chunk_bytes(&self, ctx: &GpuContext) -> u64 {
         let binding = ctx.max_binding_bytes();

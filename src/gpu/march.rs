@@ -78,6 +78,11 @@ pub struct MarchInputs<'a> {
     pub surfaces: &'a [SurfaceGpu],
     /// What the scene needs of the march: at most what `lights`, `surfaces` and the grid hold.
     pub features: MarchFeatures,
+    /// Whether the march uses [`MarchFeatures::ALL`] whatever `features` says
+    /// (`Tuning::general_march`).
+    pub general: bool,
+    /// Whether base fog tests every surface (`Tuning::exhaustive_fog_shadows`).
+    pub exhaustive_fog_shadows: bool,
     pub params: MarchParams,
 }
 
@@ -163,10 +168,6 @@ pub struct Marcher {
     pipelines: Vec<(MarchFeatures, wgpu::ComputePipeline)>,
     /// The WGSL they are built from.
     code: String,
-    /// Whether every march uses [`MarchFeatures::ALL`] (`FogPipeline::set_general_march`).
-    pub general: bool,
-    /// Whether base fog tests every surface (`FogPipeline::set_exhaustive_fog_shadows`).
-    pub exhaustive_fog_shadows: bool,
     /// Sun et al.'s F table (remapped layout) for the closed-form base fog, then the G table
     /// of their surface term.
     sun_table: wgpu::Buffer,
@@ -201,16 +202,7 @@ impl Marcher {
         let sun_table = super::buffers::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::buffers::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::buffers::storage_buffer(device, "surfaces", &[]);
-        Self {
-            layout,
-            pipelines: Vec::new(),
-            code,
-            general: false,
-            exhaustive_fog_shadows: false,
-            sun_table,
-            counters_buf,
-            surfaces_buf,
-        }
+        Self { layout, pipelines: Vec::new(), code, sun_table, counters_buf, surfaces_buf }
     }
 
     /// Uploads the inputs of a march into `target` and returns the job; its counters start at 0.
@@ -243,8 +235,8 @@ impl Marcher {
             inputs.lookup.extra_entries(EXTRA_BINDING),
         );
         let features = MarchFeatures {
-            cull_fog_surfaces: !self.exhaustive_fog_shadows,
-            ..if self.general { MarchFeatures::ALL } else { inputs.features }
+            cull_fog_surfaces: !inputs.exhaustive_fog_shadows,
+            ..if inputs.general { MarchFeatures::ALL } else { inputs.features }
         };
         if !self.pipelines.iter().any(|(f, _)| *f == features) {
             let code = self.code.clone();

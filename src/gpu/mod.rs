@@ -11,22 +11,28 @@
 //! 3. **Ray march** (`shaders/march.wgsl`): single scattering along camera rays with
 //!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
 //!
-//! On request, the bake (`bake`, `shaders/bake.wgsl`) turns the EV and OPVs into each cell's
+//! On request, the bake (`baking`, `shaders/bake.wgsl`) turns the EV and OPVs into each cell's
 //! emitted radiance through the march's own lookups, for engines without self-shadowing, and
-//! `as_baked` (`shaders/as_baked.wgsl`) renders that bake as an engine would, with no lights.
+//! renders that bake as an engine would, with no lights (`shaders/as_baked.wgsl`).
 //!
 //! Each pipeline's WGSL is assembled in `shaders` from the files in `shaders/`, after the
 //! constants Rust and WGSL share (`layout::shared_constants`).
 //!
-//! [`FogPipeline`] owns the long-lived pipelines and the scene's resources, tracks which
-//! inputs each stage last consumed, and reruns only what a change invalidates. It translates
-//! the project once per call (`frame_inputs`) and keeps its checks (`limits`), keys (`keys`),
-//! resources (`resources`), readbacks (`outputs`) and budgets (`budget`) in files of their
-//! own. The stages (`inject`, `propagate`, `march`, `slice`) depend on the shared context and
-//! helpers (`layout`, `buffers`, `report`), never on the scheduler.
+//! The module is layered, each file importing only those below it:
+//! - [`FogPipeline`] (`pipeline`) is the scheduler: it decides what runs within a budget and
+//!   in what order, tracks which inputs each stage last consumed (`keys`) and reruns only what
+//!   a change invalidates. It translates the project once per call (`frame_inputs`), checks
+//!   it against the adapter (`limits`), sizes work items by `budget` and reads its
+//!   measurement switches from [`Tuning`] (`tuning`).
+//! - `stages` holds what it runs work on: one long-lived object per stage (`inject`,
+//!   `propagate`, `march` with `march_lookup`, `slice`, `baking`), each owning its pipelines,
+//!   layouts and WGSL, and the scene's GPU resources (`resources`), rebuilt when the OPV
+//!   layout changes, with the readbacks (`outputs`).
+//! - The stages depend on the shared context and helpers (`context`, `layout`, `buffers`,
+//!   `readback`, `report`, `opv_store`), never on the scheduler; `binning` and `gpu_types`,
+//!   at the bottom, read only the scene.
 
-mod as_baked;
-mod bake;
+mod baking;
 mod binning;
 mod budget;
 mod buffers;
@@ -51,16 +57,17 @@ mod report;
 mod resources;
 mod shaders;
 mod slice;
+mod stages;
 mod timer;
+mod tuning;
 
-pub use as_baked::AS_BAKED_STEPS_PER_CELL;
-pub use bake::BakePhase;
+pub use baking::{BakePhase, AS_BAKED_STEPS_PER_CELL};
 pub use binning::{cutoff_epsilon, cutoff_radius};
 pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};
 pub use error::GpuError;
 pub use frame_inputs::{light_has_opv, light_is_negligible, FrameRequest, CULL_RADIANCE};
 pub use gpu_types::{SweepBox, SweepStep};
-pub use inject_options::{InjectPath, HOST_MIN_ENTRIES_PER_BRICK};
+pub use inject_options::HOST_MIN_ENTRIES_PER_BRICK;
 pub use layout::shared_constants;
 pub use limits::{analytic_unsupported, human_bytes};
 pub use opv_store::OpvLayout;
@@ -69,3 +76,4 @@ pub use pipeline::FogPipeline;
 pub use propagate::{giroud_iterations, sweep_steps, ShellFrame, SweepPlan, EXACT_STEPS_PER_CELL};
 pub use report::{Counters, FrameReport, Progress, Stage, StageTimings};
 pub use slice::{Plane, SliceSource};
+pub use tuning::{InjectPath, Tuning};

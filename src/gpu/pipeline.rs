@@ -1,6 +1,5 @@
-//! [`FogPipeline`]: the long-lived object that owns one object per stage ([`Injector`],
-//! [`Propagator`], [`Marcher`]) and the scene's GPU resources, decides which work a change
-//! requires, and runs it as a queue of small work items within a time budget.
+//! [`FogPipeline`]: the scheduler. It decides which work a change of the project requires and
+//! runs it on the [`Stages`] as a queue of small work items within a time budget.
 //!
 //! [`advance`](FogPipeline::advance) runs items until its budget is spent: dirty bricks of the
 //! injection, batches of propagation dispatches, bands of rows of the march. With a bounded
@@ -10,31 +9,28 @@
 //! is complete. [`update`](FogPipeline::update) runs the same items to completion.
 //!
 //! Each call translates the project once ([`FrameInputs`]), compares the stages' keys with
-//! what the GPU holds ([`Baked`]) and runs the stages in order. Limit checks live in
-//! `limits`, the budget arithmetic in `budget`, the GPU resources in `resources` and the
-//! readbacks in `outputs`.
+//! what the GPU holds ([`Baked`]) and runs the stages in order. The stage objects and the
+//! scene's GPU resources live in `stages`, the bake in `baking`, limit checks in `limits`, the
+//! budget arithmetic in `budget` and the measurement switches in `tuning`.
 
-use super::as_baked::{AsBakedInputs, AsBakedRenderer};
-use super::bake::{BakeInputs, BakePhase, Baker};
+use super::baking::BakePhase;
 use super::binning;
 use super::budget::{ms, Clock, Rate, QUICK_OF_FULL, QUICK_SHARE};
-use super::buffers::storage_buffer;
 use super::error::ErrorScope;
 use super::frame_inputs::{FrameInputs, FrameRequest, Settings};
-use super::gpu_types::{GridParams, LightGpu, MarchParams};
-use super::inject::{InjectInputs, InjectJob, Injector};
-use super::inject_options::{HostCounts, InjectOptions, InjectPath};
+use super::inject::{InjectJob, Injector};
+use super::inject_options::{HostCounts, InjectOptions};
 use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
-use super::march::{ImageTarget, MarchFeatures, MarchInputs, MarchJob, Marcher, BAND_ROWS};
-use super::march_lookup::{LookupBuilder, LookupInputs};
+use super::march::{MarchJob, BAND_ROWS};
 use super::opv_store::OpvLayout;
-use super::outputs::{self, Image};
-use super::propagate::{sweep_cells_per_thread, PropagationInputs, PropagationJob, Propagator};
+use super::outputs::Image;
+use super::propagate::PropagationJob;
 use super::report::{Counters, FrameReport, Progress, Stage};
-use super::resources::GridResources;
-use super::slice::{Plane, SliceSource, Slicer};
+use super::slice::{Plane, SliceSource};
+use super::stages::{Reallocated, Stages};
 use super::timer::{self, StageTimer};
+use super::tuning::{InjectPath, Tuning};
 use super::{GpuContext, GpuError};
 use crate::scene::{GridSpec, Project, Scheme, Volume, Volume3};
 use std::time::{Duration, Instant};
@@ -50,63 +46,16 @@ struct Jobs {
 /// A stage a call left unfinished when its budget ran out, and the fraction of it done.
 type Unfinished = Option<(Stage, f64)>;
 
-/// One light's lookup volume (`march_lookup`) against its OPV.
-#[derive(Clone, Copy, Debug)]
-struct LookupState {
-    /// The volume may differ from what its OPV, the light and the grid parameters on the GPU
-    /// give (set by every write to them, cleared by a rebuild). A lookup also reads the EV, at a
-    /// light exactly on a cell centre; any EV change re-propagates every light, which marks it.
-    stale: bool,
-    /// The volume has been built since the OPV was allocated.
-    built: bool,
-    /// Propagation has written the OPV since its last propagation that completed: the OPV is
-    /// then part old, part new.
-    opv_partial: bool,
-}
-
-impl LookupState {
-    /// A newly allocated OPV's.
-    const NEW: Self = Self { stale: true, built: false, opv_partial: false };
-}
-
 /// The GPU fog pipeline: injection → propagation → ray march, plus readback.
 pub struct FogPipeline {
     ctx: GpuContext,
-    injector: Injector,
-    propagator: Propagator,
-    marcher: Marcher,
-    lookup: LookupBuilder,
-    /// Per light, the state of its lookup volume and OPV.
-    lookups: Vec<LookupState>,
-    /// The lights and grid parameters last uploaded, to tell a change from a rewrite.
-    uploaded: (Vec<LightGpu>, Option<GridParams>),
-    slicer: Slicer,
-    /// Built on the first bake: most pipelines never bake.
-    baker: Option<Baker>,
-    /// Built on the first "as baked" render, with the image it last drew.
-    as_baked: Option<AsBakedRenderer>,
-    as_baked_image: Option<ImageTarget>,
+    stages: Stages,
     timer: Option<StageTimer>,
-    grid: Option<GridResources>,
-    quick: Option<ImageTarget>,
-    full: Option<ImageTarget>,
+    tuning: Tuning,
     baked: Baked,
     jobs: Jobs,
     rates: [Rate; 3],
     last_report: FrameReport,
-    /// Imported density added under the particles, and a counter bumped when it changes.
-    base_layer: Option<(Volume, wgpu::Buffer)>,
-    base_layer_generation: u64,
-    inject: InjectOptions,
-    opv_layout: OpvLayout,
-    /// The OPV textures the stages' shaders were built for: only as many as the current
-    /// scene's OPVs fill, since every extra texture adds a branch to each OPV read (the march
-    /// reads eight per light per sample).
-    stage_layout: OpvLayout,
-    /// Cells each sweep thread solves (`sweep_cells_per_thread`, or the test setting).
-    sweep_cells: u32,
-    /// See [`FogPipeline::peak_memory_bytes`].
-    peak_memory: std::sync::atomic::AtomicU64,
     /// Bin edge of the last injection's particle lists (see `binning`).
     bin_size: u32,
     volumes_generation: u64,
@@ -122,43 +71,19 @@ impl FogPipeline {
     /// packs as many lights into a texture as the device allows. Fewer let tests cross
     /// texture boundaries.
     pub fn with_opv_layout(ctx: GpuContext, opv_layout: OpvLayout) -> Self {
-        let device = &ctx.device;
-        let injector = Injector::new(device);
-        let stage_layout = OpvLayout { textures: 1, ..opv_layout };
-        let sweep_cells = sweep_cells_per_thread(ctx.adapter_info.device_type);
-        let propagator = Propagator::new(device, stage_layout, sweep_cells);
-        let marcher = Marcher::new(device, stage_layout);
-        let lookup = LookupBuilder::new(device, stage_layout);
-        let slicer = Slicer::new(device, stage_layout);
+        let tuning = Tuning::default();
+        let stages = Stages::new(&ctx, opv_layout, tuning.sweep_cells(ctx.adapter_info.device_type));
         let timer = StageTimer::new(&ctx);
         Self {
             ctx,
-            injector,
-            propagator,
-            marcher,
-            lookup,
-            lookups: Vec::new(),
-            uploaded: (Vec::new(), None),
-            slicer,
-            baker: None,
-            as_baked: None,
-            as_baked_image: None,
+            stages,
             timer,
-            grid: None,
-            quick: None,
-            full: None,
+            tuning,
             baked: Baked::default(),
             jobs: Jobs::default(),
             // Pessimistic starting costs (software adapters); corrected after the first items.
             rates: [Rate::new(1e-4), Rate::new(1e-3), Rate::new(3e-3)],
             last_report: FrameReport::default(),
-            base_layer: None,
-            base_layer_generation: 0,
-            inject: InjectOptions::default(),
-            peak_memory: Default::default(),
-            opv_layout,
-            stage_layout,
-            sweep_cells,
             bin_size: binning::BRICK,
             volumes_generation: 0,
         }
@@ -223,9 +148,9 @@ impl FogPipeline {
     fn capacity(&self) -> Capacity<'_> {
         Capacity {
             ctx: &self.ctx,
-            opv_layout: self.opv_layout,
+            opv_layout: self.stages.opv_layout(),
             chunk_bytes: self.inject_chunk_bytes(),
-            base_layer: self.base_layer.as_ref().map(|(v, _)| v),
+            base_layer: self.stages.base_layer(),
         }
     }
 
@@ -317,9 +242,9 @@ impl FogPipeline {
     /// The pipeline's settings that enter [`FrameInputs`].
     fn settings(&self, project: &Project) -> Settings {
         Settings {
-            layer_on_grid: self.base_layer.as_ref().is_some_and(|(v, _)| v.grid == project.grid),
-            layer_generation: self.base_layer_generation,
-            brute_force: self.inject.brute_force,
+            layer_on_grid: self.stages.base_layer().is_some_and(|v| v.grid == project.grid),
+            layer_generation: self.stages.layer_generation(),
+            brute_force: self.tuning.brute_force_injection,
             bin_size: self.bin_size,
         }
     }
@@ -338,7 +263,7 @@ impl FogPipeline {
             self.jobs = Jobs::default();
         }
         self.ensure_grid(project.grid, inputs.light_count());
-        self.write_scene_uniforms(inputs);
+        self.stages.upload_scene(&self.ctx.queue, inputs);
         if let Some((stage, fraction)) = self.run_stages(project, inputs, clock, previews, &mut progress)? {
             progress.stage = stage;
             progress.stage_fraction = fraction;
@@ -415,7 +340,9 @@ impl FogPipeline {
         let key = inputs.image_key(self.baked.ev_generation, &self.baked.opvs);
         let (width, height) = (inputs.request.width, inputs.request.height);
         let shown_quick = match &self.baked.shown {
-            Some((k, Level::Quick)) if k.same_scene(&key) => self.quick.as_ref().map(|t| (t.width, t.height)),
+            Some((k, Level::Quick)) if k.same_scene(&key) => {
+                self.stages.target(Level::Quick).map(|t| (t.width, t.height))
+            }
             _ => None,
         };
         let t = Instant::now();
@@ -462,18 +389,16 @@ impl FogPipeline {
             let analytic = inputs.request.scheme == Scheme::Analytic;
             let lists = if analytic { Some(self.capacity().analytic_lists(project)?) } else { None };
             self.plan_propagation(project, inputs, targets, lists.as_ref());
-            self.note_memory();
+            self.stages.note_memory();
         }
         while self.jobs.propagate.is_some() {
             let t = Instant::now();
             let units = self.propagate_item(clock.left_ms(t), &mut progress.report.counters);
             progress.report.timings_ms.propagate += self.item_ms(timer::PROPAGATE, t, units)?;
             if let Some((_, keys)) = self.jobs.propagate.take_if(|(job, _)| job.done()) {
+                self.stages.propagated(keys.iter().map(|&(i, _)| i));
                 for (i, k) in keys {
                     self.baked.opvs[i] = Some(k);
-                    if let Some(s) = self.lookups.get_mut(i) {
-                        s.opv_partial = false;
-                    }
                 }
                 self.volumes_generation += 1;
             } else if let Some((job, _)) = self.jobs.propagate.as_ref().filter(|_| clock.spent()) {
@@ -499,20 +424,16 @@ impl FogPipeline {
         }
         if self.jobs.march.is_none() {
             let (width, height) = (inputs.request.width, inputs.request.height);
-            let target = match self.full.take() {
-                Some(t) if t.width == width && t.height == height => t,
-                _ => ImageTarget::new(&self.ctx.device, width, height),
-            };
-            let job = self.begin_march(&target, &key);
-            self.full = Some(target);
-            self.jobs.march = Some((job?, key));
+            self.stages.ensure_target(&self.ctx, Level::Full, width, height);
+            let job = self.stages.begin_march(&self.ctx, Level::Full, &key, &self.tuning)?;
+            self.jobs.march = Some((job, key));
         }
         while self.jobs.march.is_some() {
             let t = Instant::now();
             let units = self.march_item(clock.left_ms(t), clock.whole_rows, &mut progress.report.counters)?;
             progress.report.timings_ms.march += self.item_ms(timer::MARCH, t, units)?;
             if let Some((_, key)) = self.jobs.march.take_if(|(job, _)| job.done()) {
-                self.marcher.read_counters(&self.ctx, &mut progress.report.counters)?;
+                self.stages.read_march_counters(&self.ctx, &mut progress.report.counters)?;
                 self.baked.shown = Some((key, Level::Full));
                 progress.new_image = true;
             } else if let Some((job, _)) = self.jobs.march.as_ref().filter(|_| clock.spent()) {
@@ -524,9 +445,9 @@ impl FogPipeline {
 
     /// Fills in what is on show.
     fn finish(&self, mut progress: Progress, inputs: &FrameInputs) -> Progress {
-        self.note_memory();
-        if let Some((key, _)) = &self.baked.shown {
-            progress.shown_size = self.shown_target().map_or([0, 0], |t| [t.width, t.height]);
+        self.stages.note_memory();
+        if let Some((key, level)) = &self.baked.shown {
+            progress.shown_size = self.stages.target(*level).map_or([0, 0], |t| [t.width, t.height]);
             progress.shows_scene = progress.stage != Stage::Inject
                 && key.same_scene(&inputs.image_key(self.baked.ev_generation, &self.baked.opvs));
             // A propagated light whose OPV on show differs from what the scene needs now.
@@ -556,7 +477,8 @@ impl FogPipeline {
     fn plan_inject(&mut self, project: &Project, inputs: &mut FrameInputs) {
         let key = &inputs.ev;
         let grid = &project.grid;
-        let host = self.inject.host_possible(&self.ctx);
+        let inject = InjectOptions::of(&self.tuning);
+        let host = inject.host_possible(&self.ctx);
         let mut bricks: Vec<u32> = match &mut self.baked.ev {
             Some(ev) if ev.key == *key => {
                 let (old, new) = (&ev.particles, &project.particles);
@@ -599,42 +521,32 @@ impl FogPipeline {
             bricks.dedup();
         }
         let counts = self.baked.ev.as_ref().and_then(|ev| ev.host.as_ref());
-        let (job, bin_size) = self.inject.begin(&self.ctx, project, key.noise.is_some(), bricks, counts);
+        let (job, bin_size) = inject.begin(&self.ctx, project, key.noise.is_some(), bricks, counts);
         if let Some(bin_size) = bin_size.filter(|&b| b != self.bin_size) {
             self.bin_size = bin_size;
             inputs.grid.bin_size = bin_size;
-            self.write_scene_uniforms(inputs);
+            self.stages.upload_scene(&self.ctx.queue, inputs);
         }
         self.jobs.inject = Some((job, region));
     }
 
     /// Runs one chunk of the injection sized to `left_ms`; returns its cost units.
     fn inject_item(&mut self, left_ms: Option<f64>, counters: &mut Counters) -> Result<u64, GpuError> {
-        let (Some(g), Some((job, _))) = (&self.grid, self.jobs.inject.as_mut()) else { return Ok(0) };
+        let (Some(spec), Some((job, _))) = (self.stages.grid_spec(), self.jobs.inject.as_mut()) else { return Ok(0) };
         let rate = self.rates[timer::INJECT as usize];
         let budget_units = rate.units_in(left_ms);
-        let mut count = Injector::min_bricks(&self.ctx, job, &g.spec);
-        while job.next + count < job.bricks.len() && Injector::units(job, &g.spec, count * 2) <= budget_units {
+        let mut count = Injector::min_bricks(&self.ctx, job, &spec);
+        while job.next + count < job.bricks.len() && Injector::units(job, &spec, count * 2) <= budget_units {
             count *= 2;
         }
         if left_ms.is_none() {
             count = job.bricks.len().max(1);
         }
-        let units = Injector::units(job, &g.spec, count);
-        let layer = match &self.base_layer {
-            Some((v, buf)) if v.grid == g.spec => Some(buf),
-            _ => None,
-        };
-        let inputs =
-            InjectInputs { grid: &g.spec, grid_buf: &g.grid_buf, ev_view: &g.ev_view, brick_max: &g.brick_max, layer };
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        let stamps = self.timer.as_ref().map(|t| t.writes(timer::INJECT));
-        self.injector.encode_next(&self.ctx, &mut encoder, job, &inputs, count, stamps, counters);
-        self.note_memory();
-        if let Some(t) = &self.timer {
-            t.resolve(&mut encoder, timer::INJECT);
-        }
-        self.ctx.queue.submit([encoder.finish()]);
+        let units = Injector::units(job, &spec, count);
+        let (ctx, stages) = (&self.ctx, &mut self.stages);
+        timer::submit(ctx, self.timer.as_ref(), timer::INJECT, |encoder, stamps| {
+            stages.encode_inject(ctx, encoder, job, count, stamps, counters)
+        });
         self.ctx.wait()?;
         Ok(units)
     }
@@ -663,105 +575,33 @@ impl FogPipeline {
         targets: Vec<(usize, OpvKey)>,
         analytic_lists: Option<&binning::ChunkBins>,
     ) {
-        let Some(g) = &self.grid else { return };
-        let inputs = PropagationInputs {
-            grid: &g.spec,
-            grid_buf: &g.grid_buf,
-            ev_view: &g.ev_view,
-            lights_buf: &g.lights_buf,
-            opv: &g.opv,
-            brick_max: &g.brick_max,
-            positions: &frame.positions,
-            directions: &frame.directions,
-            sweep_stride: frame.sweep_stride,
-            sweep_refine: frame.sweep_refine,
-            particles: &project.particles,
-            analytic_lists,
-        };
         let active: Vec<u32> = targets.iter().map(|&(i, _)| i as u32).collect();
         let changed: Vec<Option<(glam::UVec3, glam::UVec3)>> =
             targets.iter().map(|&(i, k)| self.baked.changed_since(i, k)).collect();
-        let job = self.propagator.plan(&self.ctx.device, &inputs, frame.request.scheme, &active, &changed);
-        self.jobs.propagate = Some((job, targets));
+        let job = self.stages.plan_propagation(&self.ctx, &project.particles, frame, &active, &changed, analytic_lists);
+        if let Some(job) = job {
+            self.jobs.propagate = Some((job, targets));
+        }
     }
 
     /// Runs the next batch of propagation dispatches sized to `left_ms`; returns its cells.
     fn propagate_item(&mut self, left_ms: Option<f64>, counters: &mut Counters) -> u64 {
-        let Some((job, _)) = self.jobs.propagate.as_mut() else { return 0 };
+        let Some((job, targets)) = self.jobs.propagate.as_mut() else { return 0 };
         let count = job.fitting(self.rates[timer::PROPAGATE as usize].units_in(left_ms));
         let units = job.units(count);
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        let stamps = self.timer.as_ref().map(|t| t.writes(timer::PROPAGATE));
-        self.propagator.encode_next(&mut encoder, job, count, stamps, counters);
-        if let Some(t) = &self.timer {
-            t.resolve(&mut encoder, timer::PROPAGATE);
-        }
-        self.ctx.queue.submit([encoder.finish()]);
-        if let Some((_, targets)) = &self.jobs.propagate {
-            for &(i, _) in targets {
-                if let Some(s) = self.lookups.get_mut(i) {
-                    s.stale = true;
-                    s.opv_partial = true;
-                }
-            }
-        }
+        let stages = &mut self.stages;
+        timer::submit(&self.ctx, self.timer.as_ref(), timer::PROPAGATE, |encoder, stamps| {
+            stages.encode_propagation(encoder, job, count, stamps, counters, targets.iter().map(|&(i, _)| i))
+        });
         // A lost device surfaces as an error of the next readback or update.
         let _ = self.ctx.wait();
         units
     }
 
-    /// Rebuilds the lookup volumes of the lights whose OPV, light or grid parameters changed
-    /// since their last build, except, once built, those whose OPV propagation has partly
-    /// rewritten: a quick image marched meanwhile reads the optical depths of the last complete
-    /// propagation rather than a half-written OPV (and skips the rebuild), and the full march,
-    /// which waits for propagation to complete, rebuilds them.
-    fn refresh_lookup(&mut self) {
-        let Some(g) = self.grid.as_ref() else { return };
-        self.lookups.resize(g.light_count, LookupState::NEW);
-        let rebuild: Vec<bool> = self.lookups.iter().map(|s| s.stale && !(s.built && s.opv_partial)).collect();
-        if !rebuild.contains(&true) {
-            return;
-        }
-        let inputs = LookupInputs {
-            spec: g.spec,
-            stale: &rebuild,
-            grid_buf: &g.grid_buf,
-            ev_view: &g.ev_view,
-            lights_buf: &g.lights_buf,
-            opv: &g.opv[0],
-            lookup: &g.lookup,
-        };
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.lookup.encode(&self.ctx, &mut encoder, &inputs);
-        self.ctx.queue.submit([encoder.finish()]);
-        for (s, rebuilt) in self.lookups.iter_mut().zip(rebuild) {
-            if rebuilt {
-                s.stale = false;
-                s.built = true;
-            }
-        }
-    }
-
-    fn begin_march(&mut self, target: &ImageTarget, key: &ImageKey) -> Result<MarchJob, GpuError> {
-        self.refresh_lookup();
-        let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
-        let inputs = MarchInputs {
-            grid_buf: &g.grid_buf,
-            ev_view: &g.ev_view,
-            lights_buf: &g.lights_buf,
-            lookup: &g.lookup,
-            brick_max: &g.brick_max,
-            surfaces: &key.surfaces,
-            features: MarchFeatures::of(&key.lights, &key.surfaces, &key.grid),
-            params: MarchParams { size: [target.width, target.height], ..key.params },
-        };
-        Ok(self.marcher.begin(&self.ctx, target, &inputs))
-    }
-
     /// Marches the next band of the full image sized to `left_ms` (at least a row of
     /// workgroups with `whole_rows`); returns its pixels.
     fn march_item(&mut self, left_ms: Option<f64>, whole_rows: bool, counters: &mut Counters) -> Result<u64, GpuError> {
-        let (Some((job, _)), Some(target)) = (self.jobs.march.as_mut(), self.full.as_ref()) else {
+        let (Some((job, _)), Some(target)) = (self.jobs.march.as_mut(), self.stages.target(Level::Full)) else {
             // Without its target a march cannot go on: drop it.
             self.jobs.march = None;
             return Ok(0);
@@ -770,140 +610,83 @@ impl FogPipeline {
         if whole_rows {
             pixels = pixels.max(target.width as u64 * BAND_ROWS as u64);
         }
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        let stamps = self.timer.as_ref().map(|t| t.writes(timer::MARCH));
-        let covered = self.marcher.encode_band(&self.ctx, target, &mut encoder, job, pixels, stamps);
-        if let Some(t) = &self.timer {
-            t.resolve(&mut encoder, timer::MARCH);
-        }
-        self.ctx.queue.submit([encoder.finish()]);
+        let (ctx, stages) = (&self.ctx, &self.stages);
+        let covered = timer::submit(ctx, self.timer.as_ref(), timer::MARCH, |encoder, stamps| {
+            stages.encode_march(ctx, Level::Full, encoder, job, pixels, stamps)
+        });
         self.ctx.wait()?;
         counters.dispatches += 1;
-        Ok(covered)
+        Ok(covered.unwrap_or(0))
     }
 
     /// Marches the whole image at `w`×`h`, a reduced size (see `preview_stage`), and shows it.
     fn quick_march(&mut self, w: u32, h: u32, key: ImageKey, counters: &mut Counters) -> Result<(), GpuError> {
-        let target = match self.quick.take() {
-            Some(t) if t.width == w && t.height == h => t,
-            _ => ImageTarget::new(&self.ctx.device, w, h),
-        };
+        self.stages.ensure_target(&self.ctx, Level::Quick, w, h);
         let t = Instant::now();
-        let mut job = self.begin_march(&target, &key)?;
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.marcher.encode_band(&self.ctx, &target, &mut encoder, &mut job, u64::MAX, None);
-        self.ctx.queue.submit([encoder.finish()]);
+        let mut job = self.stages.begin_march(&self.ctx, Level::Quick, &key, &self.tuning)?;
+        let (ctx, stages) = (&self.ctx, &self.stages);
+        timer::submit(ctx, None, timer::MARCH, |encoder, _| {
+            stages.encode_march(ctx, Level::Quick, encoder, &mut job, u64::MAX, None)
+        });
         self.ctx.wait()?;
         self.rates[timer::MARCH as usize].observe(w as u64 * h as u64, ms(t));
         counters.dispatches += 1;
-        self.marcher.read_counters(&self.ctx, counters)?;
-        self.quick = Some(target);
+        self.stages.read_march_counters(&self.ctx, counters)?;
         self.baked.shown = Some((key, Level::Quick));
         Ok(())
     }
 
+    /// Allocates the grid's resources on the stages, and drops the work and records that
+    /// the reallocation invalidates.
     fn ensure_grid(&mut self, spec: GridSpec, light_count: usize) {
-        if let Some(g) = &self.grid {
-            if g.spec == spec && g.light_count == light_count {
-                return;
-            }
-            if g.spec == spec {
-                self.resize_lights(light_count);
-                return;
-            }
-        }
-        let layout = self.stages_for(&spec, light_count);
-        self.grid = Some(GridResources::new(&self.ctx.device, spec, light_count, layout));
-        self.lookups = vec![LookupState::NEW; light_count];
-        self.baked = Baked::default();
-        self.jobs = Jobs::default();
-    }
-
-    /// The OPV storage for `light_count` lights on `spec`: the fewest textures that hold them
-    /// (at most the device's). Rebuilds the stages that read OPVs when that number changes.
-    fn stages_for(&mut self, spec: &GridSpec, light_count: usize) -> OpvLayout {
-        let needed =
-            self.opv_layout.textures_for(spec.resolution, light_count as u64).clamp(1, self.opv_layout.textures as u64)
-                as u32;
-        let rows = self.opv_layout.needs_rows(spec.resolution, light_count as u64);
-        if needed != self.stage_layout.textures || rows != self.stage_layout.rows {
-            self.stage_layout = OpvLayout { textures: needed, rows, ..self.opv_layout };
-            let device = &self.ctx.device;
-            self.propagator = Propagator::new(device, self.stage_layout, self.sweep_cells);
-            let (general, exhaustive) = (self.marcher.general, self.marcher.exhaustive_fog_shadows);
-            self.marcher = Marcher::new(device, self.stage_layout);
-            self.marcher.general = general;
-            self.marcher.exhaustive_fog_shadows = exhaustive;
-            self.lookup = LookupBuilder::new(device, self.stage_layout);
-            self.slicer = Slicer::new(device, self.stage_layout);
-            self.baker = None;
-            self.as_baked = None;
-            self.jobs = Jobs::default();
-        }
-        self.stage_layout
-    }
-
-    /// Reallocates the per-light buffers for a new light count on the same grid, keeping the
-    /// OPVs of the lights that remain (by index), so adding a light propagates only that one.
-    fn resize_lights(&mut self, light_count: usize) {
-        let Some(spec) = self.grid.as_ref().map(|g| g.spec) else { return };
-        let layout = self.stages_for(&spec, light_count);
-        let Some(g) = &mut self.grid else { return };
-        g.resize_lights(&self.ctx, layout, light_count);
-        self.lookups = vec![LookupState::NEW; light_count];
-        self.baked.opvs.truncate(light_count);
-        // In-flight work binds the old buffers.
-        self.jobs.propagate = None;
-        self.jobs.march = None;
-    }
-
-    /// Uploads the lights (culled and hidden ones dark) and the grid parameters every stage reads.
-    fn write_scene_uniforms(&mut self, inputs: &FrameInputs) {
-        if let Some(g) = &self.grid {
-            g.write_uniforms(&self.ctx.queue, &inputs.lights, &inputs.grid);
-            let (lights, grid) = &mut self.uploaded;
-            self.lookups.resize(inputs.lights.len(), LookupState::NEW);
-            let same_grid = grid.is_some_and(|g| bytemuck::bytes_of(&g) == bytemuck::bytes_of(&inputs.grid));
-            for (i, l) in inputs.lights.iter().enumerate() {
-                if !same_grid || lights.get(i).is_none_or(|old| bytemuck::bytes_of(old) != bytemuck::bytes_of(l)) {
-                    self.lookups[i].stale = true;
+        match self.stages.ensure_grid(&self.ctx, spec, light_count) {
+            Reallocated::Nothing => {}
+            Reallocated::Lights { count, stages } => {
+                if stages {
+                    self.jobs = Jobs::default();
                 }
+                self.baked.opvs.truncate(count);
+                // In-flight work binds the old buffers.
+                self.jobs.propagate = None;
+                self.jobs.march = None;
             }
-            *lights = inputs.lights.clone();
-            *grid = Some(inputs.grid);
+            Reallocated::Grid => {
+                self.baked = Baked::default();
+                self.jobs = Jobs::default();
+            }
         }
+    }
+
+    /// How the stages run (see [`Tuning`]); the `set_*` methods below change it.
+    pub fn tuning(&self) -> &Tuning {
+        &self.tuning
     }
 
     /// Caps the particle–bin lists of one injection chunk at `bytes` (None: one storage
     /// binding, the most a chunk can use). Smaller chunks bound memory more tightly at the
     /// cost of more passes; the EV is the same bit for bit.
     pub fn set_inject_chunk_bytes(&mut self, bytes: Option<u64>) {
-        self.inject.chunk_limit = bytes;
+        self.tuning.inject_chunk_bytes = bytes;
     }
 
     /// The particle–bin list bytes one injection chunk may use.
     pub fn inject_chunk_bytes(&self) -> u64 {
-        self.inject.chunk_bytes(&self.ctx)
+        InjectOptions::of(&self.tuning).chunk_bytes(&self.ctx)
     }
 
-    /// Makes every march use the march built for every light kind and medium
-    /// (`MarchFeatures::ALL`) instead of the one built for its scene, for measuring what
-    /// that saves. The image is the same. Off by default; applies to marches begun after it.
+    /// [`Tuning::general_march`]: the image is the same.
     pub fn set_general_march(&mut self, on: bool) {
-        self.marcher.general = on;
+        self.tuning.general_march = on;
     }
 
-    /// Makes base fog outside the grid test every surface for every light, instead of only
-    /// those that can hide a point or spot light from the segment marched. The image is the
-    /// same. Off by default; applies to marches begun after it.
+    /// [`Tuning::exhaustive_fog_shadows`]: the image is the same.
     pub fn set_exhaustive_fog_shadows(&mut self, on: bool) {
-        self.marcher.exhaustive_fog_shadows = on;
+        self.tuning.exhaustive_fog_shadows = on;
     }
 
-    /// Makes every cell evaluate every particle instead of only those binned into its brick:
-    /// the brute-force injection, for measuring what binning saves. Off by default.
+    /// [`Tuning::brute_force_injection`].
     pub fn set_brute_force_injection(&mut self, on: bool) {
-        self.inject.brute_force = on;
+        self.tuning.brute_force_injection = on;
     }
 
     /// Makes each sweep thread solve `cells` cells (at least one) instead of the adapter's
@@ -912,9 +695,8 @@ impl FogPipeline {
     /// are propagated again.
     pub fn set_sweep_cells_per_thread(&mut self, cells: u32) {
         let cells = cells.max(1);
-        if cells != self.sweep_cells {
-            self.sweep_cells = cells;
-            self.propagator = Propagator::new(&self.ctx.device, self.stage_layout, cells);
+        self.tuning.sweep_cells_per_thread = Some(cells);
+        if self.stages.set_sweep_cells(&self.ctx, cells) {
             self.jobs = Jobs::default();
             self.baked.opvs.iter_mut().for_each(|k| *k = None);
         }
@@ -922,8 +704,8 @@ impl FogPipeline {
 
     /// Where the injection sums the particles (see [`InjectPath`]).
     pub fn set_inject_path(&mut self, path: InjectPath) {
-        if path != self.inject.path {
-            self.inject.path = path;
+        if path != self.tuning.inject_path {
+            self.tuning.inject_path = path;
             self.baked.ev = None;
         }
     }
@@ -933,7 +715,7 @@ impl FogPipeline {
     /// reach at least [`HOST_MIN_ENTRIES_PER_BRICK`](super::HOST_MIN_ENTRIES_PER_BRICK) bricks
     /// per brick of the grid.
     pub fn inject_on_host(&self, project: &Project) -> bool {
-        self.inject.on_host(&self.ctx, project)
+        InjectOptions::of(&self.tuning).on_host(&self.ctx, project)
     }
 
     /// Bins the injection by this edge across (1, 2, 4 or 8 cells) instead of the one with
@@ -945,7 +727,7 @@ impl FogPipeline {
                 binning::BIN_EDGES
             )));
         }
-        self.inject.bin_edge = edge;
+        self.tuning.inject_bin_edge = edge;
         self.baked.ev = None;
         Ok(())
     }
@@ -954,16 +736,7 @@ impl FogPipeline {
     /// such as a VDB grid resampled into the project's grid. It must match the grid of the
     /// projects passed to [`update`](Self::update).
     pub fn set_base_layer(&mut self, layer: Option<Volume>) {
-        let binding = self.ctx.max_binding_bytes();
-        self.base_layer = layer.map(|v| {
-            // A layer too large to bind is not uploaded (wgpu would panic); `check_limits`
-            // refuses its grid with the limit named.
-            let bytes: &[u8] = bytemuck::cast_slice(&v.data);
-            let buf =
-                storage_buffer(&self.ctx.device, "base layer", if bytes.len() as u64 > binding { &[] } else { bytes });
-            (v, buf)
-        });
-        self.base_layer_generation += 1;
+        self.stages.set_base_layer(&self.ctx, layer);
     }
 
     /// The radiance each cell emits, W·m⁻³·sr⁻¹ per channel (physics.md §10), baked from the
@@ -975,37 +748,8 @@ impl FogPipeline {
         request: &FrameRequest,
         phase: BakePhase,
     ) -> Result<Volume3, GpuError> {
-        if !project.lights.iter().any(|l| !l.hidden) {
-            return Err(GpuError::Invalid(
-                "nothing to bake: the project has no visible light; add a light or unhide one".into(),
-            ));
-        }
-        self.update(project, request)?;
-        let frame = FrameInputs::new(project, request, &self.settings(project));
-        self.refresh_lookup();
-        let baker = self.baker.get_or_insert_with(|| Baker::new(&self.ctx.device, self.stage_layout));
-        let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
-        let inputs = BakeInputs {
-            spec: g.spec,
-            grid_buf: &g.grid_buf,
-            ev_view: &g.ev_view,
-            lights_buf: &g.lights_buf,
-            lookup: &g.lookup,
-            surfaces: &frame.surfaces,
-            params: frame.march,
-        };
-        let scope = ErrorScope::push(&self.ctx.device);
-        let result = baker.bake(&self.ctx, &inputs, phase);
-        scope.pop("bake")?;
-        let emission = result?;
-        let bad = emission.data.iter().flatten().filter(|v| !v.is_finite()).count();
-        if bad > 0 {
-            return Err(GpuError::Invalid(format!(
-                "the baked emission has {bad} values that are not finite numbers; check the lights' intensities \
-                 and the medium for values beyond f32's range"
-            )));
-        }
-        Ok(emission)
+        let frame = self.update_for_bake(project, request)?;
+        self.stages.bake(&self.ctx, &frame, phase)
     }
 
     /// The emission–absorption render of the bake of `project` at the request's size (see
@@ -1018,113 +762,79 @@ impl FogPipeline {
         request: &FrameRequest,
         phase: BakePhase,
     ) -> Result<(), GpuError> {
-        let emission = self.bake_emission(project, request, phase)?;
-        let frame = FrameInputs::new(project, request, &self.settings(project));
-        let renderer = self.as_baked.get_or_insert_with(|| AsBakedRenderer::new(&self.ctx.device, self.stage_layout));
-        let target = match self.as_baked_image.take() {
-            Some(t) if t.width == request.width && t.height == request.height => t,
-            _ => ImageTarget::new(&self.ctx.device, request.width, request.height),
-        };
-        let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
-        let inputs = AsBakedInputs {
-            grid_buf: &g.grid_buf,
-            ev_view: &g.ev_view,
-            emission: &emission,
-            surfaces: &frame.surfaces,
-            params: frame.march,
-        };
-        let scope = ErrorScope::push(&self.ctx.device);
-        let result = renderer.render(&self.ctx, &inputs, &target);
-        scope.pop("as baked render")?;
-        result?;
-        self.as_baked_image = Some(target);
-        Ok(())
+        let frame = self.update_for_bake(project, request)?;
+        self.stages.render_as_baked(&self.ctx, &frame, phase)
+    }
+
+    /// Brings the volumes up to date for a bake of `project`, and its frame's inputs.
+    fn update_for_bake(&mut self, project: &Project, request: &FrameRequest) -> Result<FrameInputs, GpuError> {
+        if !project.lights.iter().any(|l| !l.hidden) {
+            return Err(GpuError::Invalid(
+                "nothing to bake: the project has no visible light; add a light or unhide one".into(),
+            ));
+        }
+        self.update(project, request)?;
+        Ok(FrameInputs::new(project, request, &self.settings(project)))
     }
 
     /// The last [`render_as_baked`](Self::render_as_baked) image as linear HDR radiance.
     pub fn read_as_baked(&self) -> Result<Image, GpuError> {
-        let target = self
-            .as_baked_image
-            .as_ref()
-            .ok_or_else(|| GpuError::Invalid("nothing rendered as baked yet: call render_as_baked first".into()))?;
-        outputs::read_image(&self.ctx, target)
+        self.stages.baking().read(&self.ctx)
     }
 
     /// The last "as baked" image, tone-mapped (rgba8unorm), and its size, for the editor.
     pub fn as_baked_view(&self) -> Option<(&wgpu::TextureView, [u32; 2])> {
-        self.as_baked_image.as_ref().map(|t| (&t.ldr_view, [t.width, t.height]))
-    }
-
-    fn grid(&self) -> Result<&GridResources, GpuError> {
-        self.grid.as_ref().ok_or_else(nothing_baked)
+        self.stages.baking().view()
     }
 
     /// The extinction volume σ_t at cell centres.
     pub fn read_ev(&self) -> Result<Volume, GpuError> {
-        outputs::read_ev(&self.ctx, self.grid()?)
+        self.stages.read_ev(&self.ctx)
     }
 
     /// Optical depth T towards light `light` at cell centres.
     pub fn read_opv(&self, light: usize) -> Result<Volume, GpuError> {
-        outputs::read_opv(&self.ctx, self.grid()?, light)
+        self.stages.read_opv(&self.ctx, light)
     }
 
     /// Plane `index` across grid `axis` (0, 1, 2 for x, y, z) of the EV or of one light's
     /// OPV, gathered on the GPU so that only the plane is read back.
     pub fn read_slice(&mut self, source: SliceSource, axis: usize, index: u32) -> Result<Plane, GpuError> {
-        let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
-        outputs::read_slice(&self.ctx, &mut self.slicer, g, source, axis, index)
+        self.stages.read_slice(&self.ctx, source, axis, index)
     }
 
-    fn shown_target(&self) -> Option<&ImageTarget> {
-        match self.baked.shown.as_ref()?.1 {
-            Level::Quick => self.quick.as_ref(),
-            Level::Full => self.full.as_ref(),
-        }
+    /// The level of the image on show.
+    fn shown_level(&self) -> Option<Level> {
+        self.baked.shown.as_ref().map(|(_, level)| *level)
     }
 
     /// The image on show as linear HDR radiance (after [`update`](Self::update): the full frame).
     pub fn read_image(&self) -> Result<Image, GpuError> {
-        let img =
-            self.shown_target().ok_or_else(|| GpuError::Invalid("nothing rendered yet: call update first".into()))?;
-        outputs::read_image(&self.ctx, img)
+        let level =
+            self.shown_level().ok_or_else(|| GpuError::Invalid("nothing rendered yet: call update first".into()))?;
+        self.stages.read_image(&self.ctx, level)
     }
 
     /// The tone-mapped image on show (rgba8unorm) and its size, for display by the editor
     /// without a CPU round trip. Its view changes when the preview switches resolution.
     pub fn display_view(&self) -> Option<(&wgpu::TextureView, [u32; 2])> {
-        self.shown_target().map(|t| (&t.ldr_view, [t.width, t.height]))
+        let t = self.stages.target(self.shown_level()?)?;
+        Some((&t.ldr_view, [t.width, t.height]))
     }
 
     /// The most GPU memory [`memory_bytes`](Self::memory_bytes) has reported, sampled after
     /// each injection chunk, when propagation is planned and when a call returns.
     pub fn peak_memory_bytes(&self) -> u64 {
-        self.peak_memory.load(std::sync::atomic::Ordering::Relaxed).max(self.memory_bytes())
+        self.stages.peak_memory_bytes()
     }
 
     /// Starts a new [`peak_memory_bytes`](Self::peak_memory_bytes) window at the memory held now.
     pub fn reset_peak_memory(&self) {
-        self.peak_memory.store(self.memory_bytes(), std::sync::atomic::Ordering::Relaxed);
-    }
-
-    fn note_memory(&self) {
-        self.peak_memory.fetch_max(self.memory_bytes(), std::sync::atomic::Ordering::Relaxed);
+        self.stages.reset_peak_memory();
     }
 
     /// Bytes of GPU memory the pipeline's live resources hold.
     pub fn memory_bytes(&self) -> u64 {
-        let layer = self.base_layer.as_ref().map_or(0, |(_, b)| b.size());
-        self.grid.as_ref().map_or(0, GridResources::bytes)
-            + self.quick.as_ref().map_or(0, ImageTarget::bytes)
-            + self.full.as_ref().map_or(0, ImageTarget::bytes)
-            + self.as_baked_image.as_ref().map_or(0, ImageTarget::bytes)
-            + self.injector.bytes()
-            + self.marcher.bytes()
-            + self.slicer.bytes()
-            + layer
+        self.stages.memory_bytes()
     }
-}
-
-fn nothing_baked() -> GpuError {
-    GpuError::Invalid("nothing baked yet: call update first".into())
 }

@@ -157,6 +157,7 @@ mod tests {
             ("march", march(&opv)),
             ("march_lookup", march_lookup(&opv)),
             ("bake", bake(&opv)),
+            ("as_baked", as_baked(&opv)),
             ("slice", slice(&opv)),
         ];
         for (cells, filtered) in [(1, false), (8, true)] {

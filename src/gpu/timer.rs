@@ -65,3 +65,20 @@ impl StageTimer {
 fn offset(stage: u32) -> u64 {
     wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT * stage as u64
 }
+
+/// Encodes one work item of `stage` with `timer`'s timestamp writes, if any, resolves them,
+/// and submits it; returns what `encode` returns.
+pub fn submit<'t, R>(
+    ctx: &GpuContext,
+    timer: Option<&'t StageTimer>,
+    stage: u32,
+    encode: impl FnOnce(&mut wgpu::CommandEncoder, Option<wgpu::ComputePassTimestampWrites<'t>>) -> R,
+) -> R {
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    let result = encode(&mut encoder, timer.map(|t| t.writes(stage)));
+    if let Some(t) = timer {
+        t.resolve(&mut encoder, stage);
+    }
+    ctx.queue.submit([encoder.finish()]);
+    result
+}
