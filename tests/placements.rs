@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::pipeline;
+use common::{pipeline, Lcg};
 use fogsmith::gpu::FrameRequest;
 use fogsmith::measure::{opv_errors, sample_cells};
 use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project, Scheme, DEFAULT_SWEEP_TOLERANCE};
@@ -58,36 +58,14 @@ const CLASSES: [&str; 8] = [
     "far away",
 ];
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.next()
-    }
-    fn pick(&mut self, n: usize) -> usize {
-        ((self.next() * n as f32) as usize).min(n - 1)
-    }
-    fn sign(&mut self) -> f32 {
-        if self.next() < 0.5 {
-            -1.0
-        } else {
-            1.0
-        }
-    }
-}
-
 /// One light per placement class, in `CLASSES` order.
-fn lights_by_class(rng: &mut Rng, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
+fn lights_by_class(rng: &mut Lcg, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
     let (lo, hi) = (grid.min, grid.max);
     let size = grid.size();
     let c = (lo + hi) * 0.5;
-    let within = |rng: &mut Rng| lo + size * Vec3::new(rng.next(), rng.next(), rng.next());
+    let within = |rng: &mut Lcg| lo + size * Vec3::new(rng.f32(), rng.f32(), rng.f32());
     // A point with `outside` axes (distinct, random) beyond a face, the others in the box.
-    let beyond = |rng: &mut Rng, outside: usize| {
+    let beyond = |rng: &mut Lcg, outside: usize| {
         let mut p = within(rng);
         let first = rng.pick(3);
         for k in 0..outside {
@@ -97,12 +75,12 @@ fn lights_by_class(rng: &mut Rng, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
         p
     };
     // A point on `fixed` axes' faces.
-    let on = |rng: &mut Rng, fixed: usize| {
+    let on = |rng: &mut Lcg, fixed: usize| {
         let mut p = within(rng);
         let first = rng.pick(3);
         for k in 0..fixed {
             let a = (first + k) % 3;
-            p[a] = if rng.next() < 0.5 { lo[a] } else { hi[a] };
+            p[a] = if rng.f32() < 0.5 { lo[a] } else { hi[a] };
         }
         p
     };
@@ -111,7 +89,7 @@ fn lights_by_class(rng: &mut Rng, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
     vec![blob, on(rng, 1), on(rng, 2), on(rng, 3), beyond(rng, 1), beyond(rng, 2), beyond(rng, 3), far]
 }
 
-fn scene(rng: &mut Rng, resolution: UVec3, base: f32, min_radius: f32) -> (Project, usize) {
+fn scene(rng: &mut Lcg, resolution: UVec3, base: f32, min_radius: f32) -> (Project, usize) {
     let mut p = Project::default();
     let cell = 0.05;
     let size = resolution.as_vec3() * cell;
@@ -126,7 +104,7 @@ fn scene(rng: &mut Rng, resolution: UVec3, base: f32, min_radius: f32) -> (Proje
         let r = cell * rng.range(min_radius, 10.0);
         // Centres anywhere in the box and up to a radius beyond it, so tails cross faces.
         let centre =
-            p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.next(), rng.next(), rng.next());
+            p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
         // Peak optical depth through the particle between 0.1 and 2.
         let density = rng.range(0.1, 2.0) / (r * 1.772_453_9);
         p.particles.push(Particle::new(centre, r, density));
@@ -153,7 +131,7 @@ fn worst_by_class(scheme: Scheme, stride: u32, refine: Option<f32>, min_radius: 
     let mut gpu = pipeline();
     let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
     let mut worst = vec![(0.0f64, 0.0f64); CLASSES.len()];
-    let mut rng = Rng(seed);
+    let mut rng = Lcg(seed);
     for (g, &res) in grids.iter().enumerate() {
         for seed in 0..2 {
             // Half the scenes without base fog, so that far lights still see the medium.
@@ -311,7 +289,7 @@ fn analytic_worst_by_class(min_radius: f32, seed: u64) -> Vec<f64> {
     let mut gpu = pipeline();
     let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
     let mut worst = vec![0.0f64; CLASSES.len()];
-    let mut rng = Rng(seed);
+    let mut rng = Lcg(seed);
     for (g, &res) in grids.iter().enumerate() {
         for seed in 0..2 {
             let base = if (g + seed) % 2 == 0 { 0.0 } else { rng.range(0.02, 0.3) };
