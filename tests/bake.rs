@@ -22,7 +22,11 @@ fn random_scene(seed: u64, res: u32) -> Project {
     p.medium.base_extinction = 0.0;
     p.particles.clear();
     for _ in 0..6 {
-        p.particles.push(fogsmith::scene::Particle::new(rng.vec3(-0.5, 0.5), rng.range(0.15, 0.35), rng.range(1.0, 6.0)));
+        p.particles.push(fogsmith::scene::Particle::new(
+            rng.vec3(-0.5, 0.5),
+            rng.range(0.15, 0.35),
+            rng.range(1.0, 6.0),
+        ));
     }
     // Outside the grid: a point light inside the fog glows within its cell, which a grid can
     // only hold as the cell's mean (`cells_by_a_point_light_hold_their_mean`), while the march

@@ -311,7 +311,8 @@ fn base_volume_project(dir: &Path, seed: u64) -> PathBuf {
     use glam::{UVec3, Vec3};
     let mut rng = common::Rng(seed);
     let mut p = common::small_scene(20, &[Vec3::new(rng.range(-1.5, 1.5), 1.6, rng.range(-1.5, 1.5))]);
-    p.particles = (0..5).map(|_| Particle::new(rng.vec3(-0.35, 0.35), rng.range(0.2, 0.3), rng.range(1.0, 5.0))).collect();
+    p.particles =
+        (0..5).map(|_| Particle::new(rng.vec3(-0.35, 0.35), rng.range(0.2, 0.3), rng.range(1.0, 5.0))).collect();
     let layer_grid =
         GridSpec { min: Vec3::new(-1.3, -0.9, -1.1), max: Vec3::new(0.9, 1.4, 1.2), resolution: UVec3::new(7, 6, 9) };
     let (c, w) = (rng.vec3(-0.4, 0.4), rng.range(0.3, 0.6));

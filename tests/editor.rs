@@ -4,19 +4,19 @@
 
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
-use egui_kittest::{Harness, SnapshotOptions};
+use egui_kittest::SnapshotOptions;
 use fogsmith::editor::app::{Action, ExportChoices, PreviewScale, Quality, StartProject};
 use fogsmith::editor::slices::Axis;
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
-use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::editor::EditorOptions;
 use fogsmith::scene::{load_project, Volume};
 use std::path::PathBuf;
 
 mod common;
 use common::editor::{
-    build, compare_with_fresh_bake_of, converge, demo, harness, harness_scaled, harness_with, progressive_harness, read_ev,
-    wait_idle,
+    build, compare_with_fresh_bake_of, converge, demo, harness, harness_scaled, harness_with, progressive_harness,
+    read_ev, wait_idle,
 };
 use fogsmith::editor::driver::EditorDriver;
 

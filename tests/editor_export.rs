@@ -3,16 +3,15 @@
 //! Fogsmith's own file dialog, the files read back with the project's readers and compared
 //! with the pipeline's read-back; refused combinations; choices remembered per project.
 
-use egui::{Key, Modifiers, Vec2};
+use egui::{Key, Modifiers};
 use egui_kittest::kittest::{NodeT, Queryable};
-use egui_kittest::Harness;
-use fogsmith::editor::app::{ExportFormat, ImageFormat, PreviewScale, Quality, StartProject};
+use fogsmith::editor::app::{ExportFormat, ImageFormat, PreviewScale, StartProject};
 use fogsmith::editor::files::FileDialogs;
-use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::editor::EditorOptions;
 use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use fogsmith::export::ktx::{r8_texel, Ktx2Format};
 use fogsmith::export::vdb_read::{list_vdb_grids, read_vdb_grid};
-use fogsmith::scene::{save_project, Project, Volume};
+use fogsmith::scene::{save_project, Project};
 use std::path::{Path, PathBuf};
 
 mod common;

@@ -6,13 +6,12 @@
 
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
-use egui_kittest::Harness;
-use fogsmith::editor::app::{PreviewScale, Quality, StartProject};
+use fogsmith::editor::app::{PreviewScale, Quality};
 use fogsmith::editor::commands::Command;
 use fogsmith::editor::timeline::{PlayMode, MOTION_PATH};
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
-use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::editor::EditorOptions;
 use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
 use fogsmith::scene::Project;
 

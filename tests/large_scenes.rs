@@ -27,8 +27,11 @@ fn scene(n: usize) -> Project {
     let mut rng = common::Rng(7);
     p.particles = (0..n)
         .map(|i| {
-            let mut q =
-                Particle::new(rng.vec3(-2.0, 2.0) + Vec3::new(0.0, 2.0, 0.0), rng.range(0.02, 0.06), rng.range(0.5, 3.5));
+            let mut q = Particle::new(
+                rng.vec3(-2.0, 2.0) + Vec3::new(0.0, 2.0, 0.0),
+                rng.range(0.02, 0.06),
+                rng.range(0.5, 3.5),
+            );
             q.name = (i % 997 == 0).then(|| format!("dab {i} ☁"));
             q.hidden = i % 13 == 0;
             q.noise = i % 7 != 0;

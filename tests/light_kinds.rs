@@ -1,6 +1,8 @@
 //! The project model of light kinds, height fog and noise: defaults that keep older files
 //! loading unchanged, RON round trips, the cone factor, and clear errors on bad values.
 
+mod common;
+
 use fogsmith::scene::io::to_ron_string;
 use fogsmith::scene::{cone_factor, parse_project, Light, LightKind, Noise, Project};
 use glam::{DVec3, Vec3};

@@ -223,8 +223,7 @@ fn sun_image_matches_reference() {
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
-    let e =
-        image_error(&image, &reference);
+    let e = image_error(&image, &reference);
     println!("sun image: relative RMSE {:.4}, max abs {:.3e}", e.rel_rmse, e.max_abs_error);
     assert!(e.rel_rmse < 0.02, "{}", e.rel_rmse);
 }
@@ -272,8 +271,7 @@ fn height_fog_image_matches_reference() {
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
-    let e =
-        image_error(&image, &reference);
+    let e = image_error(&image, &reference);
     println!("height fog image: relative RMSE {:.4}, max abs {:.3e}", e.rel_rmse, e.max_abs_error);
     assert!(e.rel_rmse < 0.05, "{}", e.rel_rmse);
 }

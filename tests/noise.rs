@@ -127,7 +127,8 @@ fn ev_with_noise_matches_the_f64_reference_on_random_scenes() {
     for scene_no in 0..14 {
         let min = rng.vec3(-6.0, 6.0);
         let size = rng.vec3(0.5, 4.0);
-        let mut res = UVec3::new(8 + (rng.f32() * 20.0) as u32, 8 + (rng.f32() * 20.0) as u32, 8 + (rng.f32() * 20.0) as u32);
+        let mut res =
+            UVec3::new(8 + (rng.f32() * 20.0) as u32, 8 + (rng.f32() * 20.0) as u32, 8 + (rng.f32() * 20.0) as u32);
         if scene_no % 3 == 1 {
             res[scene_no % 3 + (scene_no / 3) % 2] = 1 + (rng.f32() * 2.0) as u32;
         }
@@ -142,7 +143,8 @@ fn ev_with_noise_matches_the_f64_reference_on_random_scenes() {
                 q
             })
             .collect();
-        let frequency = (0.1 + rng.f32() * 10.0 / size.min_element()) * if scene_no % 5 == 4 { 8.0 / cell } else { 1.0 };
+        let frequency =
+            (0.1 + rng.f32() * 10.0 / size.min_element()) * if scene_no % 5 == 4 { 8.0 / cell } else { 1.0 };
         let amplitude = [0.3, 0.9, 2.5, 20.0][scene_no % 4];
         let seed = if scene_no % 3 == 0 { u32::MAX - (rng.f32() * 4.0) as u32 } else { (rng.f32() * 1e6) as u32 };
         let noise = Noise::new(amplitude, frequency, 1 + (rng.f32() * 8.0) as u32, seed);

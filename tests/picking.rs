@@ -38,8 +38,12 @@ fn random_view(rng: &mut Rng) -> ViewProjection {
     let target = rng.vec3(-2.0, 2.0);
     // Mostly outside the scene, sometimes inside it (particles behind the camera).
     let distance = if rng.f32() < 0.25 { rng.range(0.1, 2.0) } else { rng.range(3.0, 15.0) };
-    let camera =
-        Camera { position: target + rng.direction() * distance, target, up: Vec3::Y, fov_y_deg: rng.range(10.0, 100.0) };
+    let camera = Camera {
+        position: target + rng.direction() * distance,
+        target,
+        up: Vec3::Y,
+        fov_y_deg: rng.range(10.0, 100.0),
+    };
     let size = egui::vec2(rng.range(50.0, 1600.0), rng.range(50.0, 1000.0));
     let rect = Rect::from_min_size(Pos2::new(rng.range(0.0, 300.0), rng.range(0.0, 200.0)), size);
     ViewProjection::new(&camera, rect)

@@ -9,6 +9,7 @@
 
 mod common;
 
+use common::scenes::transmittance_errors;
 use common::{pipeline, Lcg};
 use fogsmith::gpu::FrameRequest;
 use fogsmith::measure::{opv_errors, sample_cells};
@@ -180,14 +181,8 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     let medium = GridMedium64::from_volume(&p.grid, ev, p.medium.base_extinction.max(0.0) as f64);
     let s = p.lights[l].position.as_dvec3();
     let exact = grid_optical_depth_cells(&p.grid, &medium, s, cells);
-    let err = |c: &[u32; 3], t: f64| ((-(opv.get(c[0], c[1], c[2]) as f64)).exp() - (-t).exp()).abs();
-    let (n, _) = cells
-        .iter()
-        .zip(&exact)
-        .enumerate()
-        .map(|(n, (c, t))| (n, err(c, *t)))
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .unwrap();
+    let (errors, worst) = transmittance_errors(opv, cells, &exact);
+    let n = worst.unwrap();
     let c = cells[n];
     let cell = p.grid.cell_size().as_dvec3();
     let x = p.grid.cell_center(c[0], c[1], c[2]).as_dvec3();
@@ -199,7 +194,7 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     let (t0, t1) = fogsmith::reference::clip_to_box(lo, hi, x, dir, len).unwrap_or((0.0, 0.0));
     let e = x + dir * t1;
     let eu = (e - lo) / cell - 0.5;
-    println!("    worst cell {c:?} err {:.2e} light(cells) {:.1?} path(cells) {:.1?} in-box {:.2} cells t0 {t0:.2} exit(cells) {:.2?}", err(&c, exact[n]), su.to_array(), v.to_array(), t1 / cell.min_element(), eu.to_array());
+    println!("    worst cell {c:?} err {:.2e} light(cells) {:.1?} path(cells) {:.1?} in-box {:.2} cells t0 {t0:.2} exit(cells) {:.2?}", errors[n], su.to_array(), v.to_array(), t1 / cell.min_element(), eu.to_array());
     let a = (0..3).max_by(|&i, &j| v[i].abs().total_cmp(&v[j].abs())).unwrap();
     let res = p.grid.resolution;
     let mut along = Vec::new();

@@ -2,10 +2,9 @@
 
 mod common;
 
-use common::{pipeline, render_both, small_scene, Rng};
-use fogsmith::gpu::{FrameRequest, Image};
+use common::{render_both, small_scene, Rng};
 use fogsmith::measure::image_error;
-use fogsmith::reference::{camera_ray64, render_reference, shadowed, RefRenderOptions};
+use fogsmith::reference::{camera_ray64, shadowed};
 use fogsmith::scene::{Camera, Ground, Light, LightKind, Particle, Project, StepPolicy, SurfaceBox};
 use glam::{DVec3, UVec3, Vec3};
 

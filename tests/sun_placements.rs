@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::scenes::transmittance_errors;
 use common::{pipeline, Lcg};
 use fogsmith::gpu::FrameRequest;
 use fogsmith::measure::{opv_error_against, opv_errors, sample_cells};
@@ -158,10 +159,9 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     let medium = GridMedium64::for_project(p, ev);
     let exact = grid_light_depth_cells(p, &medium, l, cells);
     let got = |c: &[u32; 3]| opv.get(c[0], c[1], c[2]) as f64;
-    let err = |c: &[u32; 3], t: f64| ((-got(c)).exp() - (-t).exp()).abs();
-    let errors: Vec<f64> = cells.iter().zip(&exact).map(|(c, t)| err(c, *t)).collect();
+    let (errors, worst) = transmittance_errors(opv, cells, &exact);
     let bad = errors.iter().filter(|&&e| e > SCHEME_BOUND).count();
-    let Some(n) = (0..cells.len()).max_by(|&a, &b| errors[a].total_cmp(&errors[b])) else { return };
+    let Some(n) = worst else { return };
     let c = cells[n];
     println!(
         "    worst cell {c:?} error {:.2e} reference {:.5} got {:.5}; {bad} cells beyond the bound",

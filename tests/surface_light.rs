@@ -247,7 +247,8 @@ fn specular_surfaces_match_reference_on_random_scenes() {
             }
         };
         let mut p = shadow_scene(kind, beta, false);
-        p.lights[0].position = Vec3::new(range(&mut rng, -1.0, 1.0), range(&mut rng, 0.2, 1.5), range(&mut rng, -1.0, 1.0));
+        p.lights[0].position =
+            Vec3::new(range(&mut rng, -1.0, 1.0), range(&mut rng, 0.2, 1.5), range(&mut rng, -1.0, 1.0));
         let (n_ground, n_box) = match case {
             0 => (0.0, 1000.0),
             1 => (1000.0, 0.0),

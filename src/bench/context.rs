@@ -73,7 +73,12 @@ impl Context {
     }
 
     /// Brings the pipeline up to date with `project`, rerunning only what changed.
-    pub(super) fn incremental(&mut self, project: &Project, width: u32, height: u32) -> Result<FrameReport, BenchError> {
+    pub(super) fn incremental(
+        &mut self,
+        project: &Project,
+        width: u32,
+        height: u32,
+    ) -> Result<FrameReport, BenchError> {
         let request = FrameRequest { width, height, scheme: project.propagation.scheme, force: false };
         Ok(self.gpu.update(project, &request)?)
     }

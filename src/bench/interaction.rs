@@ -19,7 +19,7 @@
 //! the same frames' work alone (injection, propagation and march at the preview's size, on a
 //! pipeline of its own) completes: the rate "every frame" playback can reach.
 
-use super::context::LARGE_SCENE;
+use super::context::{small_particle_scene, LARGE_SCENE};
 use super::BenchError;
 use crate::editor::app::{Quality, StartProject};
 use crate::editor::driver::{DriverSetup, EditorDriver};
@@ -228,7 +228,7 @@ fn percentiles(v: &[f64]) -> [f64; 4] {
 /// Runs the script on demo `scene` (or [`LARGE_SCENE`]) with the preview in `quality`.
 pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
     let large = scene == LARGE_SCENE;
-    let project = if large { super::context::small_particle_scene(100_000, 2, 64) } else { crate::demos::demo(scene)? };
+    let project = if large { small_particle_scene(100_000, 2, 64) } else { crate::demos::demo(scene)? };
     let start = StartProject { project, path: None, name: format!("{scene}.ron"), error: None };
     let setup = DriverSetup {
         // The window size whose viewport is about 840×455 points in the default layout.

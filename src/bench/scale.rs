@@ -11,8 +11,7 @@ use super::context::{small_particle_scene, Context};
 use super::suites::loglog_slope;
 use super::BenchError;
 use crate::gpu::{FrameReport, InjectPath, OpvLayout};
-use crate::scene::{Light, Particle, Project};
-use glam::{UVec3, Vec3};
+use crate::scene::Project;
 use serde_json::{json, Value};
 
 /// Peak resident memory of this process in bytes (VmHWM), where the OS reports it.

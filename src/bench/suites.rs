@@ -3,14 +3,13 @@
 
 use super::context::{image_size, with_resolution, Context, OPV_SCHEMES};
 use super::BenchError;
-use crate::demos::demo;
 use crate::gpu::FrameReport;
-use crate::rng::Lcg;
 use crate::measure::{depth_error, image_error, opv_error_against, sample_cells};
 use crate::reference::sun::{f_exact, table_error, table_error_paper_metric, FTable, Interp, TableLayout};
 use crate::reference::{
     clipped_optical_depth_cells, grid_light_depth_cells, render_reference, GridMedium64, RefRenderOptions,
 };
+use crate::rng::Lcg;
 use crate::scene::{Ground, Light, LightKind, Noise, Particle, Project, Scheme, StepPolicy, SurfaceBox};
 use glam::{UVec3, Vec3};
 use serde_json::{json, Value};

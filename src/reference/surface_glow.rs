@@ -194,7 +194,7 @@ mod tests {
 
     #[test]
     fn specular_s_function_matches_sphere_quadrature() {
-    use crate::surface_table::{s_exact, spec_radiance};
+        use crate::surface_table::{s_exact, spec_radiance};
         let mut worst: f64 = 0.0;
         for (beta, d, theta, n) in spec_cases(40) {
             let want = specular_glow_quadrature(beta, d, theta, n);
@@ -214,7 +214,7 @@ mod tests {
     /// viewer sees in the highlight; the bound is twice the measured figure rounded up.
     #[test]
     fn specular_table_error_against_quadrature() {
-    use crate::surface_table::{s_exact, spec_lookup, spec_radiance, spec_table};
+        use crate::surface_table::{s_exact, spec_lookup, spec_radiance, spec_table};
         let t0 = std::time::Instant::now();
         let table = spec_table();
         let built = t0.elapsed();

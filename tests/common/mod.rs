@@ -1,7 +1,8 @@
 //! Support shared by the integration tests: randomized scenes and the pipeline that renders
 //! them (`scenes`), the headless editor under scripted input (`editor`), and temporary and
-//! external files (`files`). Every test file includes it with `mod common;`.
-#![allow(dead_code)]
+//! external files (`files`). A test file includes it with `mod common;`.
+// Each test file uses a part of it, through the short paths re-exported here.
+#![allow(dead_code, unused_imports)]
 
 pub mod editor;
 pub mod files;

@@ -5,13 +5,13 @@
 use fogsmith::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext, Image};
 use fogsmith::measure::image_error;
 use fogsmith::reference::{render_reference, RefRenderOptions};
-use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project};
+use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project, Volume};
 use glam::{UVec3, Vec3};
 
-/// The generator of the randomized scenes (xorshift): `Rng(seed)`.
-pub use fogsmith::rng::XorShift as Rng;
 /// The linear congruential generator, for the tests whose scenes were drawn from it.
 pub use fogsmith::rng::Lcg;
+/// The generator of the randomized scenes (xorshift): `Rng(seed)`.
+pub use fogsmith::rng::XorShift as Rng;
 
 /// The real pipeline on whatever adapter wgpu finds (lavapipe on CI). A missing adapter
 /// fails the test loudly: GPU tests are never skipped.
@@ -67,4 +67,17 @@ pub fn render_both(project: &Project) -> (Image, Vec<[f64; 3]>, FrameReport) {
     let err = image_error(&image, &reference);
     assert!(!err.nan_or_inf, "the GPU image holds NaN or infinity");
     (image, reference, report)
+}
+
+/// Per cell of `cells`, the transmittance error |exp(−τ) − exp(−τ_exact)| of a light's optical
+/// depths `opv` against the exact ones, and the worst cell's index (the last of equals); what
+/// the placement tests print when asked to diagnose.
+pub fn transmittance_errors(opv: &Volume, cells: &[[u32; 3]], exact: &[f64]) -> (Vec<f64>, Option<usize>) {
+    let errors: Vec<f64> = cells
+        .iter()
+        .zip(exact)
+        .map(|(c, t)| ((-(opv.get(c[0], c[1], c[2]) as f64)).exp() - (-t).exp()).abs())
+        .collect();
+    let worst = (0..errors.len()).max_by(|&a, &b| errors[a].total_cmp(&errors[b]));
+    (errors, worst)
 }
