@@ -24,6 +24,7 @@ pub mod measure;
 pub mod output;
 pub mod quad;
 pub mod reference;
+pub mod rng;
 pub mod scene;
 pub mod stress;
 pub mod sun_table;

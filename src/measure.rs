@@ -21,10 +21,9 @@ pub fn sample_cells(grid: &GridSpec, max: usize) -> Vec<[u32; 3]> {
     }
     let mut out: Vec<[u32; 3]> =
         (0..8u32).map(|c| [(c & 1) * (r.x - 1), ((c >> 1) & 1) * (r.y - 1), ((c >> 2) & 1) * (r.z - 1)]).collect();
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut rng = crate::rng::Lcg(0x9E37_79B9_7F4A_7C15);
     while out.len() < max {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        out.push(cell((state >> 11) as usize % n));
+        out.push(cell((rng.next_u64() >> 11) as usize % n));
     }
     out
 }

@@ -20,6 +20,7 @@
 
 use crate::gpu::{BakePhase, FogPipeline, FrameRequest, GpuError};
 use crate::measure::{ev_error, opv_error, sample_cells};
+use crate::rng::{scrambled, Lcg};
 use crate::scene::{
     Camera, GridSpec, Light, LightKind, Medium, Particle, Project, Scheme, StepPolicy, Volume, MAX_COORDINATE,
     MAX_EXTINCTION, MAX_INTENSITY,
@@ -99,12 +100,6 @@ type Placement = Box<dyn Fn(&Project) -> Vec3>;
 /// Centre of cell (i, j, k) of a project's grid.
 fn center(p: &Project, c: [u32; 3]) -> Vec3 {
     p.grid.cell_center(c[0], c[1], c[2])
-}
-
-/// Deterministic numbers in [0, 1).
-pub(crate) fn lcg(state: &mut u64) -> f32 {
-    *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-    (*state >> 40) as f32 / (1u64 << 24) as f32
 }
 
 fn bake(name: String, project: Project, scheme: Scheme, bound: Option<f64>, monotone: bool) -> StressCase {
@@ -374,11 +369,11 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
     let counts: &[usize] = &[1, 1000, 100_000, 1_000_000];
     for &n in counts {
         let mut p = base(DEFAULT_RES);
-        let mut s = 17u64;
+        let mut rng = Lcg(17);
         let radius = if n >= 100_000 { 0.3 * cell } else { 2.0 * cell };
         let density = 20.0 / (n as f32).cbrt();
         p.particles = (0..n)
-            .map(|_| Particle::new(Vec3::new(lcg(&mut s), lcg(&mut s), lcg(&mut s)) * 1.8 - 0.9, radius, density))
+            .map(|_| Particle::new(Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 1.8 - 0.9, radius, density))
             .collect();
         p.lights.push(light(Vec3::new(0.3, 0.2, -0.1)));
         let bound = if radius >= 2.0 * cell { Some(RESOLVED_BOUND) } else { None };
@@ -437,8 +432,8 @@ pub fn matrix(quick: bool, max_3d: u32, max_binding: u64, opv_capacity: u64) -> 
 /// step policy): only the properties that hold for
 /// every input are checked, not the error against the reference.
 pub fn random_case(seed: u64) -> StressCase {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut u = move || lcg(&mut s);
+    let mut rng = Lcg(scrambled(seed));
+    let mut u = move || rng.f32();
     let log = |lo: f32, hi: f32, u: f32| 10f32.powf(lo + (hi - lo) * u);
     loop {
         let size = log(-6.0, 8.0, u());

@@ -22,17 +22,21 @@ fn random_scene(seed: u64, res: u32) -> Project {
     p.medium.base_extinction = 0.0;
     p.particles.clear();
     for _ in 0..6 {
-        p.particles.push(fogsmith::scene::Particle::new(rng.v(-0.5, 0.5), rng.range(0.15, 0.35), rng.range(1.0, 6.0)));
+        p.particles.push(fogsmith::scene::Particle::new(
+            rng.vec3(-0.5, 0.5),
+            rng.range(0.15, 0.35),
+            rng.range(1.0, 6.0),
+        ));
     }
     // Outside the grid: a point light inside the fog glows within its cell, which a grid can
     // only hold as the cell's mean (`cells_by_a_point_light_hold_their_mean`), while the march
     // resolves the glow along each ray; pixels through that cell would differ by design.
-    let point = Light::new(rng.dir() * 1.5, rng.range(1.0, 4.0), Vec3::new(1.0, 0.8, 0.6));
-    let spot_at = rng.dir() * 1.6;
+    let point = Light::new(rng.direction() * 1.5, rng.range(1.0, 4.0), Vec3::new(1.0, 0.8, 0.6));
+    let spot_at = rng.direction() * 1.6;
     let mut spot = Light::new(spot_at, rng.range(2.0, 6.0), Vec3::new(0.6, 0.8, 1.0));
     spot.kind = LightKind::Spot { direction: -spot_at, angle_deg: rng.range(15.0, 35.0), blend: rng.range(0.0, 0.5) };
     let mut sun = Light::new(Vec3::ZERO, rng.range(0.5, 2.0), Vec3::new(1.0, 1.0, 0.9));
-    sun.kind = LightKind::Directional { direction: rng.dir() };
+    sun.kind = LightKind::Directional { direction: rng.direction() };
     p.lights = vec![point, spot, sun];
     for (i, l) in p.lights.iter_mut().enumerate() {
         l.id = i as u32;
@@ -58,9 +62,9 @@ fn random_scene_with_surfaces(seed: u64, res: u32) -> Project {
             LightKind::Directional { direction } => -direction.normalize() * 0.8,
             _ => l.position.normalize() * 0.8,
         };
-        p.surfaces.boxes.push(black(c - rng.v(0.05, 0.15), c + rng.v(0.05, 0.15)));
+        p.surfaces.boxes.push(black(c - rng.vec3(0.05, 0.15), c + rng.vec3(0.05, 0.15)));
     }
-    let c = rng.v(-0.6, 0.6);
+    let c = rng.vec3(-0.6, 0.6);
     p.surfaces.boxes.push(black(c - Vec3::new(0.1, 0.3, 0.1), c + Vec3::new(0.1, 0.3, 0.1)));
     if p.lights.iter().all(|l| !matches!(l.kind, LightKind::Directional { direction } if direction.y > 0.0)) {
         p.surfaces.ground = Some(Ground { height: rng.range(-0.9, -0.6), albedo: Vec3::ZERO, ..Ground::default() });
@@ -280,7 +284,7 @@ fn openvdb_reads_the_emission_grid() {
     let ok =
         Command::new("/usr/bin/python3").args(["-c", "import pyopenvdb"]).output().is_ok_and(|o| o.status.success());
     assert!(ok, "/usr/bin/python3 cannot import pyopenvdb: run ./setup.sh (it installs python3-openvdb)");
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let mut p = random_scene(7, 24);
     p.grid.max = Vec3::new(1.0, 1.5, 1.0);
     let project = write_project(dir.path(), &p);
@@ -347,7 +351,7 @@ print(json.dumps(out))
 /// shader and import settings that match the grid and the atlas.
 #[test]
 fn engine_files_hold_the_bake() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let p = random_scene(11, 20);
     let project = write_project(dir.path(), &p);
     let (ktx, atlas, tscn) = (dir.path().join("fog.ktx2"), dir.path().join("atlas.exr"), dir.path().join("fog.tscn"));

@@ -31,7 +31,7 @@ const RMSE_ALLOWANCE: f64 = 0.03;
 /// A cloud of gaussians inside a grid off the origin, a point light and a spot outside it,
 /// a camera from a random side, random albedo and g; no base fog, no surfaces.
 fn random_scene(seed: u64) -> Project {
-    let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let mut r = Rng(fogsmith::rng::scrambled(seed));
     let centre = Vec3::new(r.range(-1.0, 1.0), r.range(0.0, 2.0), r.range(-1.0, 1.0));
     let mut p = Project {
         grid: GridSpec { min: centre - Vec3::splat(1.5), max: centre + Vec3::splat(1.5), resolution: UVec3::splat(40) },
@@ -49,14 +49,14 @@ fn random_scene(seed: u64) -> Project {
             Particle::new(c, r.range(0.12, 0.25), r.range(1.0, 4.0))
         })
         .collect();
-    let pos = centre + r.dir() * r.range(1.6, 2.4);
+    let pos = centre + r.direction() * r.range(1.6, 2.4);
     let point = Light::new(pos, r.range(5.0, 30.0), Vec3::new(r.range(0.4, 1.0), r.range(0.4, 1.0), 1.0));
-    let at = centre + r.dir() * 2.0;
+    let at = centre + r.direction() * 2.0;
     let mut spot = Light::new(at, r.range(10.0, 30.0), Vec3::new(1.0, r.range(0.4, 1.0), r.range(0.4, 1.0)));
     spot.id = 1;
     spot.kind = LightKind::Spot { direction: centre - at, angle_deg: 20.0, blend: 0.3 };
     p.lights = vec![point, spot];
-    let mut d = r.dir();
+    let mut d = r.direction();
     d.y = d.y.abs() * 0.5;
     p.camera = Camera { position: centre + d.normalize() * 4.5, target: centre, up: Vec3::Y, fov_y_deg: 40.0 };
     p
@@ -67,7 +67,7 @@ fn cycles_renders_the_bake_like_the_lit_scene() {
     let py = venv_python("bpy");
     fogsmith::cli::ensure_runtime_dir();
     let bin = env!("CARGO_BIN_EXE_fogsmith");
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = common::temp_dir();
     let dir = tmp.path();
     let (w, h) = (W.to_string(), H.to_string());
     for seed in 1..=2u64 {

@@ -24,7 +24,7 @@ const SAMPLES: u32 = 128;
 /// looking at it from a random side; no base fog and no surfaces (a stage's volume ends at
 /// the grid box).
 fn random_scene(seed: u64) -> Project {
-    let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let mut r = Rng(fogsmith::rng::scrambled(seed));
     let centre = Vec3::new(r.range(-1.0, 1.0), r.range(0.0, 2.0), r.range(-1.0, 1.0));
     let mut p = Project {
         grid: GridSpec {
@@ -48,11 +48,11 @@ fn random_scene(seed: u64) -> Project {
         .collect();
     p.lights = (0..2)
         .map(|_| {
-            let pos = centre + r.dir() * r.range(1.6, 2.4);
+            let pos = centre + r.direction() * r.range(1.6, 2.4);
             Light::new(pos, r.range(5.0, 30.0), Vec3::new(r.range(0.4, 1.0), r.range(0.4, 1.0), r.range(0.4, 1.0)))
         })
         .collect();
-    let mut d = r.dir();
+    let mut d = r.direction();
     d.y = d.y.abs() * 0.5;
     p.camera = Camera { position: centre + d.normalize() * 4.5, target: centre, up: Vec3::Y, fov_y_deg: 40.0 };
     p
@@ -81,7 +81,7 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
     let py = venv_python("bpy");
     fogsmith::cli::ensure_runtime_dir();
     let bin = env!("CARGO_BIN_EXE_fogsmith");
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = common::temp_dir();
     let dir = tmp.path();
     for seed in 1..=3u64 {
         let p = random_scene(seed);

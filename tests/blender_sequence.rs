@@ -80,7 +80,7 @@ fn blender_imports_the_animated_stage_and_cycles_matches_each_frame() {
     let py = venv_python("bpy");
     fogsmith::cli::ensure_runtime_dir();
     let bin = env!("CARGO_BIN_EXE_fogsmith");
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = common::temp_dir();
     let dir = tmp.path();
     let project = scene();
     let ron = dir.join("anim.ron");

@@ -24,7 +24,7 @@ fn json_of(out: &std::process::Output) -> serde_json::Value {
 /// tolerance out of range is refused with the flag and its range named.
 #[test]
 fn sweep_refine_flag_reaches_the_bake() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let png = dir.path().join("street.png");
     let (project, png) = (demo("street.ron").display().to_string(), png.display().to_string());
     let run = |extra: &[&str]| {
@@ -48,7 +48,7 @@ fn sweep_refine_flag_reaches_the_bake() {
 
 #[test]
 fn render_every_demo_prints_json_and_writes_the_image() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     for (stem, _) in fogsmith::demos::DEMOS {
         let name = &format!("{stem}.ron");
         let png = dir.path().join(format!("{stem}.png"));
@@ -101,7 +101,7 @@ fn verify_reports_errors_against_the_reference() {
 
 #[test]
 fn export_writes_vdb_and_exr_files() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let vdb = dir.path().join("fog.vdb");
     let atlas = dir.path().join("atlas.exr");
     let out = fogsmith()
@@ -122,7 +122,7 @@ fn export_writes_vdb_and_exr_files() {
 
 #[test]
 fn errors_are_clear_and_exit_nonzero() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let bad = dir.path().join("bad.ron");
     std::fs::write(&bad, "Project(particles: [(center: (0.0, 0.0, 0.0), radius: -1.0, density: 1.0)])").unwrap();
     let cases: Vec<(Vec<String>, &str)> = vec![
@@ -178,7 +178,7 @@ fn errors_are_clear_and_exit_nonzero() {
 /// progress bar is drawn, so `--json` output is exactly the summary.
 #[test]
 fn ctrl_c_cancels_an_export_and_leaves_existing_files_untouched() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let mut p = fogsmith::scene::load_project(&demo("cloud.ron")).unwrap();
     // Large and slow enough (the iterated scheme) to be mid-bake when the signal arrives.
     p.grid.resolution = glam::UVec3::splat(160);
@@ -213,7 +213,7 @@ fn ctrl_c_cancels_an_export_and_leaves_existing_files_untouched() {
 
 #[test]
 fn export_json_is_the_summary_alone_and_no_temporary_remains() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let vdb = dir.path().join("room.vdb");
     let out = fogsmith()
         .args([
@@ -242,7 +242,7 @@ fn export_json_is_the_summary_alone_and_no_temporary_remains() {
 /// and `--json` on stdout carries the same fields as without one; `--quiet` draws nothing.
 #[test]
 fn json_is_the_same_with_a_progress_bar_on_a_terminal() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let png = dir.path().join("a.png");
     let json = dir.path().join("out.json");
     let bin = env!("CARGO_BIN_EXE_fogsmith");
@@ -271,7 +271,7 @@ fn json_is_the_same_with_a_progress_bar_on_a_terminal() {
 /// optical-depth arrays per light.
 #[test]
 fn render_and_info_report_gpu_memory() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let png = dir.path().join("c.png");
     let cloud = demo("cloud.ron");
     let out = fogsmith()
@@ -312,15 +312,16 @@ fn base_volume_project(dir: &Path, seed: u64) -> PathBuf {
     use glam::{UVec3, Vec3};
     let mut rng = common::Rng(seed);
     let mut p = common::small_scene(20, &[Vec3::new(rng.range(-1.5, 1.5), 1.6, rng.range(-1.5, 1.5))]);
-    p.particles = (0..5).map(|_| Particle::new(rng.v(-0.35, 0.35), rng.range(0.2, 0.3), rng.range(1.0, 5.0))).collect();
+    p.particles =
+        (0..5).map(|_| Particle::new(rng.vec3(-0.35, 0.35), rng.range(0.2, 0.3), rng.range(1.0, 5.0))).collect();
     let layer_grid =
         GridSpec { min: Vec3::new(-1.3, -0.9, -1.1), max: Vec3::new(0.9, 1.4, 1.2), resolution: UVec3::new(7, 6, 9) };
-    let (c, w) = (rng.v(-0.4, 0.4), rng.range(0.3, 0.6));
+    let (c, w) = (rng.vec3(-0.4, 0.4), rng.range(0.3, 0.6));
     let data = (0..layer_grid.cell_count() as usize)
         .map(|n| {
             let [i, j, k] = layer_grid.cell_of(n);
             let x = layer_grid.min + (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * layer_grid.cell_size();
-            (-(x - c).length_squared() / (w * w)).exp() * 2.0 + 0.3 * rng.f()
+            (-(x - c).length_squared() / (w * w)).exp() * 2.0 + 0.3 * rng.f32()
         })
         .collect();
     let volume = Volume::new(layer_grid, data);
@@ -334,7 +335,7 @@ fn base_volume_project(dir: &Path, seed: u64) -> PathBuf {
 #[test]
 fn verify_includes_the_base_volume_in_the_reference() {
     for seed in [3, 11] {
-        let dir = tempfile::tempdir().unwrap();
+        let dir = common::temp_dir();
         let path = base_volume_project(dir.path(), seed);
         let out = fogsmith().args(["verify", path.to_str().unwrap(), "--width", "32", "--json"]).output().unwrap();
         let v = json_of(&out);
@@ -355,7 +356,7 @@ fn a_wrong_base_volume_in_the_reference_is_detected() {
     use fogsmith::gpu::FrameRequest;
     use fogsmith::measure::{ev_error_with, image_error, opv_errors_with, sample_cells};
     use fogsmith::reference::{render_reference_with, Medium64, RefRenderOptions};
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = base_volume_project(dir.path(), 5);
     let project = fogsmith::scene::load_project(&path).unwrap();
     let layer =
@@ -396,7 +397,7 @@ fn a_wrong_base_volume_in_the_reference_is_detected() {
 /// naming the bad one and listing the valid ones, before any benchmark runs.
 #[test]
 fn bench_refuses_unknown_scenes_and_schemes() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let out = dir.path().display().to_string();
     for (flag, bad, known) in [("--scene", "atlantis", "cornell"), ("--scheme", "sweep9", "sweep8r")] {
         let run = fogsmith().args(["bench", "--suite", "opv", "--quiet", "--out", &out, flag, bad]).output().unwrap();
@@ -412,7 +413,7 @@ fn bench_refuses_unknown_scenes_and_schemes() {
 /// which the coarse grid misses by far more.
 #[test]
 fn bench_opv_measures_both_errors_and_plots_both() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let out = dir.path().display().to_string();
     let run = fogsmith()
         .args([

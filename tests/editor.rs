@@ -4,98 +4,24 @@
 
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
-use egui_kittest::{Harness, SnapshotOptions};
+use egui_kittest::SnapshotOptions;
 use fogsmith::editor::app::{Action, ExportChoices, PreviewScale, Quality, StartProject};
 use fogsmith::editor::slices::Axis;
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
-use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::editor::EditorOptions;
 use fogsmith::scene::{load_project, Volume};
 use std::path::PathBuf;
 
-fn demo() -> StartProject {
-    StartProject::resolve(None).expect("the bundled demo parses")
-}
-
-fn harness(start: StartProject) -> Harness<'static, EditorApp> {
-    harness_with(start, EditorOptions::default())
-}
-
-/// The editor at a quarter of the preview's resolution: the march's cost is per pixel, and
-/// what these tests check does not depend on it (the layout snapshot uses full resolution).
-fn harness_with(start: StartProject, options: EditorOptions) -> Harness<'static, EditorApp> {
-    harness_scaled(start, options, PreviewScale::Quarter)
-}
-
-fn harness_scaled(start: StartProject, options: EditorOptions, scale: PreviewScale) -> Harness<'static, EditorApp> {
-    let mut h = build(start, options, Quality::Full, scale);
-    h.run_steps(3);
-    assert_eq!(h.state().gpu_error(), None, "the preview must render");
-    h
-}
-
-/// The editor as it starts for a user: the frame-budgeted preview, nothing rendered yet.
-fn progressive_harness() -> Harness<'static, EditorApp> {
-    build(demo(), EditorOptions::default(), Quality::Balanced, PreviewScale::Quarter)
-}
-
-/// A 1280×800 editor window on the pipeline's adapter, before its first frame.
-fn build(
-    start: StartProject,
-    options: EditorOptions,
-    quality: Quality,
-    scale: PreviewScale,
-) -> Harness<'static, EditorApp> {
-    Harness::builder().with_size(Vec2::new(1280.0, 800.0)).wgpu_setup(fogsmith::editor::wgpu_setup()).build_eframe(
-        |cc| {
-            let mut app = EditorApp::new(cc, start, options);
-            app.set_quality(quality);
-            app.set_preview_scale(scale);
-            app
-        },
-    )
-}
-
-fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {
-    h.state()
-        .pipeline()
-        .expect("the editor shares egui-wgpu's device with the pipeline")
-        .read_ev()
-        .expect("EV readback")
-}
+mod common;
+use common::editor::{
+    build, compare_with_fresh_bake_of, converge, demo, harness, harness_scaled, harness_with, progressive_harness,
+    read_ev, wait_idle,
+};
+use fogsmith::editor::driver::EditorDriver;
 
 fn max_diff(a: &Volume, b: &Volume) -> f32 {
     a.data.iter().zip(&b.data).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
-}
-
-fn press(h: &mut Harness<'_, EditorApp>, pos: Pos2, button: PointerButton, pressed: bool) {
-    h.event(Event::PointerButton { pos, button, pressed, modifiers: Modifiers::NONE });
-    h.step();
-}
-
-fn drag(h: &mut Harness<'_, EditorApp>, from: Pos2, to: Pos2, steps: usize) {
-    h.event(Event::PointerMoved(from));
-    h.step();
-    press(h, from, PointerButton::Primary, true);
-    for k in 1..=steps {
-        let p = from + (to - from) * (k as f32 / steps as f32);
-        h.event(Event::PointerMoved(p));
-        h.step();
-    }
-    press(h, to, PointerButton::Primary, false);
-    h.step();
-}
-
-fn wait_idle(h: &mut Harness<'_, EditorApp>) {
-    for _ in 0..2000 {
-        if h.state().busy() == 0 {
-            h.step();
-            return;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(5));
-        h.step();
-    }
-    panic!("background jobs did not finish");
 }
 
 #[test]
@@ -107,7 +33,7 @@ fn painting_a_stroke_adds_fog_and_undo_restores_it() {
     h.state_mut().set_tool(Tool::Paint);
     h.state_mut().brush_mut().spacing = 0.3;
     let c = rect.center();
-    drag(&mut h, c - Vec2::new(60.0, 0.0), c + Vec2::new(60.0, 20.0), 12);
+    h.drag(c - Vec2::new(60.0, 0.0), c + Vec2::new(60.0, 20.0), 12);
     let after = h.state().session().project().particles.len();
     assert!(after > before + 3, "the stroke deposited particles: {before} → {after}");
     assert!(h.state().session().is_dirty());
@@ -137,8 +63,8 @@ fn clicking_selects_and_the_wheel_scales_the_selection() {
     h.state_mut().set_tool(Tool::Select);
     h.event(Event::PointerMoved(pos));
     h.step();
-    press(&mut h, pos, PointerButton::Primary, true);
-    press(&mut h, pos, PointerButton::Primary, false);
+    h.press(pos, PointerButton::Primary, true);
+    h.press(pos, PointerButton::Primary, false);
     h.step();
     let sel = &h.state().session().selection;
     assert_eq!(sel.particles.iter().copied().collect::<Vec<_>>(), vec![24], "the click picked the wisp");
@@ -201,12 +127,12 @@ fn the_slice_axis_and_field_follow_the_controls() {
 
 #[test]
 fn save_and_reopen_round_trip() {
-    let dir = tempfile::tempdir().expect("temp dir");
+    let dir = common::temp_dir();
     let path: PathBuf = dir.path().join("scene.ron");
     let mut h = harness(demo());
     let rect = h.state().viewport_rect().expect("viewport");
     h.state_mut().set_tool(Tool::Paint);
-    drag(&mut h, rect.center(), rect.center() + Vec2::new(40.0, -30.0), 6);
+    h.drag(rect.center(), rect.center() + Vec2::new(40.0, -30.0), 6);
     h.state_mut().save_as(path.clone());
     wait_idle(&mut h);
     assert!(!h.state().session().is_dirty(), "saved: {:?}", h.state().messages());
@@ -302,7 +228,7 @@ fn the_preview_resolution_follows_its_control() {
 }
 
 /// Picks `choice` in the viewport's preview menu and lets the preview render.
-fn choose_preview(h: &mut Harness<'_, EditorApp>, choice: &str) {
+fn choose_preview(h: &mut EditorDriver, choice: &str) {
     h.get_by_label("preview").click();
     h.run_steps(2);
     h.get_by_label(choice).click();
@@ -317,7 +243,7 @@ fn choose_preview(h: &mut Harness<'_, EditorApp>, choice: &str) {
 fn the_as_baked_preview_switches_on_and_back_to_the_lit_one() {
     let mut h = harness(demo());
     assert!(h.state().session().project().medium.anisotropy != 0.0, "the demo must have g ≠ 0");
-    let shown = |h: &Harness<'_, EditorApp>| h.state().shown_preview().expect("a preview").expect("readback");
+    let shown = |h: &EditorDriver| h.state().shown_preview().expect("a preview").expect("readback");
     let lit = shown(&h);
     choose_preview(&mut h, "as baked (isotropic)");
     let iso = shown(&h);
@@ -341,7 +267,7 @@ fn the_as_baked_preview_switches_on_and_back_to_the_lit_one() {
 
 #[test]
 fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
-    let dir = tempfile::tempdir().expect("temp dir");
+    let dir = common::temp_dir();
     let options = EditorOptions { recovery: true, state_dir: Some(dir.path().to_owned()), ..EditorOptions::default() };
     let mut h = harness_with(demo(), options.clone());
     h.state_mut().session_mut().select_all();
@@ -374,7 +300,7 @@ fn unsaved_work_leaves_a_recovery_file_that_the_next_start_offers() {
 #[test]
 fn a_large_project_opens_and_restores_with_the_steps_of_its_load() {
     use fogsmith::scene::{save_project, Particle, Project};
-    let dir = tempfile::tempdir().expect("temp dir");
+    let dir = common::temp_dir();
     let particles = (0..12_000)
         .map(|i| {
             let t = i as f32 / 12_000.0;
@@ -433,7 +359,7 @@ fn a_large_project_opens_and_restores_with_the_steps_of_its_load() {
 /// the next start restores exactly that.
 #[test]
 fn an_idle_crash_after_a_stroke_recovers_the_project_at_release() {
-    let dir = tempfile::tempdir().expect("temp dir");
+    let dir = common::temp_dir();
     let options = EditorOptions { recovery: true, state_dir: Some(dir.path().to_owned()), ..EditorOptions::default() };
     let mut h = harness_with(demo(), options.clone());
     let rect = h.state().viewport_rect().expect("the viewport is shown");
@@ -441,7 +367,7 @@ fn an_idle_crash_after_a_stroke_recovers_the_project_at_release() {
     h.state_mut().brush_mut().spacing = 0.3;
     let c = rect.center();
     let before = h.state().session().project().particles.len();
-    drag(&mut h, c - Vec2::new(60.0, 0.0), c + Vec2::new(60.0, 20.0), 12);
+    h.drag(c - Vec2::new(60.0, 0.0), c + Vec2::new(60.0, 20.0), 12);
     let at_release = h.state().session().project().clone();
     assert!(at_release.particles.len() > before + 3, "the stroke deposited particles");
     // Idle: no input and no frame from here on. The file is written off the UI thread.
@@ -478,16 +404,7 @@ fn an_idle_crash_after_a_stroke_recovers_the_project_at_release() {
 #[test]
 fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake() {
     let mut h = progressive_harness();
-    let settle = |h: &mut Harness<'_, EditorApp>| {
-        for _ in 0..5000 {
-            h.step();
-            if h.state().preview_status().is_some_and(|s| s.converged) {
-                return;
-            }
-        }
-        panic!("the preview did not converge");
-    };
-    settle(&mut h);
+    converge(&mut h);
     assert_eq!(h.state().gpu_error(), None);
     let rect = h.state().viewport_rect().expect("the viewport is shown");
     let project = h.state().session().project().clone();
@@ -501,7 +418,7 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
     h.state_mut().set_tool(Tool::Select);
     h.event(Event::PointerMoved(light));
     h.step();
-    press(&mut h, light, PointerButton::Primary, true);
+    h.press(light, PointerButton::Primary, true);
     // Small steps, as a pointer moves between frames: the drag starts on the light.
     for k in 1..=6 {
         h.event(Event::PointerMoved(light + Vec2::new(4.0 * k as f32, -2.0 * k as f32)));
@@ -515,8 +432,8 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
     }
     let moved = h.state().session().project().lights.clone();
     assert_ne!(moved, project.lights, "the drag moved a light");
-    press(&mut h, light + Vec2::new(24.0, -12.0), PointerButton::Primary, false);
-    settle(&mut h);
+    h.press(light + Vec2::new(24.0, -12.0), PointerButton::Primary, false);
+    converge(&mut h);
 
     let status = h.state().preview_status().unwrap();
     assert!(!status.shadows_stale);
@@ -532,12 +449,7 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
 #[test]
 fn an_edit_that_changes_nothing_on_show_is_shown_at_once() {
     let mut h = progressive_harness();
-    for _ in 0..5000 {
-        h.step();
-        if h.state().preview_status().is_some_and(|s| s.converged) {
-            break;
-        }
-    }
+    h.step_until_converged(5000);
     let before = h.state().preview_status().expect("a preview");
     assert!(before.converged, "the preview converged");
     h.state_mut().session_mut().edit(fogsmith::editor::session::NEW_STEP).particles[0].name = Some("renamed".into());
@@ -555,23 +467,11 @@ fn an_edit_that_changes_nothing_on_show_is_shown_at_once() {
 
 /// The preview image against a fresh bake of the session's project at the same size: how
 /// many values differ in their bits, the largest difference and the fresh bake's peak.
-fn compare_with_fresh_bake(h: &Harness<'_, EditorApp>) -> (usize, f32, f32) {
-    let shown = h.state().pipeline().unwrap().read_image().unwrap();
-    let p = h.state().session().project().clone();
-    let mut fresh = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("an adapter"));
-    let request = fogsmith::gpu::FrameRequest {
-        width: shown.width,
-        height: shown.height,
-        ..fogsmith::gpu::FrameRequest::for_project(&p)
-    };
-    fresh.update(&p, &request).unwrap();
-    let want = fresh.read_image().unwrap();
-    let pairs = || shown.rgba.iter().flatten().zip(want.rgba.iter().flatten());
-    let (diff, peak) = pairs().fold((0f32, 0f32), |(d, m), (a, b)| (d.max((a - b).abs()), m.max(b.abs())));
-    (pairs().filter(|(a, b)| a.to_bits() != b.to_bits()).count(), diff, peak)
+fn compare_with_fresh_bake(h: &EditorDriver) -> (usize, f32, f32) {
+    compare_with_fresh_bake_of(h, &h.state().session().project().clone())
 }
 
-fn differs_from_fresh_bake(h: &Harness<'_, EditorApp>) -> usize {
+fn differs_from_fresh_bake(h: &EditorDriver) -> usize {
     compare_with_fresh_bake(h).0
 }
 
@@ -615,7 +515,7 @@ fn a_light_kind_changed_in_the_inspector_renders_as_that_kind() {
     assert_eq!(differs_from_fresh_bake(&h), 0);
 }
 
-fn screen_of(h: &Harness<'_, EditorApp>, p: glam::Vec3) -> Pos2 {
+fn screen_of(h: &EditorDriver, p: glam::Vec3) -> Pos2 {
     let rect = h.state().viewport_rect().expect("viewport");
     ViewProjection::new(&h.state().session().project().camera, rect).project(p).expect("in view").0
 }
@@ -635,7 +535,7 @@ fn a_stroke_stops_where_the_button_is_released() {
     let far = rect.right_bottom() - Vec2::new(4.0, 4.0);
     h.event(Event::PointerMoved(a));
     h.step();
-    press(&mut h, a, PointerButton::Primary, true);
+    h.press(a, PointerButton::Primary, true);
     for k in 1..=6 {
         h.event(Event::PointerMoved(a + (b - a) * (k as f32 / 6.0)));
         h.step();
@@ -725,11 +625,11 @@ fn the_light_tool_drags_lights() {
     let to = from + Vec2::new(45.0, 30.0);
     h.event(Event::PointerMoved(from));
     h.step();
-    press(&mut h, from, PointerButton::Primary, true);
+    h.press(from, PointerButton::Primary, true);
     h.event(Event::PointerMoved(to));
     h.step();
     h.step();
-    press(&mut h, to, PointerButton::Primary, false);
+    h.press(to, PointerButton::Primary, false);
     h.step();
     let lights = &h.state().session().project().lights;
     assert_eq!(lights.len(), n, "dragging a light adds none");
@@ -740,7 +640,7 @@ fn the_light_tool_drags_lights() {
     let rect = h.state().viewport_rect().expect("viewport");
     let (a, b) = (rect.center() + Vec2::new(-80.0, 60.0), rect.center() + Vec2::new(-20.0, 80.0));
     let undo = h.state().session().undo_len();
-    drag(&mut h, a, b, 4);
+    h.drag(a, b, 4);
     let lights = &h.state().session().project().lights;
     assert_eq!(lights.len(), n + 1, "a drag on empty space adds one light");
     assert!(screen_of(&h, lights[n].position).distance(b) < 1.0, "placed where the drag ended");
@@ -754,8 +654,8 @@ fn the_light_tool_drags_lights() {
     h.get_by_label("sun").click();
     h.run_steps(2);
     let c = rect.center() + Vec2::new(-60.0, -40.0);
-    press(&mut h, c, PointerButton::Primary, true);
-    press(&mut h, c, PointerButton::Primary, false);
+    h.press(c, PointerButton::Primary, true);
+    h.press(c, PointerButton::Primary, false);
     h.run_steps(2);
     let p = h.state().session().project().clone();
     assert_eq!(p.lights.len(), n + 2, "the click added a light");
@@ -766,7 +666,7 @@ fn the_light_tool_drags_lights() {
     let centre = (p.grid.min + p.grid.max) * 0.5;
     assert!((anchor - (centre - direction.normalize() * p.sun_distance())).length() < 1e-4);
     let from = screen_of(&h, anchor);
-    drag(&mut h, from, from + Vec2::new(50.0, 30.0), 4);
+    h.drag(from, from + Vec2::new(50.0, 30.0), 4);
     let fogsmith::scene::LightKind::Directional { direction: turned } =
         h.state().session().project().lights[n + 1].kind
     else {
@@ -791,7 +691,7 @@ fn dragging_a_spots_aim_handle_points_it() {
     let from = screen_of(&h, tip);
     let to = from + Vec2::new(40.0, -25.0);
     let undo = h.state().session().undo_len();
-    drag(&mut h, from, to, 4);
+    h.drag(from, to, 4);
     let p = h.state().session().project().clone();
     let LightKind::Spot { direction, .. } = p.lights[i].kind else { panic!("still a spot: {:?}", p.lights[i]) };
     let LightKind::Spot { direction: old, .. } = before.lights[i].kind else { unreachable!() };
@@ -810,7 +710,7 @@ fn dragging_a_spots_aim_handle_points_it() {
 
     // A press well beside the handle, on empty space, does not aim the spot.
     let aside = from + Vec2::new(0.0, 60.0);
-    drag(&mut h, aside, aside + Vec2::new(30.0, 0.0), 3);
+    h.drag(aside, aside + Vec2::new(30.0, 0.0), 3);
     assert_eq!(h.state().session().project().lights[i].kind, before.lights[i].kind);
 }
 
@@ -827,7 +727,7 @@ fn the_ev_slice_follows_an_erase() {
     h.state_mut().set_tool(Tool::Erase);
     h.state_mut().brush_mut().radius = 0.2;
     let c = screen_of(&h, project.particles[24].center);
-    drag(&mut h, c - Vec2::new(10.0, 0.0), c + Vec2::new(10.0, 0.0), 4);
+    h.drag(c - Vec2::new(10.0, 0.0), c + Vec2::new(10.0, 0.0), 4);
     h.run_steps(3);
     assert!(h.state().session().project().particles.len() < project.particles.len(), "the erase removed particles");
     let ev = read_ev(&h);
@@ -886,7 +786,7 @@ fn reset_layout_escape_and_the_viewport_tab() {
 #[test]
 fn without_a_portal_save_as_and_export_use_the_built_in_dialog() {
     use fogsmith::editor::files::FileDialogs;
-    let dir = tempfile::tempdir().expect("temp dir");
+    let dir = common::temp_dir();
     let path = dir.path().join("room.ron");
     fogsmith::scene::save_project(&path, &fogsmith::editor::demo_project().expect("demo")).expect("save");
     let dialogs = FileDialogs::detect_with(|_| None);
@@ -928,7 +828,7 @@ fn without_a_portal_save_as_and_export_use_the_built_in_dialog() {
 }
 
 /// Circles and unfilled closed paths: the selection's outlines and the faint polygons of the rest.
-fn circles(h: &Harness<'_, EditorApp>) -> usize {
+fn circles(h: &EditorDriver) -> usize {
     h.output()
         .shapes
         .iter()
@@ -964,19 +864,14 @@ fn an_export_waits_for_the_bake_and_can_be_cancelled() {
     let mut h = build(demo(), EditorOptions::default(), Quality::Balanced, PreviewScale::Full);
     h.step();
     assert!(!h.state().preview_status().unwrap().converged, "the first frame starts the bake");
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("fog.vdb");
     h.state_mut().export(ExportChoices::default(), path.clone());
     h.step();
     h.get_by_label("Cancel").click();
     h.step();
     assert!(h.state().messages().iter().any(|(_, m)| m.contains("Export cancelled")), "{:?}", h.state().messages());
-    for _ in 0..3000 {
-        h.step();
-        if h.state().preview_status().unwrap().converged && h.state().busy() == 0 {
-            break;
-        }
-    }
+    h.step_until(3000, |app| app.preview_status().unwrap().converged && app.busy() == 0);
     h.run_steps(3);
     assert!(!path.exists(), "a cancelled export writes nothing");
 
@@ -1049,7 +944,7 @@ fn an_imported_vdb_shows_in_the_ev_and_its_slice() {
     let grid = h.state().session().project().grid;
     let without = read_ev(&h);
     let layer: Vec<f32> = (0..grid.cell_count()).map(|i| ((i % 5) as f32) * 0.1).collect();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let vdb = dir.path().join("base.vdb");
     let volume = Volume::new(grid, layer.clone());
     write_vdb(
@@ -1287,8 +1182,8 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let preview = h.state().brush_point().expect("the brush preview has a depth");
     assert!((preview - expected).length() < 1e-3, "the preview sits at the fog: {preview:?} vs {expected:?}");
     let n = project.particles.len();
-    press(&mut h, pos, PointerButton::Primary, true);
-    press(&mut h, pos, PointerButton::Primary, false);
+    h.press(pos, PointerButton::Primary, true);
+    h.press(pos, PointerButton::Primary, false);
     h.run_steps(2);
     let painted = h.state().session().project().particles[n].center;
     assert!((painted - expected).length() < 1e-3, "painted at the fog depth: {painted:?} vs {expected:?}");
@@ -1301,8 +1196,8 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let n = h.state().session().project().particles.len();
     h.event(Event::PointerMoved(corner));
     h.step();
-    press(&mut h, corner, PointerButton::Primary, true);
-    press(&mut h, corner, PointerButton::Primary, false);
+    h.press(corner, PointerButton::Primary, true);
+    h.press(corner, PointerButton::Primary, false);
     h.run_steps(2);
     let fallback = h.state().session().project().particles[n].center;
     let plane_corner = working_plane_point(&project, &vp, corner).unwrap();
@@ -1316,8 +1211,8 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let n = h.state().session().project().particles.len();
     h.event(Event::PointerMoved(pos));
     h.step();
-    press(&mut h, pos, PointerButton::Primary, true);
-    press(&mut h, pos, PointerButton::Primary, false);
+    h.press(pos, PointerButton::Primary, true);
+    h.press(pos, PointerButton::Primary, false);
     h.run_steps(2);
     let added: Vec<_> = h.state().session().project().particles[n..].iter().map(|p| p.center).collect();
     assert_eq!(added.len(), 1, "one click, one dab: {added:?}");
@@ -1350,7 +1245,7 @@ fn inspector_noise_amplitude_changes_the_ev_and_undo_restores_it() {
         .map(|n| n.rect())
         .find(|r| (r.center().y - label.center().y).abs() < 6.0 && r.left() > label.right())
         .expect("an amplitude field beside its label");
-    drag(&mut h, field.center(), field.center() + Vec2::new(60.0, 0.0), 6);
+    h.drag(field.center(), field.center() + Vec2::new(60.0, 0.0), 6);
     h.run_steps(3);
     let edited = h.state().session().project().medium.noise.expect("still on").amplitude;
     assert!(edited > noise.amplitude + 0.1, "the drag raised the amplitude: {} → {edited}", noise.amplitude);
@@ -1370,7 +1265,7 @@ fn inspector_noise_amplitude_changes_the_ev_and_undo_restores_it() {
 /// Particle 24 selected with the Select tool, seen from the front (along −z) from 6 m (so
 /// the gizmo's arrows reach past its outline):
 /// its centre, its screen position and the points per metre at its depth.
-fn gizmo_on_24(h: &mut Harness<'_, EditorApp>) -> (glam::Vec3, Pos2, f32) {
+fn gizmo_on_24(h: &mut EditorDriver) -> (glam::Vec3, Pos2, f32) {
     let p = h.state().session().project().particles[24].center;
     let camera = fogsmith::scene::Camera {
         position: p + glam::Vec3::new(0.0, 0.0, 6.0),
@@ -1387,18 +1282,18 @@ fn gizmo_on_24(h: &mut Harness<'_, EditorApp>) -> (glam::Vec3, Pos2, f32) {
     (p, s, vp.points_per_metre(z))
 }
 
-fn centres(h: &Harness<'_, EditorApp>) -> Vec<glam::Vec3> {
+fn centres(h: &EditorDriver) -> Vec<glam::Vec3> {
     h.state().session().project().particles.iter().map(|p| p.center).collect()
 }
 
 /// Whether a gizmo handle is drawn lit (under the pointer).
-fn lit(h: &Harness<'_, EditorApp>) -> bool {
+fn lit(h: &EditorDriver) -> bool {
     h.output().shapes.iter().any(
         |s| matches!(&s.shape, egui::Shape::LineSegment { stroke, .. } if stroke.color == fogsmith::editor::gizmo::LIT),
     )
 }
 
-fn texts(h: &Harness<'_, EditorApp>) -> Vec<String> {
+fn texts(h: &EditorDriver) -> Vec<String> {
     h.output()
         .shapes
         .iter()
@@ -1426,7 +1321,7 @@ fn the_gizmo_x_arrow_moves_the_selection_along_x_as_one_undo_step() {
     h.event(Event::PointerMoved(grab));
     h.run_steps(2);
     assert!(lit(&h), "the x arrow lights up under the pointer");
-    press(&mut h, grab, PointerButton::Primary, true);
+    h.press(grab, PointerButton::Primary, true);
     // The pointer wanders off the axis on the way; only its travel along x counts.
     for off in [Vec2::new(20.0, 15.0), Vec2::new(50.0, -25.0)] {
         h.event(Event::PointerMoved(grab + off));
@@ -1446,7 +1341,7 @@ fn the_gizmo_x_arrow_moves_the_selection_along_x_as_one_undo_step() {
     assert!(max_diff(&ev_before, &read_ev(&h)) > 1e-3, "the preview's EV follows the drag");
     h.event(Event::PointerMoved(grab + Vec2::new(80.0, 0.0)));
     h.step();
-    press(&mut h, grab + Vec2::new(80.0, 0.0), PointerButton::Primary, false);
+    h.press(grab + Vec2::new(80.0, 0.0), PointerButton::Primary, false);
     h.step();
     let after = centres(&h);
     let d = after[24] - p0;
@@ -1474,7 +1369,7 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
     for cancel in ["escape", "right click"] {
         h.event(Event::PointerMoved(grab));
         h.step();
-        press(&mut h, grab, PointerButton::Primary, true);
+        h.press(grab, PointerButton::Primary, true);
         h.event(Event::PointerMoved(grab + Vec2::new(70.0, 0.0)));
         h.step();
         assert!(
@@ -1484,15 +1379,15 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
         if cancel == "escape" {
             h.key_press(egui::Key::Escape);
         } else {
-            press(&mut h, grab + Vec2::new(70.0, 0.0), PointerButton::Secondary, true);
+            h.press(grab + Vec2::new(70.0, 0.0), PointerButton::Secondary, true);
         }
         h.step();
         h.event(Event::PointerMoved(grab + Vec2::new(90.0, 10.0)));
         h.step();
         if cancel != "escape" {
-            press(&mut h, grab + Vec2::new(90.0, 10.0), PointerButton::Secondary, false);
+            h.press(grab + Vec2::new(90.0, 10.0), PointerButton::Secondary, false);
         }
-        press(&mut h, grab + Vec2::new(90.0, 10.0), PointerButton::Primary, false);
+        h.press(grab + Vec2::new(90.0, 10.0), PointerButton::Primary, false);
         h.run_steps(2);
         assert_eq!(h.state().session().project().particles[24].center, p0, "{cancel} puts the particle back");
         assert_eq!(h.state().session().undo_len(), undo, "{cancel}: a cancelled drag leaves no undo step");
@@ -1509,7 +1404,7 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
     let cell = grid.cell_size().x;
     h.event(Event::PointerMoved(grab));
     h.step();
-    press(&mut h, grab, PointerButton::Primary, true);
+    h.press(grab, PointerButton::Primary, true);
     h.event(Event::ModifiersChanged(Modifiers::CTRL));
     h.event(Event::PointerMoved(grab + Vec2::new(47.0, 3.0)));
     h.step();
@@ -1542,14 +1437,14 @@ fn gizmo_drags_cancel_snap_and_empty_space_moves_nothing() {
     h.event(Event::PointerMoved(grab));
     h.run_steps(2);
     assert!(!lit(&h), "the hidden gizmo is not drawn");
-    drag(&mut h, grab, grab + Vec2::new(80.0, 0.0), 4);
+    h.drag(grab, grab + Vec2::new(80.0, 0.0), 4);
     assert_eq!(centres(&h), before, "with the gizmo hidden its arrows do not move anything");
     h.state_mut().set_show_gizmo(true);
     h.state_mut().session_mut().selection.particles = [24].into();
     h.run_steps(2);
 
     // A drag that starts away from the gizmo (and from every particle) moves nothing.
-    drag(&mut h, c + Vec2::new(-120.0, -100.0), c + Vec2::new(-60.0, -140.0), 4);
+    h.drag(c + Vec2::new(-120.0, -100.0), c + Vec2::new(-60.0, -140.0), 4);
     assert_eq!(centres(&h), before, "a drag on empty space moves nothing");
     assert_eq!(h.state().session().undo_len(), undo);
 }
@@ -1563,7 +1458,7 @@ fn the_analytic_scheme_is_offered_only_where_it_can_represent_the_medium() {
     use egui_kittest::kittest::NodeT;
     use fogsmith::scene::Scheme;
     let mut h = harness(demo());
-    let scheme = |h: &Harness<'_, EditorApp>| h.state().session().project().propagation.scheme;
+    let scheme = |h: &EditorDriver| h.state().session().project().propagation.scheme;
     assert_eq!(scheme(&h), Scheme::Sweep);
     h.get_by_label("noise detail").click();
     h.run_steps(3);
@@ -1613,7 +1508,7 @@ fn the_analytic_scheme_is_offered_only_where_it_can_represent_the_medium() {
 fn a_frame_of_two_passes_advances_the_preview_once() {
     let mut h = build(demo(), EditorOptions::default(), Quality::Balanced, PreviewScale::Full);
     h.step();
-    let status = |h: &Harness<'_, EditorApp>| h.state().preview_status().unwrap();
+    let status = |h: &EditorDriver| h.state().preview_status().unwrap();
     assert!(!status(&h).converged, "the preview is refining");
     let mut two_passes = false;
     for light in 0..h.state().session().project().lights.len() {

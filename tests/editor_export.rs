@@ -3,17 +3,20 @@
 //! Fogsmith's own file dialog, the files read back with the project's readers and compared
 //! with the pipeline's read-back; refused combinations; choices remembered per project.
 
-use egui::{Key, Modifiers, Vec2};
+use egui::{Key, Modifiers};
 use egui_kittest::kittest::{NodeT, Queryable};
-use egui_kittest::Harness;
-use fogsmith::editor::app::{ExportFormat, ImageFormat, PreviewScale, Quality, StartProject};
+use fogsmith::editor::app::{ExportFormat, ImageFormat, PreviewScale, StartProject};
 use fogsmith::editor::files::FileDialogs;
-use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::editor::EditorOptions;
 use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use fogsmith::export::ktx::{r8_texel, Ktx2Format};
 use fogsmith::export::vdb_read::{list_vdb_grids, read_vdb_grid};
-use fogsmith::scene::{save_project, Project, Volume};
+use fogsmith::scene::{save_project, Project};
 use std::path::{Path, PathBuf};
+
+mod common;
+use common::editor::{has_label, read_ev};
+use fogsmith::editor::driver::EditorDriver;
 
 /// The demo saved as `name` in `dir`, changed by `edit`.
 fn project_file(dir: &Path, name: &str, edit: impl FnOnce(&mut Project)) -> PathBuf {
@@ -25,7 +28,7 @@ fn project_file(dir: &Path, name: &str, edit: impl FnOnce(&mut Project)) -> Path
 }
 
 /// The editor on `project` with Fogsmith's own file dialog and `state_dir` for its choices.
-fn editor(project: &Path, state_dir: &Path) -> Harness<'static, EditorApp> {
+fn editor(project: &Path, state_dir: &Path) -> EditorDriver {
     let options = EditorOptions {
         file_dialogs: Some(FileDialogs::detect_with(|_| None)),
         state_dir: Some(state_dir.to_path_buf()),
@@ -33,35 +36,23 @@ fn editor(project: &Path, state_dir: &Path) -> Harness<'static, EditorApp> {
     };
     let start = StartProject::resolve(Some(project.to_path_buf())).expect("start");
     assert_eq!(start.error, None);
-    let mut h = Harness::builder()
-        .with_size(Vec2::new(1280.0, 800.0))
-        .wgpu_setup(fogsmith::editor::wgpu_setup())
-        .build_eframe(|cc| {
-            let mut app = EditorApp::new(cc, start, options);
-            app.set_quality(Quality::Full);
-            app.set_preview_scale(PreviewScale::Quarter);
-            app
-        });
-    h.run_steps(3);
-    assert_eq!(h.state().gpu_error(), None, "the preview must render");
-    h
+    common::editor::harness_scaled(start, options, PreviewScale::Quarter)
 }
 
-fn open_with_ctrl_e(h: &mut Harness<'_, EditorApp>) {
-    h.key_press_modifiers(Modifiers::COMMAND, Key::E);
-    h.run_steps(2);
+fn open_with_ctrl_e(h: &mut EditorDriver) {
+    h.shortcut(Modifiers::COMMAND, Key::E);
     assert!(h.state().export_window().is_some(), "Ctrl+E opens the Export window");
 }
 
 #[track_caller]
-fn click(h: &mut Harness<'_, EditorApp>, label: &str) {
+fn click(h: &mut EditorDriver, label: &str) {
     h.get_by_label(label).click();
     h.run_steps(2);
 }
 
 /// Export to… then Enter in the file dialog (its proposed name in the project's folder), and
 /// the background job to its end; returns the message that says what was written.
-fn export_through_the_dialog(h: &mut Harness<'_, EditorApp>) -> String {
+fn export_through_the_dialog(h: &mut EditorDriver) -> String {
     click(h, "Export to…");
     assert!(h.state().export_window().is_none(), "the window gives way to the file dialog");
     assert!(h.state().built_in_dialog_open(), "Export to… asks where to write");
@@ -82,10 +73,6 @@ fn export_through_the_dialog(h: &mut Harness<'_, EditorApp>) -> String {
     panic!("the export did not finish: {:?}", h.state().messages());
 }
 
-fn read_ev(h: &Harness<'_, EditorApp>) -> Volume {
-    h.state().pipeline().expect("pipeline").read_ev().expect("EV readback")
-}
-
 fn meta_string(grid: &fogsmith::export::vdb_read::VdbFloatGrid, name: &str) -> String {
     let m = grid.metadata.iter().find(|m| m.0 == name).unwrap_or_else(|| panic!("{} has no {name}", grid.name));
     String::from_utf8_lossy(&m.2).into_owned()
@@ -97,7 +84,7 @@ fn meta_string(grid: &fogsmith::export::vdb_read::VdbFloatGrid, name: &str) -> S
 /// centres), holding exactly the pipeline's read-back values.
 #[test]
 fn vdb_with_the_houdini_preset_holds_the_pipeline_volumes_in_houdinis_frame() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = project_file(dir.path(), "room.ron", |_| {});
     let mut h = editor(&project, &dir.path().join("state"));
     click(&mut h, "File");
@@ -157,7 +144,7 @@ fn vdb_with_the_houdini_preset_holds_the_pipeline_volumes_in_houdinis_frame() {
 /// `fogsmith render` would write it; the EXR variant holds half floats when asked.
 #[test]
 fn the_rendered_image_has_the_projects_output_size() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = project_file(dir.path(), "shot.ron", |p| {
         p.render.width = 96;
         p.render.height = 54;
@@ -207,7 +194,7 @@ fn the_rendered_image_has_the_projects_output_size() {
 /// Export to… button stays disabled; once right-handed it writes the stage and its VDB.
 #[test]
 fn usd_with_a_left_handed_frame_is_refused_until_it_is_right_handed() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = project_file(dir.path(), "hall.ron", |_| {});
     let mut h = editor(&project, &dir.path().join("state"));
     open_with_ctrl_e(&mut h);
@@ -243,7 +230,7 @@ fn usd_with_a_left_handed_frame_is_refused_until_it_is_right_handed() {
 /// The KTX2 export on the way is read back texel by texel against the pipeline's EV.
 #[test]
 fn reopening_the_window_shows_the_last_choices_for_the_project() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let state = dir.path().join("state");
     let a = project_file(dir.path(), "a.ron", |_| {});
     let b = project_file(dir.path(), "b.ron", |_| {});
@@ -304,7 +291,7 @@ fn reopening_the_window_shows_the_last_choices_for_the_project() {
 /// written, and the message says so.
 #[test]
 fn an_image_export_is_cancelled_while_it_renders() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     // Long enough to be mid-render when Cancel is clicked, even on a fast GPU: 8 Mpixels
     // with fine ray-march steps.
     let project = project_file(dir.path(), "big.ron", |p| {
@@ -341,7 +328,7 @@ fn an_image_export_is_cancelled_while_it_renders() {
 /// VDB, as `fogsmith export --bake-light --bake-phase camera` does.
 #[test]
 fn baking_the_lighting_adds_the_emission_grid() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = project_file(dir.path(), "lit.ron", |_| {});
     let mut h = editor(&project, &dir.path().join("state"));
     open_with_ctrl_e(&mut h);
@@ -363,7 +350,7 @@ fn baking_the_lighting_adds_the_emission_grid() {
 #[test]
 fn a_vdb_sequence_equals_the_command_lines_value_for_value() {
     use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = project_file(dir.path(), "anim.ron", |p| {
         p.animation = Some(Animation { fps: 24.0, start: 1, end: 3 });
         let c = Channel(Object::Light(p.lights[0].id), Prop::Position);
@@ -379,7 +366,7 @@ fn a_vdb_sequence_equals_the_command_lines_value_for_value() {
     let this = h.get_by_label("This frame (1)").accesskit_node().toggled();
     assert_eq!(this, Some(egui::accesskit::Toggled::True), "the frame on show by default");
     click(&mut h, "Frames");
-    assert!(has_text(&h, "Writes anim.####.vdb"), "the window names the frame pattern");
+    assert!(has_label(&h, "Writes anim.####.vdb"), "the window names the frame pattern");
     let summary = export_through_the_dialog(&mut h);
     assert!(summary.contains("3 frames"), "{summary}");
 
@@ -416,16 +403,12 @@ fn a_vdb_sequence_equals_the_command_lines_value_for_value() {
     assert_eq!(left.len(), 2 + 3 + 3, "the project, the state folder and six VDBs, no temporary: {left:?}");
 }
 
-fn has_text(h: &Harness<'_, EditorApp>, text: &str) -> bool {
-    h.query_all_by_label_contains(text).next().is_some()
-}
-
 /// Cancel during a sequence stops the frame under way: every frame written before it is
 /// complete, and nothing else is left (no temporary, no partial frame).
 #[test]
 fn a_cancelled_sequence_keeps_its_completed_frames_and_nothing_else() {
     use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     // Each frame's march at this size takes long enough to be under way when Cancel comes.
     let project = project_file(dir.path(), "slow.ron", |p| {
         p.render.width = 640;

@@ -6,18 +6,21 @@
 
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
 use egui_kittest::kittest::Queryable;
-use egui_kittest::Harness;
-use fogsmith::editor::app::{PreviewScale, Quality, StartProject};
+use fogsmith::editor::app::{PreviewScale, Quality};
 use fogsmith::editor::commands::Command;
 use fogsmith::editor::timeline::{PlayMode, MOTION_PATH};
 use fogsmith::editor::tools::Tool;
 use fogsmith::editor::view::ViewProjection;
-use fogsmith::editor::{EditorApp, EditorOptions};
+use fogsmith::editor::EditorOptions;
 use fogsmith::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
 use fogsmith::scene::Project;
 
+mod common;
+use common::editor::{has_label, start};
+use fogsmith::editor::driver::EditorDriver;
+
 fn demo() -> Project {
-    StartProject::resolve(None).expect("the bundled demo parses").project
+    common::editor::demo().project
 }
 
 /// The demo animated over frames 1–48 at 24 fps: light #0 rises 0.6 m from frame 1 to 24.
@@ -35,90 +38,36 @@ fn light_position(p: &Project) -> Channel {
     Channel(Object::Light(p.lights[0].id), Prop::Position)
 }
 
-fn start(project: Project) -> StartProject {
-    StartProject { project, path: None, name: "test.ron".into(), error: None }
-}
-
 /// The editor on `project` at a quarter of the preview's resolution, every frame converged.
-fn harness(project: Project) -> Harness<'static, EditorApp> {
-    let mut h = build(project, Quality::Full);
-    h.run_steps(3);
-    assert_eq!(h.state().gpu_error(), None, "the preview must render");
-    h
+fn harness(project: Project) -> EditorDriver {
+    common::editor::harness(start(project))
 }
 
-fn build(project: Project, quality: Quality) -> Harness<'static, EditorApp> {
-    Harness::builder().with_size(Vec2::new(1280.0, 800.0)).wgpu_setup(fogsmith::editor::wgpu_setup()).build_eframe(
-        move |cc| {
-            let mut app = EditorApp::new(cc, start(project), EditorOptions::default());
-            app.set_quality(quality);
-            app.set_preview_scale(PreviewScale::Quarter);
-            app
-        },
-    )
+fn build(project: Project, quality: Quality) -> EditorDriver {
+    common::editor::build(start(project), EditorOptions::default(), quality, PreviewScale::Quarter)
 }
 
-fn press(h: &mut Harness<'_, EditorApp>, pos: Pos2, button: PointerButton, pressed: bool) {
-    h.event(Event::PointerButton { pos, button, pressed, modifiers: Modifiers::NONE });
-    h.step();
-}
-
-fn click(h: &mut Harness<'_, EditorApp>, pos: Pos2, button: PointerButton) {
-    h.event(Event::PointerMoved(pos));
-    h.step();
-    press(h, pos, button, true);
-    press(h, pos, button, false);
-    h.step();
-}
-
-fn drag(h: &mut Harness<'_, EditorApp>, from: Pos2, to: Pos2, steps: usize) {
-    h.event(Event::PointerMoved(from));
-    h.step();
-    press(h, from, PointerButton::Primary, true);
-    for k in 1..=steps {
-        let p = from + (to - from) * (k as f32 / steps as f32);
-        h.event(Event::PointerMoved(p));
-        h.step();
-    }
-    press(h, to, PointerButton::Primary, false);
-    h.step();
-}
-
-fn frame(h: &Harness<'_, EditorApp>) -> i32 {
+fn frame(h: &EditorDriver) -> i32 {
     h.state().session().frame()
 }
 
-fn undo(h: &mut Harness<'_, EditorApp>) {
-    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
-    h.run_steps(2);
+fn undo(h: &mut EditorDriver) {
+    h.shortcut(Modifiers::COMMAND, egui::Key::Z);
 }
 
 /// Where frame `f`'s marker sits on the scrub bar.
-fn marker(h: &Harness<'_, EditorApp>, f: i32) -> Pos2 {
+fn marker(h: &EditorDriver, f: i32) -> Pos2 {
     let bar = h.state().scrub_bar().expect("the Timeline shows its scrub bar");
     Pos2::new(bar.x_of(f), bar.marker_y())
 }
 
 /// The preview image against a fresh bake of `p`: how many values differ in their bits.
-fn differs_from_fresh_bake_of(h: &Harness<'_, EditorApp>, p: &Project) -> usize {
-    let shown = h.state().pipeline().unwrap().read_image().unwrap();
-    let mut fresh = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("an adapter"));
-    let request = fogsmith::gpu::FrameRequest {
-        width: shown.width,
-        height: shown.height,
-        ..fogsmith::gpu::FrameRequest::for_project(p)
-    };
-    fresh.update(p, &request).unwrap();
-    let want = fresh.read_image().unwrap();
-    shown.rgba.iter().flatten().zip(want.rgba.iter().flatten()).filter(|(a, b)| a.to_bits() != b.to_bits()).count()
-}
-
-fn has_label(h: &Harness<'_, EditorApp>, text: &str) -> bool {
-    h.query_all_by_label_contains(text).next().is_some()
+fn differs_from_fresh_bake_of(h: &EditorDriver, p: &Project) -> usize {
+    common::editor::compare_with_fresh_bake_of(h, p).0
 }
 
 /// Widgets whose label holds `text` (a menu item's label also holds its shortcut).
-fn count_labels(h: &Harness<'_, EditorApp>, text: &str) -> usize {
+fn count_labels(h: &EditorDriver, text: &str) -> usize {
     h.query_all_by_label_contains(text).count()
 }
 
@@ -171,7 +120,7 @@ fn scrubbing_shows_at_frame_and_converges_to_its_fresh_bake() {
     assert_eq!(frame(&h), 1);
     let first = h.state().pipeline().unwrap().read_image().unwrap();
     let bar = h.state().scrub_bar().expect("the Timeline shows its scrub bar");
-    click(&mut h, Pos2::new(bar.x_of(12), bar.rect.top() + 8.0), PointerButton::Primary);
+    h.click(Pos2::new(bar.x_of(12), bar.rect.top() + 8.0), PointerButton::Primary);
     h.run_steps(2);
     assert_eq!(frame(&h), 12, "the click showed the frame under it");
     let still = animated().at_frame(12);
@@ -185,7 +134,7 @@ fn scrubbing_shows_at_frame_and_converges_to_its_fresh_bake() {
     assert!(!h.state().session().is_dirty(), "scrubbing is not an edit");
 
     // Dragging along the bar scrubs through frames.
-    drag(&mut h, Pos2::new(bar.x_of(12), bar.rect.top() + 8.0), Pos2::new(bar.x_of(30), bar.rect.top() + 8.0), 6);
+    h.drag(Pos2::new(bar.x_of(12), bar.rect.top() + 8.0), Pos2::new(bar.x_of(30), bar.rect.top() + 8.0), 6);
     assert_eq!(frame(&h), 30);
     assert_eq!(differs_from_fresh_bake_of(&h, &animated().at_frame(30)), 0);
 }
@@ -196,14 +145,9 @@ fn scrubbing_shows_at_frame_and_converges_to_its_fresh_bake() {
 #[test]
 fn a_frame_shown_with_an_earlier_frames_shadows_says_so() {
     let mut h = build(animated(), Quality::Balanced);
-    for _ in 0..5000 {
-        h.step();
-        if h.state().preview_status().is_some_and(|s| s.converged) {
-            break;
-        }
-    }
+    h.step_until_converged(5000);
     let bar = h.state().scrub_bar().expect("the Timeline shows its scrub bar");
-    click(&mut h, Pos2::new(bar.x_of(24), bar.rect.top() + 8.0), PointerButton::Primary);
+    h.click(Pos2::new(bar.x_of(24), bar.rect.top() + 8.0), PointerButton::Primary);
     let mut mixed = 0;
     for _ in 0..5000 {
         let status = h.state().preview_status().unwrap();
@@ -294,12 +238,12 @@ fn auto_key_off_warns_and_auto_key_on_keys_the_move() {
     assert_eq!(frame(&h), 12);
     let keyed = h.state().session().project().clone();
     let c = light_position(&keyed);
-    let drag_light = |h: &mut Harness<'_, EditorApp>| {
+    let drag_light = |h: &mut EditorDriver| {
         let rect = h.state().viewport_rect().expect("the viewport is shown");
         let p = h.state().session().project().clone();
         let view = ViewProjection::new(&p.camera, rect);
         let (at, _) = view.project(p.lights[0].position).expect("the light is in view");
-        drag(h, at, at + Vec2::new(30.0, -10.0), 5);
+        h.drag(at, at + Vec2::new(30.0, -10.0), 5);
         h.run_steps(2);
     };
     drag_light(&mut h);
@@ -358,7 +302,7 @@ fn key_markers_drag_delete_and_set_interpolation() {
     let object = Object::Light(p.lights[0].id);
     let c = light_position(&p);
     let (m24, m30) = (marker(&h, 24), marker(&h, 30));
-    drag(&mut h, m24, m30, 6);
+    h.drag(m24, m30, 6);
     assert_eq!(h.state().session().project().key_frames(object), vec![1, 30], "the key moved to frame 30");
     assert_eq!(
         h.state().session().undo_label().as_deref(),
@@ -370,7 +314,7 @@ fn key_markers_drag_delete_and_set_interpolation() {
     assert_eq!(h.state().session().project().key_frames(object), vec![1, 24]);
 
     let m24 = marker(&h, 24);
-    click(&mut h, m24, PointerButton::Primary);
+    h.click(m24, PointerButton::Primary);
     assert_eq!(h.state().selected_key(), Some(24));
     assert_eq!(frame(&h), 1, "selecting a marker does not scrub");
     h.key_press(egui::Key::Delete);
@@ -382,7 +326,7 @@ fn key_markers_drag_delete_and_set_interpolation() {
     undo(&mut h);
 
     let m1 = marker(&h, 1);
-    click(&mut h, m1, PointerButton::Secondary);
+    h.click(m1, PointerButton::Secondary);
     h.get_by_label("Smooth").click();
     h.run_steps(2);
     let q = h.state().session().project();
@@ -397,12 +341,12 @@ fn key_markers_drag_delete_and_set_interpolation() {
 #[test]
 fn a_selected_animated_light_shows_its_motion_path() {
     let mut h = harness(animated());
-    let has_path = |h: &Harness<'_, EditorApp>| {
+    let has_path = |h: &EditorDriver| {
         h.output().shapes.iter().any(
             |s| matches!(&s.shape, egui::Shape::Path(p) if matches!(p.stroke.color, egui::epaint::ColorMode::Solid(c) if c == MOTION_PATH)),
         )
     };
-    let dots = |h: &Harness<'_, EditorApp>| {
+    let dots = |h: &EditorDriver| {
         h.output().shapes.iter().filter(|s| matches!(&s.shape, egui::Shape::Circle(c) if c.fill == MOTION_PATH)).count()
     };
     assert!(!has_path(&h), "no path without a selection");
@@ -534,12 +478,12 @@ fn the_inspector_keys_the_camera_and_the_medium_and_orbiting_never_keys() {
     let from = rect.center();
     h.event(Event::PointerMoved(from));
     h.step();
-    press(&mut h, from, PointerButton::Secondary, true);
+    h.press(from, PointerButton::Secondary, true);
     for k in 1..=5 {
         h.event(Event::PointerMoved(from + Vec2::new(12.0 * k as f32, 4.0 * k as f32)));
         h.step();
     }
-    press(&mut h, from + Vec2::new(60.0, 20.0), PointerButton::Secondary, false);
+    h.press(from + Vec2::new(60.0, 20.0), PointerButton::Secondary, false);
     h.run_steps(2);
     let s = h.state().session();
     assert_ne!(s.project().camera.position, keyed.camera.position, "the view orbited");

@@ -3,11 +3,13 @@
 //! the wgpu surface presented, and the preview shows lit fog. Needs xvfb-run (./setup.sh
 //! installs it) and a wgpu adapter; without them the test fails.
 
+mod common;
+
 use std::process::Command;
 
 #[test]
 fn the_editor_window_opens_and_draws_the_preview() {
-    let dir = tempfile::tempdir().expect("temp dir");
+    let dir = common::temp_dir();
     let out = dir.path().join("editor.png");
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/screenshot.sh");
     let status = Command::new("bash")
@@ -54,7 +56,7 @@ fn without_a_display_the_editor_explains_and_fails() {
 #[test]
 fn a_killed_editor_leaves_its_unsaved_work_in_a_recovery_file() {
     use std::os::unix::process::CommandExt;
-    let dir = tempfile::tempdir().expect("temp dir");
+    let dir = common::temp_dir();
     let state = dir.path().join("state");
     let project_path = dir.path().join("room.ron");
     let project = fogsmith::demos::demo("cornell").expect("the demo parses");

@@ -1,6 +1,8 @@
 //! EXR exports read back with the `exr` crate and with OpenEXR itself (its Python bindings
 //! for values, `exrheader` for the header).
 
+mod common;
+
 use exr::prelude::*;
 use fogsmith::export::exr::{slice_channel_name, write_atlas_exr, write_render_exr, write_slices_exr, AtlasLayout};
 use fogsmith::scene::{GridSpec, Volume};
@@ -10,13 +12,13 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn tests_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests")
+    common::root().join("tests")
 }
 
 /// The project's validator venv, whose OpenEXR bindings read every export back. A machine
 /// without them fails loudly: `./setup.sh` installs them.
 fn openexr_python() -> PathBuf {
-    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
+    let py = common::root().join(".venv/bin/python");
     let ok = Command::new(&py)
         .args(["-c", "import OpenEXR; OpenEXR.File"])
         .output()
@@ -77,7 +79,7 @@ fn render_exr_float_and_half() {
     let (w, h) = (17usize, 9usize);
     let rgba: Vec<[f32; 4]> =
         (0..w * h).map(|n| [n as f32 * 0.37, 1e-3 * n as f32, 100.0 + n as f32, (n % 5) as f32 * 0.25]).collect();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     for half in [false, true] {
         let path = dir.path().join(if half { "render_half.exr" } else { "render.exr" });
         write_render_exr(&path, w, h, &rgba, half).unwrap();
@@ -128,7 +130,7 @@ fn render_exr_float_and_half() {
 fn slices_exr_is_exact_with_a_layer_per_quantity_and_slice() {
     let ev = test_volume(0.0);
     let opv = test_volume(1.3);
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("slices.exr");
     write_slices_exr(&path, &[("density", &ev), ("optical_depth_0", &opv)]).unwrap();
     let [nx, ny, nz] = ev.dims().map(|c| c as usize);
@@ -180,7 +182,7 @@ fn slices_exr_is_exact_with_a_layer_per_quantity_and_slice() {
 #[test]
 fn atlas_exr_tiles_slices_and_records_the_layout() {
     let ev = test_volume(0.5);
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("atlas.exr");
     let layout = write_atlas_exr(&path, &ev).unwrap();
     assert_eq!(
@@ -241,7 +243,7 @@ fn atlas_exr_records_the_export_frame() {
     use fogsmith::export::exr::write_atlas_exr_in_frame;
     use fogsmith::export::frame::{Frame, Handedness, Units, UpAxis};
     let ev = test_volume(0.25);
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     for up in [UpAxis::Y, UpAxis::Z] {
         for units in [Units::M, Units::Cm] {
             for handedness in [Handedness::Right, Handedness::Left] {

@@ -10,19 +10,19 @@ use glam::{UVec3, Vec3};
 
 /// A random grid (non-cubic resolution and cells) with exact zeros, tiny and large values.
 fn random_volume(seed: u64) -> Volume {
-    let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
-    let res = UVec3::new(1 + (r.f() * 20.0) as u32, 1 + (r.f() * 20.0) as u32, 1 + (r.f() * 20.0) as u32);
-    let min = Vec3::new(r.f() * 4.0 - 2.0, r.f() * 4.0 - 2.0, r.f() * 4.0 - 2.0);
-    let max = min + Vec3::new(0.1 + r.f() * 3.0, 0.1 + r.f() * 3.0, 0.1 + r.f() * 3.0);
+    let mut r = Rng(fogsmith::rng::scrambled(seed));
+    let res = UVec3::new(1 + (r.f32() * 20.0) as u32, 1 + (r.f32() * 20.0) as u32, 1 + (r.f32() * 20.0) as u32);
+    let min = Vec3::new(r.f32() * 4.0 - 2.0, r.f32() * 4.0 - 2.0, r.f32() * 4.0 - 2.0);
+    let max = min + Vec3::new(0.1 + r.f32() * 3.0, 0.1 + r.f32() * 3.0, 0.1 + r.f32() * 3.0);
     let grid = GridSpec { min, max, resolution: res };
     let peak = [1e-3, 1.0, 37.0, 6.0e4][(seed % 4) as usize];
     let data = (0..grid.cell_count())
         .map(|_| {
-            let u = r.f();
+            let u = r.f32();
             if u < 0.3 {
                 0.0
             } else {
-                peak * r.f().powi(3)
+                peak * r.f32().powi(3)
             }
         })
         .collect();
@@ -36,7 +36,7 @@ fn kv(reader: &ktx2::Reader<Vec<u8>>, key: &str) -> String {
 
 #[test]
 fn every_texel_reads_back_with_the_ktx2_crate() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     for seed in 1..=12u64 {
         let vol = random_volume(seed);
         let r = vol.grid.resolution;
@@ -112,7 +112,7 @@ fn every_texel_reads_back_with_the_ktx2_crate() {
 fn bevy_snippet_matches_the_grid() {
     let vol = random_volume(3);
     let medium = Medium { base_extinction: 0.05, albedo: 0.7, anisotropy: 0.3, ..Medium::default() };
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let info = write_ktx2(&dir.path().join("d.ktx2"), &vol, Ktx2Format::R8).unwrap();
     let text = fog_volume_snippet(&vol, &medium, &info, "fog/d.ktx2");
     let v: ron::Value = ron::from_str(&text).unwrap_or_else(|e| panic!("the snippet is not RON: {e}\n{text}"));
@@ -135,7 +135,7 @@ fn bevy_snippet_matches_the_grid() {
 
 #[test]
 fn bad_volumes_give_clear_errors() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("x.ktx2");
     let grid = GridSpec { min: Vec3::ZERO, max: Vec3::ONE, resolution: UVec3::splat(2) };
     for (bad, format, needle) in [

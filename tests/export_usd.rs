@@ -27,39 +27,39 @@ fn run_checker(module: &str, script: &str, stages: &[PathBuf]) -> Vec<Value> {
 }
 
 fn random_project(seed: u64) -> Project {
-    let mut r = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let mut r = Rng(fogsmith::rng::scrambled(seed));
     let mut p = Project::default();
-    let min = r.v(-3.0, 1.0);
-    let max = min + r.v(0.5, 3.0);
+    let min = r.vec3(-3.0, 1.0);
+    let max = min + r.vec3(0.5, 3.0);
     p.grid = GridSpec {
         min,
         max,
-        resolution: UVec3::new(8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32, 8 + (r.f() * 9.0) as u32),
+        resolution: UVec3::new(8 + (r.f32() * 9.0) as u32, 8 + (r.f32() * 9.0) as u32, 8 + (r.f32() * 9.0) as u32),
     };
     p.medium = Medium {
         base_extinction: r.range(0.0, 0.2),
-        albedo: r.f(),
+        albedo: r.f32(),
         anisotropy: r.range(-0.5, 0.8),
         ..Medium::default()
     };
-    let n = 1 + (r.f() * 3.0) as usize;
-    p.lights = (0..n).map(|_| Light::new(r.v(-4.0, 4.0), r.range(0.5, 50.0), r.v(0.2, 1.0))).collect();
+    let n = 1 + (r.f32() * 3.0) as usize;
+    p.lights = (0..n).map(|_| Light::new(r.vec3(-4.0, 4.0), r.range(0.5, 50.0), r.vec3(0.2, 1.0))).collect();
     if n > 1 {
-        p.lights[1].hidden = r.f() < 0.5;
+        p.lights[1].hidden = r.f32() < 0.5;
     }
-    let position = r.v(-6.0, 6.0) + Vec3::new(0.0, 0.0, 8.0);
-    p.camera = Camera { position, target: r.v(-1.0, 1.0), up: Vec3::Y, fov_y_deg: r.range(20.0, 80.0) };
-    p.render.width = 16 + (r.f() * 100.0) as u32;
-    p.render.height = 16 + (r.f() * 100.0) as u32;
-    if r.f() < 0.7 {
-        p.surfaces.ground = Some(Ground { height: r.range(-3.0, 0.0), albedo: r.v(0.0, 1.0), ..Ground::default() });
+    let position = r.vec3(-6.0, 6.0) + Vec3::new(0.0, 0.0, 8.0);
+    p.camera = Camera { position, target: r.vec3(-1.0, 1.0), up: Vec3::Y, fov_y_deg: r.range(20.0, 80.0) };
+    p.render.width = 16 + (r.f32() * 100.0) as u32;
+    p.render.height = 16 + (r.f32() * 100.0) as u32;
+    if r.f32() < 0.7 {
+        p.surfaces.ground = Some(Ground { height: r.range(-3.0, 0.0), albedo: r.vec3(0.0, 1.0), ..Ground::default() });
     }
-    for _ in 0..(r.f() * 3.0) as usize {
-        let a = r.v(-2.0, 2.0);
+    for _ in 0..(r.f32() * 3.0) as usize {
+        let a = r.vec3(-2.0, 2.0);
         p.surfaces.boxes.push(SurfaceBox {
             min: a,
-            max: a + r.v(0.1, 1.5),
-            albedo: r.v(0.0, 1.0),
+            max: a + r.vec3(0.1, 1.5),
+            albedo: r.vec3(0.0, 1.0),
             ..SurfaceBox::default()
         });
     }
@@ -139,7 +139,7 @@ fn box_in(frame: &Frame, min: Vec3, max: Vec3) -> ([f64; 3], [f64; 3]) {
 
 #[test]
 fn usd_core_reads_random_projects_in_every_frame() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let mut cases = Vec::new();
     for seed in 1..=6u64 {
         let p = random_project(seed);
@@ -258,7 +258,7 @@ fn usd_core_reads_random_projects_in_every_frame() {
 /// where the project puts it with its vertical field of view, the surfaces' meshes.
 #[test]
 fn blender_imports_random_projects_in_every_frame_to_the_same_places() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let blender = Frame::preset(Preset::Blender);
     let mut cases = Vec::new();
     for seed in 11..=13u64 {
@@ -353,7 +353,7 @@ fn fogsmith() -> Command {
 /// optical depths of class unknown), the KTX2 texture and its snippet, and clear errors for a left-handed frame and a wrong extension.
 #[test]
 fn cli_exports_a_usd_stage_with_its_vdb() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let usd = dir.path().join("cornell.usda");
     let project = root().join("projects/cornell.ron");
     let out = fogsmith()

@@ -1,6 +1,8 @@
 //! VDB export and import: our writer read back by our reader and by OpenVDB itself
 //! (python3-openvdb), and files written by OpenVDB imported by our reader.
 
+mod common;
+
 use fogsmith::export::frame::{Frame, Handedness, Preset, Units, UpAxis};
 use fogsmith::export::vdb::{
     grids_from_volumes, half_round, write_vdb, GridClass, GridSelection, VdbCompression, VdbGrid, VdbOptions,
@@ -22,7 +24,7 @@ fn require_openvdb() {
 }
 
 fn tests_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests")
+    common::root().join("tests")
 }
 
 /// A blob of fog with exact zeros around it, a constant 8³ block (a tile) and leaves cut by
@@ -101,7 +103,7 @@ fn check_against_openvdb(tag: &str, min: Vec3, max: Vec3, opts: VdbOptions) {
     let lights = [(&opv, light().in_frame(&frame))];
     let grids =
         grids_from_volumes(&ev, &lights, GridSelection { density: true, optical_depth: true, transmittance: true });
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join(format!("{tag}.vdb"));
     let stats = write_vdb(&path, &grids, &opts).unwrap();
     assert_eq!(stats.bytes, std::fs::metadata(&path).unwrap().len());
@@ -262,7 +264,7 @@ fn openvdb_reads_several_root_nodes_and_an_empty_grid() {
     let long = Volume::new(grid, data);
     let empty = Volume::new(grid, vec![0.0; grid.cell_count() as usize]);
     let grids = vec![VdbGrid::from_volume("density", &long), VdbGrid::from_volume("empty", &empty)];
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("long.vdb");
     let stats = write_vdb(&path, &grids, &VdbOptions::default()).unwrap();
     assert_eq!(stats.grids[0].active_voxels, 6);
@@ -389,7 +391,7 @@ fn ints(v: &Value) -> Vec<i64> {
 #[test]
 fn imports_files_written_by_openvdb() {
     require_openvdb();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let out = Command::new(PY).arg(tests_dir().join("vdb_make.py")).arg(dir.path()).output().expect("run vdb_make.py");
     assert!(out.status.success(), "vdb_make.py failed: {}", String::from_utf8_lossy(&out.stderr));
     let report: Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -525,9 +527,9 @@ fn imports_files_written_by_openvdb() {
     // Flipped bytes in OpenVDB's blosc and half files: Ok or Err, never a panic.
     for file in ["blob_blosc.vdb", "blob_half.vdb"] {
         let bytes = std::fs::read(dir.path().join(file)).unwrap();
-        let mut x: u64 = 99;
+        let mut rng = common::Lcg(99);
         for _ in 0..1500 {
-            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let x = rng.next_u64();
             let mut bad = bytes.clone();
             let at = (x >> 33) as usize % bad.len();
             bad[at] ^= 1 << ((x >> 20) % 8);
@@ -563,9 +565,9 @@ fn damaged_files_give_errors_not_panics() {
             assert!(err.starts_with("damaged.vdb: "), "{err}");
         }
         // Flipped bytes anywhere: Ok or Err, never a panic.
-        let mut x: u64 = 0x1234_5678;
+        let mut rng = common::Lcg(0x1234_5678);
         for _ in 0..3000 {
-            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let x = rng.next_u64();
             let mut bad = good.clone();
             let at = (x >> 33) as usize % bad.len();
             bad[at] ^= 1 << ((x >> 20) % 8);

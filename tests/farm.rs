@@ -123,7 +123,7 @@ fn status(bundle: &Path) -> Value {
 #[test]
 fn openjd_bundle_checks_and_runs_bit_equal_to_a_local_export() {
     let openjd = openjd();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let (project, local) = project_and_local_export(dir.path());
     let written = dir.path().join("written");
     ok(
@@ -173,7 +173,7 @@ fn openjd_bundle_checks_and_runs_bit_equal_to_a_local_export() {
 #[test]
 fn a_killed_task_runs_again_to_a_complete_sequence() {
     let openjd = openjd();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let (project, local) = project_and_local_export(dir.path());
     let bundle = dir.path().join("job");
     ok(
@@ -261,7 +261,7 @@ fn a_killed_task_runs_again_to_a_complete_sequence() {
 /// bundle's project loads back with every particle.
 #[test]
 fn a_bundle_carries_the_particle_sidecar() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let mut p = animated();
     let template = p.particles[0].clone();
     let n = fogsmith::scene::sidecar::SIDECAR_MIN_PARTICLES;
@@ -290,7 +290,7 @@ fn a_bundle_carries_the_particle_sidecar() {
 
 #[test]
 fn bad_jobs_are_refused_before_any_file_is_written() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = dir.path().join("shot.ron");
     save_project(&project, &animated()).unwrap();
     let still = dir.path().join("still.ron");
@@ -382,7 +382,7 @@ impl Cluster {
     fn start() -> Cluster {
         let (munged, ctld, slurmd) = (need("munged"), need("slurmctld"), need("slurmd"));
         need("sbatch");
-        let dir = tempfile::tempdir().unwrap();
+        let dir = common::temp_dir();
         let root = dir.path().to_path_buf();
         let d = root.as_path();
         for sub in ["state", "spool", "log"] {
@@ -469,7 +469,7 @@ impl Drop for Cluster {
 #[test]
 fn slurm_job_array_runs_bit_equal_to_a_local_export() {
     let cluster = Cluster::start();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let (project, local) = project_and_local_export(dir.path());
     let bundle = dir.path().join("job");
     ok(

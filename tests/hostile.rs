@@ -5,6 +5,8 @@
 //! The mutation runs use fixed seeds and case counts so CI is reproducible and quick. For a
 //! longer run: `FOGSMITH_FUZZ_CASES=300000 FOGSMITH_FUZZ_SEED=7 cargo test --release --test hostile`.
 
+mod common;
+
 use fogsmith::export::vdb::{encode_vdb, VdbCompression, VdbGrid, VdbOptions};
 use fogsmith::export::vdb_read::{import_density, read_vdb_grid_from_bytes, resample_into, MAX_LEAVES};
 use fogsmith::scene::io::to_ron_string;
@@ -376,7 +378,7 @@ fn write_corpus() {
 /// negative extinction or NaN into every frame: the import refuses it, naming file and grid.
 #[test]
 fn importing_negative_or_non_finite_density_is_refused() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let target = GridSpec { min: Vec3::splat(-1.0), max: Vec3::splat(1.0), resolution: UVec3::splat(4) };
     for bad in [-0.25f32, f32::INFINITY] {
         let mut v = seed_volume();
@@ -411,7 +413,7 @@ fn bad_paths_give_clear_errors() {
     use fogsmith::scene::{load_project, save_project, Project};
     let err = load_project(Path::new("/nonexistent/dir/fog.ron")).unwrap_err().to_string();
     assert!(err.contains("/nonexistent/dir/fog.ron") && err.contains("No such file"), "{err}");
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let err = load_project(dir.path()).unwrap_err().to_string();
     assert!(err.contains(&dir.path().display().to_string()), "a directory is not a project: {err}");
     let binary = dir.path().join("binary.ron");
@@ -459,7 +461,7 @@ fn huge_declared_sizes_are_refused() {
 /// allocated (it used to abort the process with an allocation failure).
 #[test]
 fn base_volume_on_a_huge_grid_is_refused() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("base.vdb");
     fogsmith::export::vdb::write_vdb(&path, &[VdbGrid::from_volume("density", &seed_volume())], &VdbOptions::default())
         .unwrap();
@@ -474,7 +476,7 @@ fn base_volume_on_a_huge_grid_is_refused() {
 /// Saving a project of a version this build does not write is an error, not a debug panic.
 #[test]
 fn saving_a_foreign_version_is_an_error() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let p = fogsmith::scene::Project { version: 7, ..Default::default() };
     let err = fogsmith::scene::save_project(&dir.path().join("v.ron"), &p).unwrap_err().to_string();
     assert!(err.contains("version 7"), "{err}");
@@ -484,7 +486,7 @@ fn saving_a_foreign_version_is_an_error() {
 /// grid past them is refused at once with the limit named and a suggestion.
 #[test]
 fn cli_refuses_an_oversized_grid_before_loading_its_base_volume() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     std::fs::write(
         dir.path().join("base.vdb"),
         std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/float_zip.vdb")).unwrap(),
@@ -512,7 +514,7 @@ fn cli_refuses_an_oversized_grid_before_loading_its_base_volume() {
 /// storing infinity (the optical depth of dense fog is often larger).
 #[test]
 fn half_float_overflow_is_refused() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let mut v = seed_volume();
     v.data[3] = 1e5;
     let path = dir.path().join("dense.vdb");

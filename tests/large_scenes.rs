@@ -27,8 +27,11 @@ fn scene(n: usize) -> Project {
     let mut rng = common::Rng(7);
     p.particles = (0..n)
         .map(|i| {
-            let mut q =
-                Particle::new(rng.v(-2.0, 2.0) + Vec3::new(0.0, 2.0, 0.0), rng.range(0.02, 0.06), rng.range(0.5, 3.5));
+            let mut q = Particle::new(
+                rng.vec3(-2.0, 2.0) + Vec3::new(0.0, 2.0, 0.0),
+                rng.range(0.02, 0.06),
+                rng.range(0.5, 3.5),
+            );
             q.name = (i % 997 == 0).then(|| format!("dab {i} ☁"));
             q.hidden = i % 13 == 0;
             q.noise = i % 7 != 0;
@@ -63,7 +66,7 @@ fn same_bits(a: &[Particle], b: &[Particle]) {
 
 #[test]
 fn a_loaded_project_is_validated_exactly_once() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     for n in [10, SIDECAR_MIN_PARTICLES + 5] {
         let path = dir.path().join(format!("p{n}.ron"));
         save_project(&path, &scene(n)).unwrap();
@@ -96,7 +99,7 @@ fn the_pipeline_validates_nothing_per_frame_but_still_refuses_bad_settings() {
 
 #[test]
 fn the_sidecar_round_trips_bit_for_bit_and_old_files_stay_until_replaced() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("big.ron");
     let p = scene(SIDECAR_MIN_PARTICLES * 2);
     save_project(&path, &p).unwrap();
@@ -131,7 +134,7 @@ fn the_sidecar_round_trips_bit_for_bit_and_old_files_stay_until_replaced() {
 
 #[test]
 fn a_damaged_sidecar_is_an_error_naming_it_and_nothing_is_lost() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("big.ron");
     let p = scene(SIDECAR_MIN_PARTICLES);
     save_project(&path, &p).unwrap();
@@ -168,7 +171,7 @@ fn undo_and_redo_across_a_large_scene_restore_every_state_and_hold_only_the_edit
     let mut rng = common::Rng(3);
     for _ in 0..100 {
         let tag = s.new_tag();
-        s.add_particles(tag, (0..4).map(|_| Particle::new(rng.v(-1.0, 1.0) + Vec3::Y * 2.0, 0.04, 2.0)));
+        s.add_particles(tag, (0..4).map(|_| Particle::new(rng.vec3(-1.0, 1.0) + Vec3::Y * 2.0, 0.04, 2.0)));
         s.end_edit();
         states.push(s.project().clone());
     }

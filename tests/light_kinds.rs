@@ -1,6 +1,8 @@
 //! The project model of light kinds, height fog and noise: defaults that keep older files
 //! loading unchanged, RON round trips, the cone factor, and clear errors on bad values.
 
+mod common;
+
 use fogsmith::scene::io::to_ron_string;
 use fogsmith::scene::{cone_factor, parse_project, Light, LightKind, Noise, Project};
 use glam::{DVec3, Vec3};
@@ -24,7 +26,7 @@ fn files_without_the_new_fields_load_as_before() {
         assert!(!text.contains(word), "{word} written for a default project:\n{text}");
     }
     for demo in ["cloud", "cornell", "street", "room"] {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("projects").join(format!("{demo}.ron"));
+        let path = common::root().join("projects").join(format!("{demo}.ron"));
         fogsmith::scene::load_project(&path).unwrap_or_else(|e| panic!("{demo}: {e}"));
     }
 }
@@ -97,13 +99,8 @@ fn spots_know_whether_they_reach_a_box() {
     l.position = Vec3::splat(100.0);
     assert!(l.reaches_box(min, max));
     // Never a false "misses" for random spots: sample each cone and check no sample lands in the box.
-    let mut s = 0x1234_5678u64;
-    let mut next = || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = common::Rng(0x1234_5678);
+    let mut next = || rng.f64();
     for _ in 0..300 {
         let pos = Vec3::new(next() as f32 * 8.0 - 4.0, next() as f32 * 8.0 - 4.0, next() as f32 * 8.0 - 4.0);
         let dir = Vec3::new(next() as f32 - 0.5, next() as f32 - 0.5, next() as f32 - 0.5);

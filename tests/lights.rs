@@ -2,24 +2,12 @@
 
 mod common;
 
-use common::{pipeline, small_scene, Rng};
+use common::{pipeline, render_both, small_scene, Rng};
 use fogsmith::gpu::FrameRequest;
 use fogsmith::measure::image_error;
 use fogsmith::reference::{render_reference, RefRenderOptions};
 use fogsmith::scene::{Ground, LightKind, Project, StepPolicy};
 use glam::Vec3;
-
-/// GPU image and reference image of `project`; panics on NaN or infinity.
-fn render_both(project: &Project) -> (Vec<[f32; 4]>, Vec<[f64; 3]>, fogsmith::gpu::FrameReport) {
-    let mut gpu = pipeline();
-    let (w, h) = (project.render.width, project.render.height);
-    let report = gpu.update(project, &FrameRequest::for_project(project)).unwrap();
-    let image = gpu.read_image().unwrap();
-    let reference = render_reference(project, w, h, &RefRenderOptions::default());
-    let err = image_error(&image, &reference);
-    assert!(!err.nan_or_inf, "the GPU image holds NaN or infinity");
-    (image.rgba.clone(), reference, report)
-}
 
 fn spot(direction: Vec3, angle_deg: f32, blend: f32) -> LightKind {
     LightKind::Spot { direction, angle_deg, blend }
@@ -49,8 +37,8 @@ fn spot_cone_matches_reference_at_its_edge() {
             let ratio = reference[i][0] / point_reference[i][0].max(1e-30);
             if ratio > 0.05 && ratio < 0.95 {
                 for c in 0..3 {
-                    spot_sq += (image[i][c] as f64 - reference[i][c]).powi(2);
-                    point_sq += (point_image[i][c] as f64 - point_reference[i][c]).powi(2);
+                    spot_sq += (image.rgba[i][c] as f64 - reference[i][c]).powi(2);
+                    point_sq += (point_image.rgba[i][c] as f64 - point_reference[i][c]).powi(2);
                 }
                 n += 1;
             }
@@ -65,10 +53,7 @@ fn spot_cone_matches_reference_at_its_edge() {
 /// Absolute RMSE over all channels of the GPU image of `project` against the reference.
 fn abs_rmse(project: &Project) -> f64 {
     let (image, reference, _) = render_both(project);
-    let e = image_error(
-        &fogsmith::gpu::Image { width: project.render.width, height: project.render.height, rgba: image },
-        &reference,
-    );
+    let e = image_error(&image, &reference);
     let mean = reference.iter().flatten().sum::<f64>() / (3 * reference.len()) as f64;
     e.rel_rmse * mean
 }
@@ -82,10 +67,10 @@ fn abs_rmse(project: &Project) -> f64 {
 fn random_spots_match_reference() {
     let mut rng = Rng(0x5eed_0014);
     for case in 0..5 {
-        let pos = rng.dir() * rng.range(1.2, 2.0);
+        let pos = rng.direction() * rng.range(1.2, 2.0);
         let mut p = small_scene(40, &[pos]);
         p.lights[0].intensity = 10.0;
-        let aim = (-pos + rng.v(-0.5, 0.5)).normalize();
+        let aim = (-pos + rng.vec3(-0.5, 0.5)).normalize();
         p.lights[0].kind = spot(aim, rng.range(10.0, 60.0), rng.range(0.0, 1.0));
         p.surfaces.ground = Some(Ground { height: -1.0, albedo: Vec3::splat(0.5), ..Ground::default() });
         p.render.step_policy = StepPolicy::Fixed;
@@ -163,7 +148,7 @@ fn sun_opv_is_exact_in_homogeneous_fog_from_every_face() {
     gpu.set_base_layer(Some(fogsmith::scene::Volume::new(p.grid, vec![beta; (r.x * r.y * r.z) as usize])));
     let mut dirs = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
     let mut rng = Rng(0x5a5a_0014);
-    dirs.extend((0..10).map(|_| rng.dir()));
+    dirs.extend((0..10).map(|_| rng.direction()));
     for d in dirs {
         p.lights[0].kind = sun(d);
         gpu.update(&p, &FrameRequest::for_project(&p)).unwrap();
@@ -204,7 +189,7 @@ fn sun_opv_matches_the_erf_integral_and_height_fog_closed_form() {
     let mut gpu = pipeline();
     let mut rng = Rng(0x0005_0014);
     let mut dirs = vec![-Vec3::Y, Vec3::X, Vec3::new(0.0, -1.0, 1.0)];
-    dirs.extend((0..6).map(|_| rng.dir()));
+    dirs.extend((0..6).map(|_| rng.direction()));
     for (n, d) in dirs.into_iter().enumerate() {
         let mut p = small_scene(40, &[Vec3::ZERO]);
         p.lights[0].kind = sun(d);
@@ -238,8 +223,7 @@ fn sun_image_matches_reference() {
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
-    let e =
-        image_error(&fogsmith::gpu::Image { width: p.render.width, height: p.render.height, rgba: image }, &reference);
+    let e = image_error(&image, &reference);
     println!("sun image: relative RMSE {:.4}, max abs {:.3e}", e.rel_rmse, e.max_abs_error);
     assert!(e.rel_rmse < 0.02, "{}", e.rel_rmse);
 }
@@ -287,8 +271,7 @@ fn height_fog_image_matches_reference() {
     p.render.step_policy = StepPolicy::Fixed;
     p.render.step_factor = 0.25;
     let (image, reference, _) = render_both(&p);
-    let e =
-        image_error(&fogsmith::gpu::Image { width: p.render.width, height: p.render.height, rgba: image }, &reference);
+    let e = image_error(&image, &reference);
     println!("height fog image: relative RMSE {:.4}, max abs {:.3e}", e.rel_rmse, e.max_abs_error);
     assert!(e.rel_rmse < 0.05, "{}", e.rel_rmse);
 }
@@ -312,7 +295,7 @@ fn point_lights_outside_the_box_in_height_fog_match_quadrature() {
         let dir = match case {
             0 => Vec3::Y,
             1 => -Vec3::Y,
-            _ => rng.dir(),
+            _ => rng.direction(),
         };
         let position = dir * rng.range(2.0, 6.0);
         let mut p = small_scene(24, &[position]);

@@ -125,27 +125,29 @@ fn ev_with_noise_matches_the_f64_reference_on_random_scenes() {
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let (mut worst_ratio, mut worst_rel) = (0.0f64, 0.0f64);
     for scene_no in 0..14 {
-        let min = rng.v(-6.0, 6.0);
-        let size = rng.v(0.5, 4.0);
-        let mut res = UVec3::new(8 + (rng.f() * 20.0) as u32, 8 + (rng.f() * 20.0) as u32, 8 + (rng.f() * 20.0) as u32);
+        let min = rng.vec3(-6.0, 6.0);
+        let size = rng.vec3(0.5, 4.0);
+        let mut res =
+            UVec3::new(8 + (rng.f32() * 20.0) as u32, 8 + (rng.f32() * 20.0) as u32, 8 + (rng.f32() * 20.0) as u32);
         if scene_no % 3 == 1 {
-            res[scene_no % 3 + (scene_no / 3) % 2] = 1 + (rng.f() * 2.0) as u32;
+            res[scene_no % 3 + (scene_no / 3) % 2] = 1 + (rng.f32() * 2.0) as u32;
         }
         let grid = GridSpec { min, max: min + size, resolution: res };
         let cell = grid.cell_size().min_element();
-        let particles = (0..1 + (rng.f() * 6.0) as usize)
+        let particles = (0..1 + (rng.f32() * 6.0) as usize)
             .map(|n| {
                 let radius =
                     if n % 2 == 0 { cell * rng.range(0.6, 2.0) } else { size.max_element() * rng.range(0.2, 0.8) };
-                let mut q = Particle::new(min + size * rng.v(0.0, 1.0), radius, rng.range(0.1, 30.0));
-                q.noise = rng.f() < 0.75;
+                let mut q = Particle::new(min + size * rng.vec3(0.0, 1.0), radius, rng.range(0.1, 30.0));
+                q.noise = rng.f32() < 0.75;
                 q
             })
             .collect();
-        let frequency = (0.1 + rng.f() * 10.0 / size.min_element()) * if scene_no % 5 == 4 { 8.0 / cell } else { 1.0 };
+        let frequency =
+            (0.1 + rng.f32() * 10.0 / size.min_element()) * if scene_no % 5 == 4 { 8.0 / cell } else { 1.0 };
         let amplitude = [0.3, 0.9, 2.5, 20.0][scene_no % 4];
-        let seed = if scene_no % 3 == 0 { u32::MAX - (rng.f() * 4.0) as u32 } else { (rng.f() * 1e6) as u32 };
-        let noise = Noise::new(amplitude, frequency, 1 + (rng.f() * 8.0) as u32, seed);
+        let seed = if scene_no % 3 == 0 { u32::MAX - (rng.f32() * 4.0) as u32 } else { (rng.f32() * 1e6) as u32 };
+        let noise = Noise::new(amplitude, frequency, 1 + (rng.f32() * 8.0) as u32, seed);
         let p = scene(grid, if scene_no % 2 == 0 { 0.05 } else { 0.0 }, particles, Some(noise));
         let (ev, _) = bake(&mut gpu, &p);
         let (ratio, rel) = compare(&p, &ev);
@@ -271,7 +273,7 @@ fn extreme_noise_stays_finite() {
 /// `fogsmith render` says on stderr which octaves the grid drops, and nothing when none are.
 #[test]
 fn render_warns_about_dropped_octaves() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = |octaves: u32| {
         format!(
             "Project(grid: (min: (-1, -1, -1), max: (1, 1, 1), resolution: (16, 16, 16)), medium: (noise: Some((0.8, 1, {octaves}, 3))), particles: [(center: (0, 0, 0), radius: 0.5, density: 3)], render: (width: 16, height: 12))"

@@ -14,18 +14,18 @@ use glam::Vec3;
 /// Clusters of particles of very different sizes, some hidden, some sharing a centre (ties
 /// in depth), some far out and some behind any camera in the middle of the scene.
 fn random_particles(rng: &mut Rng, n: usize) -> Vec<Particle> {
-    let clusters: Vec<(Vec3, f32)> = (0..8).map(|_| (rng.v(-3.0, 3.0), rng.range(0.05, 1.5))).collect();
+    let clusters: Vec<(Vec3, f32)> = (0..8).map(|_| (rng.vec3(-3.0, 3.0), rng.range(0.05, 1.5))).collect();
     let mut out = Vec::with_capacity(n);
     while out.len() < n {
-        let (c, spread) = clusters[(rng.f() * clusters.len() as f32) as usize % clusters.len()];
-        let radius = if rng.f() < 0.05 { rng.range(0.2, 1.0) } else { rng.range(0.001, 0.08) };
-        let mut p = Particle::new(c + rng.v(-spread, spread), radius, 1.0);
-        p.hidden = rng.f() < 0.05;
-        if rng.f() < 0.02 {
-            p.center = rng.v(-40.0, 40.0);
+        let (c, spread) = clusters[(rng.f32() * clusters.len() as f32) as usize % clusters.len()];
+        let radius = if rng.f32() < 0.05 { rng.range(0.2, 1.0) } else { rng.range(0.001, 0.08) };
+        let mut p = Particle::new(c + rng.vec3(-spread, spread), radius, 1.0);
+        p.hidden = rng.f32() < 0.05;
+        if rng.f32() < 0.02 {
+            p.center = rng.vec3(-40.0, 40.0);
         }
         out.push(p);
-        if rng.f() < 0.02 {
+        if rng.f32() < 0.02 {
             let mut twin = out[out.len() - 1].clone();
             twin.radius = rng.range(0.001, 0.1);
             out.push(twin);
@@ -35,11 +35,15 @@ fn random_particles(rng: &mut Rng, n: usize) -> Vec<Particle> {
 }
 
 fn random_view(rng: &mut Rng) -> ViewProjection {
-    let target = rng.v(-2.0, 2.0);
+    let target = rng.vec3(-2.0, 2.0);
     // Mostly outside the scene, sometimes inside it (particles behind the camera).
-    let distance = if rng.f() < 0.25 { rng.range(0.1, 2.0) } else { rng.range(3.0, 15.0) };
-    let camera =
-        Camera { position: target + rng.dir() * distance, target, up: Vec3::Y, fov_y_deg: rng.range(10.0, 100.0) };
+    let distance = if rng.f32() < 0.25 { rng.range(0.1, 2.0) } else { rng.range(3.0, 15.0) };
+    let camera = Camera {
+        position: target + rng.direction() * distance,
+        target,
+        up: Vec3::Y,
+        fov_y_deg: rng.range(10.0, 100.0),
+    };
     let size = egui::vec2(rng.range(50.0, 1600.0), rng.range(50.0, 1000.0));
     let rect = Rect::from_min_size(Pos2::new(rng.range(0.0, 300.0), rng.range(0.0, 200.0)), size);
     ViewProjection::new(&camera, rect)
@@ -62,7 +66,7 @@ fn binned_picks_equal_the_scan() {
             for k in 0..60 {
                 // Half the clicks aim at a particle's centre (or just beside it), so most hit.
                 let pos = if k % 2 == 0 {
-                    let p = &project.particles[(rng.f() * n as f32) as usize % n];
+                    let p = &project.particles[(rng.f32() * n as f32) as usize % n];
                     match view.project(p.center) {
                         Some((s, _)) => s + egui::vec2(rng.range(-6.0, 6.0), rng.range(-6.0, 6.0)),
                         None => view.rect.center(),

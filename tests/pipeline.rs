@@ -266,7 +266,7 @@ fn an_imported_base_layer_adds_under_the_particles() {
 
     // A layer written as a VDB on the project's own grid, read back through the importer.
     let layer: Vec<f32> = (0..p.grid.cell_count()).map(|i| (i % 7) as f32 * 0.25).collect();
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let vdb = dir.path().join("layer.vdb");
     let volume = fogsmith::scene::Volume::new(p.grid, layer.clone());
     write_vdb(&vdb, &[VdbGrid::from_volume("density", &volume)], &VdbOptions::default()).unwrap();
@@ -393,7 +393,7 @@ fn a_million_small_particles_inject() {
     let ev = gpu.read_ev().unwrap();
     let mut rng = common::Rng(99);
     for _ in 0..40 {
-        let c = [0, 1, 2].map(|_| (rng.f() * 64.0) as u32);
+        let c = [0, 1, 2].map(|_| (rng.f32() * 64.0) as u32);
         let want = density_with_cutoff(&p, p.grid.cell_center(c[0], c[1], c[2]).as_dvec3());
         let got = ev.get(c[0], c[1], c[2]) as f64;
         assert!((got - want).abs() <= 1e-5 * want.max(1.0), "cell {c:?}: EV {got}, exact {want}");
@@ -717,7 +717,7 @@ fn the_march_built_for_a_scene_renders_like_the_march_for_every_scene() {
             _ => &[0, 1, 2],
         };
         for &kind in kinds {
-            let at = if rng.f() < 0.5 { rng.v(-0.7, 0.7) } else { rng.dir() * 2.0 };
+            let at = if rng.f32() < 0.5 { rng.vec3(-0.7, 0.7) } else { rng.direction() * 2.0 };
             let mut light = Light::new(at, 4.0, Vec3::ONE);
             light.kind = match kind {
                 0 => LightKind::Point,
@@ -732,7 +732,7 @@ fn the_march_built_for_a_scene_renders_like_the_march_for_every_scene() {
             p.medium.height_falloff = 0.7;
         }
         if case >= 4 {
-            let c = rng.v(-1.5, 1.5);
+            let c = rng.vec3(-1.5, 1.5);
             p.surfaces.boxes.push(SurfaceBox { min: c - 0.3, max: c + 0.3, ..SurfaceBox::default() });
             p.surfaces.ground = Some(Ground { height: -1.2, ..Ground::default() });
         }
@@ -766,7 +766,7 @@ fn base_fog_tests_only_the_surfaces_that_can_hide_a_light_and_renders_the_same()
         p.render.height = 48;
         p.medium.base_extinction = rng.range(0.04, 0.15);
         for k in 0..2 + case % 2 {
-            let at = if k == 0 { rng.v(-0.7, 0.7) } else { rng.dir() * rng.range(1.4, 2.6) };
+            let at = if k == 0 { rng.vec3(-0.7, 0.7) } else { rng.direction() * rng.range(1.4, 2.6) };
             let mut light = Light::new(at, 4.0, Vec3::ONE);
             if k == 2 {
                 light.kind = LightKind::Spot { direction: -at, angle_deg: 40.0, blend: 0.3 };
@@ -774,7 +774,7 @@ fn base_fog_tests_only_the_surfaces_that_can_hide_a_light_and_renders_the_same()
             p.lights.push(light);
             if k > 0 {
                 // Between the light and the fog in view.
-                let c = at.lerp(rng.v(-1.2, 1.2), rng.range(0.3, 0.6));
+                let c = at.lerp(rng.vec3(-1.2, 1.2), rng.range(0.3, 0.6));
                 let half = Vec3::splat(rng.range(0.15, 0.4));
                 p.surfaces.boxes.push(SurfaceBox { min: c - half, max: c + half, ..SurfaceBox::default() });
             }
@@ -787,8 +787,8 @@ fn base_fog_tests_only_the_surfaces_that_can_hide_a_light_and_renders_the_same()
             ..SurfaceBox::default()
         });
         for _ in 0..case % 3 {
-            let c = rng.v(-2.5, 2.5);
-            let half = rng.v(0.1, 0.6);
+            let c = rng.vec3(-2.5, 2.5);
+            let half = rng.vec3(0.1, 0.6);
             p.surfaces.boxes.push(SurfaceBox { min: c - half, max: c + half, ..SurfaceBox::default() });
         }
         if case % 2 == 0 {

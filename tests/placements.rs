@@ -9,7 +9,8 @@
 
 mod common;
 
-use common::pipeline;
+use common::scenes::transmittance_errors;
+use common::{pipeline, Lcg};
 use fogsmith::gpu::FrameRequest;
 use fogsmith::measure::{opv_errors, sample_cells};
 use fogsmith::scene::{Camera, GridSpec, Light, Medium, Particle, Project, Scheme, DEFAULT_SWEEP_TOLERANCE};
@@ -58,36 +59,14 @@ const CLASSES: [&str; 8] = [
     "far away",
 ];
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.next()
-    }
-    fn pick(&mut self, n: usize) -> usize {
-        ((self.next() * n as f32) as usize).min(n - 1)
-    }
-    fn sign(&mut self) -> f32 {
-        if self.next() < 0.5 {
-            -1.0
-        } else {
-            1.0
-        }
-    }
-}
-
 /// One light per placement class, in `CLASSES` order.
-fn lights_by_class(rng: &mut Rng, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
+fn lights_by_class(rng: &mut Lcg, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
     let (lo, hi) = (grid.min, grid.max);
     let size = grid.size();
     let c = (lo + hi) * 0.5;
-    let within = |rng: &mut Rng| lo + size * Vec3::new(rng.next(), rng.next(), rng.next());
+    let within = |rng: &mut Lcg| lo + size * Vec3::new(rng.f32(), rng.f32(), rng.f32());
     // A point with `outside` axes (distinct, random) beyond a face, the others in the box.
-    let beyond = |rng: &mut Rng, outside: usize| {
+    let beyond = |rng: &mut Lcg, outside: usize| {
         let mut p = within(rng);
         let first = rng.pick(3);
         for k in 0..outside {
@@ -97,12 +76,12 @@ fn lights_by_class(rng: &mut Rng, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
         p
     };
     // A point on `fixed` axes' faces.
-    let on = |rng: &mut Rng, fixed: usize| {
+    let on = |rng: &mut Lcg, fixed: usize| {
         let mut p = within(rng);
         let first = rng.pick(3);
         for k in 0..fixed {
             let a = (first + k) % 3;
-            p[a] = if rng.next() < 0.5 { lo[a] } else { hi[a] };
+            p[a] = if rng.f32() < 0.5 { lo[a] } else { hi[a] };
         }
         p
     };
@@ -111,7 +90,7 @@ fn lights_by_class(rng: &mut Rng, grid: &GridSpec, blob: Vec3) -> Vec<Vec3> {
     vec![blob, on(rng, 1), on(rng, 2), on(rng, 3), beyond(rng, 1), beyond(rng, 2), beyond(rng, 3), far]
 }
 
-fn scene(rng: &mut Rng, resolution: UVec3, base: f32, min_radius: f32) -> (Project, usize) {
+fn scene(rng: &mut Lcg, resolution: UVec3, base: f32, min_radius: f32) -> (Project, usize) {
     let mut p = Project::default();
     let cell = 0.05;
     let size = resolution.as_vec3() * cell;
@@ -126,7 +105,7 @@ fn scene(rng: &mut Rng, resolution: UVec3, base: f32, min_radius: f32) -> (Proje
         let r = cell * rng.range(min_radius, 10.0);
         // Centres anywhere in the box and up to a radius beyond it, so tails cross faces.
         let centre =
-            p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.next(), rng.next(), rng.next());
+            p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
         // Peak optical depth through the particle between 0.1 and 2.
         let density = rng.range(0.1, 2.0) / (r * 1.772_453_9);
         p.particles.push(Particle::new(centre, r, density));
@@ -153,7 +132,7 @@ fn worst_by_class(scheme: Scheme, stride: u32, refine: Option<f32>, min_radius: 
     let mut gpu = pipeline();
     let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
     let mut worst = vec![(0.0f64, 0.0f64); CLASSES.len()];
-    let mut rng = Rng(seed);
+    let mut rng = Lcg(seed);
     for (g, &res) in grids.iter().enumerate() {
         for seed in 0..2 {
             // Half the scenes without base fog, so that far lights still see the medium.
@@ -202,14 +181,8 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     let medium = GridMedium64::from_volume(&p.grid, ev, p.medium.base_extinction.max(0.0) as f64);
     let s = p.lights[l].position.as_dvec3();
     let exact = grid_optical_depth_cells(&p.grid, &medium, s, cells);
-    let err = |c: &[u32; 3], t: f64| ((-(opv.get(c[0], c[1], c[2]) as f64)).exp() - (-t).exp()).abs();
-    let (n, _) = cells
-        .iter()
-        .zip(&exact)
-        .enumerate()
-        .map(|(n, (c, t))| (n, err(c, *t)))
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .unwrap();
+    let (errors, worst) = transmittance_errors(opv, cells, &exact);
+    let n = worst.unwrap();
     let c = cells[n];
     let cell = p.grid.cell_size().as_dvec3();
     let x = p.grid.cell_center(c[0], c[1], c[2]).as_dvec3();
@@ -221,7 +194,7 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     let (t0, t1) = fogsmith::reference::clip_to_box(lo, hi, x, dir, len).unwrap_or((0.0, 0.0));
     let e = x + dir * t1;
     let eu = (e - lo) / cell - 0.5;
-    println!("    worst cell {c:?} err {:.2e} light(cells) {:.1?} path(cells) {:.1?} in-box {:.2} cells t0 {t0:.2} exit(cells) {:.2?}", err(&c, exact[n]), su.to_array(), v.to_array(), t1 / cell.min_element(), eu.to_array());
+    println!("    worst cell {c:?} err {:.2e} light(cells) {:.1?} path(cells) {:.1?} in-box {:.2} cells t0 {t0:.2} exit(cells) {:.2?}", errors[n], su.to_array(), v.to_array(), t1 / cell.min_element(), eu.to_array());
     let a = (0..3).max_by(|&i, &j| v[i].abs().total_cmp(&v[j].abs())).unwrap();
     let res = p.grid.resolution;
     let mut along = Vec::new();
@@ -311,7 +284,7 @@ fn analytic_worst_by_class(min_radius: f32, seed: u64) -> Vec<f64> {
     let mut gpu = pipeline();
     let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
     let mut worst = vec![0.0f64; CLASSES.len()];
-    let mut rng = Rng(seed);
+    let mut rng = Lcg(seed);
     for (g, &res) in grids.iter().enumerate() {
         for seed in 0..2 {
             let base = if (g + seed) % 2 == 0 { 0.0 } else { rng.range(0.02, 0.3) };

@@ -1,6 +1,8 @@
 //! Project files: the documented example loads, every demo loads, errors carry file, line,
 //! column and field, and saving is atomic and round-trips exactly.
 
+mod common;
+
 use fogsmith::scene::io::to_ron_string;
 use fogsmith::scene::{load_project, parse_project, save_project, Project, ProjectError, Scheme};
 use std::path::Path;
@@ -107,7 +109,7 @@ fn missing_file_is_a_clear_error() {
 
 #[test]
 fn save_then_load_is_identical_and_keeps_a_backup() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("fog.ron");
     let mut p = parse(EXAMPLE).unwrap();
     p.particles[0].name = Some("wisp".into());
@@ -156,7 +158,7 @@ fn version_1_files_get_ids_in_list_order() {
     assert_eq!(p.new_particle_id(), 3);
     assert_eq!(p.new_light_id(), 1);
 
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("v3.ron");
     save_project(&path, &p).unwrap();
     let saved = std::fs::read_to_string(&path).unwrap();
@@ -186,7 +188,7 @@ fn code_built_projects_save_with_distinct_ids() {
             .collect(),
         ..Project::default()
     };
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let path = dir.path().join("code.ron");
     save_project(&path, &p).unwrap();
     let back = load_project(&path).unwrap();

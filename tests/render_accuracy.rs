@@ -2,27 +2,16 @@
 
 mod common;
 
-use common::{pipeline, small_scene, Rng};
-use fogsmith::gpu::{FrameRequest, Image};
+use common::{render_both, small_scene, Rng};
 use fogsmith::measure::image_error;
-use fogsmith::reference::{camera_ray64, render_reference, shadowed, RefRenderOptions};
+use fogsmith::reference::{camera_ray64, shadowed};
 use fogsmith::scene::{Camera, Ground, Light, LightKind, Particle, Project, StepPolicy, SurfaceBox};
 use glam::{DVec3, UVec3, Vec3};
 
+/// The relative RMSE of the GPU's image of `project` against the reference image.
 fn render_error(project: &Project) -> f64 {
-    render_both(project).2
-}
-
-/// The GPU's image of `project`, the reference image and the relative RMSE between them.
-fn render_both(project: &Project) -> (Image, Vec<[f64; 3]>, f64) {
-    let mut gpu = pipeline();
-    let (w, h) = (project.render.width, project.render.height);
-    gpu.update(project, &FrameRequest::for_project(project)).unwrap();
-    let image = gpu.read_image().unwrap();
-    let reference = render_reference(project, w, h, &RefRenderOptions::default());
-    let err = image_error(&image, &reference);
-    assert!(!err.nan_or_inf, "the GPU image holds NaN or infinity");
-    (image, reference, err.rel_rmse)
+    let (image, reference, _) = render_both(project);
+    image_error(&image, &reference).rel_rmse
 }
 
 /// The preview differs from the reference by the grid's discretisation (trilinear EV and
@@ -108,10 +97,10 @@ fn surfaces_shadow_the_fog_like_the_reference() {
         let mut p = small_scene(48, &[]);
         p.particles.clear();
         for _ in 0..5 {
-            p.particles.push(Particle::new(rng.v(-0.5, 0.5), rng.range(0.25, 0.45), rng.range(1.0, 4.0)));
+            p.particles.push(Particle::new(rng.vec3(-0.5, 0.5), rng.range(0.25, 0.45), rng.range(1.0, 4.0)));
         }
         // The sun stands in its direction from the centre; its distance does not matter.
-        let mut at = rng.dir() * if inside && kind < 2 { rng.range(0.5, 0.9) } else { rng.range(1.6, 2.4) };
+        let mut at = rng.direction() * if inside && kind < 2 { rng.range(0.5, 0.9) } else { rng.range(1.6, 2.4) };
         // Above the ground, which would hide the fog from a light below it.
         at.y = at.y.abs();
         p.lights = vec![light_of(kind, at, if kind == 2 { 1.5 } else { 4.0 })];
@@ -125,12 +114,12 @@ fn surfaces_shadow_the_fog_like_the_reference() {
         let towards = if kind == 2 { at.normalize() * 1.3 } else { at * 0.5 };
         // Within a ball of half the distance to a point or spot light, so as not to enclose it.
         let room = if kind == 2 { 0.35 } else { 0.5 * at.distance(towards) / 3f32.sqrt() };
-        let half = rng.v(0.5, 1.0) * room;
+        let half = rng.vec3(0.5, 1.0) * room;
         p.surfaces.boxes.push(SurfaceBox { min: towards - half, max: towards + half, ..SurfaceBox::default() });
-        let c = rng.v(-1.5, 1.5);
-        p.surfaces.boxes.push(SurfaceBox { min: c - 0.2, max: c + rng.v(0.1, 0.5), ..SurfaceBox::default() });
+        let c = rng.vec3(-1.5, 1.5);
+        p.surfaces.boxes.push(SurfaceBox { min: c - 0.2, max: c + rng.vec3(0.1, 0.5), ..SurfaceBox::default() });
         p.surfaces.ground = Some(Ground { height: rng.range(-1.3, -0.4), ..Ground::default() });
-        let eye = rng.dir();
+        let eye = rng.direction();
         p.camera.position = Vec3::new(eye.x, eye.y.abs() * 0.5 + 0.3, eye.z).normalize() * 3.5;
         p.camera.target = Vec3::ZERO;
         let mut open = p.clone();
@@ -168,7 +157,8 @@ fn a_plate_casts_a_shadow_in_the_fog() {
         });
         p.camera = Camera { position: Vec3::new(0.0, 0.0, 3.5), target: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 45.0 };
         let (w, h) = (p.render.width, p.render.height);
-        let (image, reference, e) = render_both(&p);
+        let (image, reference, _) = render_both(&p);
+        let e = image_error(&image, &reference).rel_rmse;
         let origin = p.camera.position.as_dvec3();
         let (g_min, g_max) = (p.grid.min.as_dvec3(), p.grid.max.as_dvec3());
         let blocked = |x: DVec3| {
@@ -238,7 +228,7 @@ fn fog_hidden_by_walls_and_pillars_matches_the_reference() {
     for case in 0..4 {
         let mut p = small_scene(32, &[]);
         p.medium.base_extinction = 0.1;
-        p.lights = (0..1 + case % 2).map(|k| light_of(k, rng.v(-0.6, 0.6), 3.0)).collect();
+        p.lights = (0..1 + case % 2).map(|k| light_of(k, rng.vec3(-0.6, 0.6), 3.0)).collect();
         if let LightKind::Spot { direction, angle_deg, .. } = &mut p.lights.last_mut().unwrap().kind {
             *direction = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 1.0);
             *angle_deg = 70.0;
@@ -256,7 +246,7 @@ fn fog_hidden_by_walls_and_pillars_matches_the_reference() {
         p.camera.target = Vec3::ZERO;
         p.camera.fov_y_deg = 60.0;
         let pillar = p.lights[0].position.lerp(p.camera.position, rng.range(0.5, 0.7));
-        let half = rng.v(0.1, 0.2);
+        let half = rng.vec3(0.1, 0.2);
         p.surfaces.boxes.push(SurfaceBox { min: pillar - half, max: pillar + half, ..SurfaceBox::default() });
         let mut open = p.clone();
         open.surfaces = Default::default();

@@ -102,7 +102,7 @@ fn u64_of(v: &Value, counter: &str) -> u64 {
 /// previous one runs nothing.
 #[test]
 fn each_frame_reruns_only_what_it_changed() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = save(dir.path(), "anim.ron", &animated(5, false));
     let pattern = dir.path().join("f.####.png");
     let v = json_of(&run(&["render", s(&project), "--frames", "1-5", "-o", s(&pattern), "--json"]));
@@ -159,7 +159,7 @@ fn exr_bits(path: &Path) -> Vec<(String, String, Vec<u32>)> {
 /// earlier frames' work: images, EXR grids and VDB grids.
 #[test]
 fn a_range_alone_matches_the_same_frames_of_a_longer_run() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = save(dir.path(), "anim.ron", &animated(5, true));
     let bake = |frames: &str, sub: &str| {
         let out = dir.path().join(sub);
@@ -211,7 +211,7 @@ fn a_range_alone_matches_the_same_frames_of_a_longer_run() {
 /// partial or temporary file is left.
 #[test]
 fn ctrl_c_leaves_complete_frames_and_no_temporary_file() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let mut p = animated(400, true);
     p.render.width = 64;
     p.render.height = 48;
@@ -252,7 +252,7 @@ fn ctrl_c_leaves_complete_frames_and_no_temporary_file() {
 /// Every refusal of a frame list or an output path, with its message.
 #[test]
 fn bad_frames_and_paths_are_refused_with_the_fix() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let project = save(dir.path(), "anim.ron", &animated(5, false));
     let still = root().join("projects/cornell.ron");
     let png = dir.path().join("f.####.png");
@@ -298,7 +298,7 @@ fn bad_frames_and_paths_are_refused_with_the_fix() {
     assert!(err.contains("one stage holds every frame"), "{err}");
     let err = stderr_of(&run(&["verify", s(&project), "--frame", "9", "--quiet"]));
     assert!(err.contains("--frame 9: frame 9 is outside the project's animation range 1-5"), "{err}");
-    let bench_out = tempfile::tempdir().unwrap();
+    let bench_out = common::temp_dir();
     let bench = |scene: &str, frame: &str| {
         let args = ["bench", "--suite", "opv", "--scene", scene, "--frame", frame, "--quiet", "--out"];
         stderr_of(&fogsmith().args(args).arg(bench_out.path()).output().unwrap())
@@ -334,7 +334,7 @@ fn bad_frames_and_paths_are_refused_with_the_fix() {
 /// transform, the values the pipeline baked for that frame.
 #[test]
 fn animated_usd_stage_and_vdb_sequence_in_usd_and_openvdb() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = common::temp_dir();
     let anim = animated(4, true);
     let project = save(dir.path(), "anim.ron", &anim);
     let stage = dir.path().join("shot.usda");

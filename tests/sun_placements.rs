@@ -8,7 +8,8 @@
 
 mod common;
 
-use common::pipeline;
+use common::scenes::transmittance_errors;
+use common::{pipeline, Lcg};
 use fogsmith::gpu::FrameRequest;
 use fogsmith::measure::{opv_error_against, opv_errors, sample_cells};
 use fogsmith::reference::clipped_optical_depth_cells;
@@ -25,32 +26,10 @@ const ANALYTIC_BOUND: f64 = 2e-5;
 const CLASSES: [&str; 6] =
     ["along an axis", "diagonal", "grazing a face", "straight down", "nearly horizontal", "random"];
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.next()
-    }
-    fn pick(&mut self, n: usize) -> usize {
-        ((self.next() * n as f32) as usize).min(n - 1)
-    }
-    fn sign(&mut self) -> f32 {
-        if self.next() < 0.5 {
-            -1.0
-        } else {
-            1.0
-        }
-    }
-}
-
 /// One direction towards the sun per class, in `CLASSES` order. In height fog the sun is kept
 /// above the horizon (a path that never rises out of the fog is opaque), except along a
 /// horizontal axis.
-fn towards_by_class(rng: &mut Rng, fog: bool) -> Vec<Vec3> {
+fn towards_by_class(rng: &mut Lcg, fog: bool) -> Vec<Vec3> {
     let up = |v: Vec3| if fog { Vec3::new(v.x, v.y.abs(), v.z) } else { v };
     let axis = {
         let mut v = Vec3::ZERO;
@@ -85,7 +64,7 @@ fn towards_by_class(rng: &mut Rng, fog: bool) -> Vec<Vec3> {
     vec![axis, diagonal, grazing, down, horizontal, random]
 }
 
-fn scene(rng: &mut Rng, resolution: UVec3, fog: bool) -> (Project, usize) {
+fn scene(rng: &mut Lcg, resolution: UVec3, fog: bool) -> (Project, usize) {
     let mut p = Project::default();
     let cell = 0.05;
     let size = resolution.as_vec3() * cell;
@@ -101,7 +80,7 @@ fn scene(rng: &mut Rng, resolution: UVec3, fog: bool) -> (Project, usize) {
     for _ in 0..n {
         let r = cell * rng.range(1.0, 10.0);
         let centre =
-            p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.next(), rng.next(), rng.next());
+            p.grid.min - Vec3::splat(r) + (size + Vec3::splat(2.0 * r)) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
         // Peak optical depth through the particle between 0.1 and 2.
         let density = rng.range(0.1, 2.0) / (r * 1.772_453_9);
         p.particles.push(Particle::new(centre, r, density));
@@ -132,7 +111,7 @@ fn worst_by_class(scheme: Scheme, refine: bool, against: Against, seed: u64) -> 
     let mut gpu = pipeline();
     let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(48, 5, 40), UVec3::new(12, 48, 10)];
     let mut worst = vec![0.0f64; CLASSES.len()];
-    let mut rng = Rng(seed);
+    let mut rng = Lcg(seed);
     for &res in &grids {
         for fog in [false, true] {
             let (mut p, particles) = scene(&mut rng, res, fog);
@@ -180,10 +159,9 @@ fn diagnose(p: &Project, l: usize, ev: &fogsmith::scene::Volume, opv: &fogsmith:
     let medium = GridMedium64::for_project(p, ev);
     let exact = grid_light_depth_cells(p, &medium, l, cells);
     let got = |c: &[u32; 3]| opv.get(c[0], c[1], c[2]) as f64;
-    let err = |c: &[u32; 3], t: f64| ((-got(c)).exp() - (-t).exp()).abs();
-    let errors: Vec<f64> = cells.iter().zip(&exact).map(|(c, t)| err(c, *t)).collect();
+    let (errors, worst) = transmittance_errors(opv, cells, &exact);
     let bad = errors.iter().filter(|&&e| e > SCHEME_BOUND).count();
-    let Some(n) = (0..cells.len()).max_by(|&a, &b| errors[a].total_cmp(&errors[b])) else { return };
+    let Some(n) = worst else { return };
     let c = cells[n];
     println!(
         "    worst cell {c:?} error {:.2e} reference {:.5} got {:.5}; {bad} cells beyond the bound",

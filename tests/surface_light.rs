@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::pipeline;
+use common::{pipeline, Lcg};
 use fogsmith::gpu::FrameRequest;
 use fogsmith::measure::image_error;
 use fogsmith::reference::{camera_ray64, render_reference, shadowed, RefRenderOptions};
@@ -211,20 +211,14 @@ fn fog_glow_on_surfaces_matches_reference() {
     assert!(err.rel_rmse < 0.02, "{}", err.rel_rmse);
 }
 
-struct Lcg(u64);
+/// Uniform in [lo, hi), drawn in f64.
+fn range(rng: &mut Lcg, lo: f64, hi: f64) -> f32 {
+    (lo + (hi - lo) * rng.f64()) as f32
+}
 
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f32 {
-        (lo + (hi - lo) * self.next()) as f32
-    }
-    /// A Phong exponent, uniform in ln(1 + n) over [0, 1000].
-    fn exponent(&mut self) -> f32 {
-        (1001f64.powf(self.next()) - 1.0) as f32
-    }
+/// A Phong exponent, uniform in ln(1 + n) over [0, 1000].
+fn exponent(rng: &mut Lcg) -> f32 {
+    (1001f64.powf(rng.f64()) - 1.0) as f32
 }
 
 /// Phong-specular surfaces in homogeneous fog on random scenes: ground and a box with random
@@ -242,37 +236,38 @@ fn specular_surfaces_match_reference_on_random_scenes() {
     let mut rng = Lcg(0x5bec_0014);
     let (mut compared, mut worst, mut worst_rel) = (0usize, 0.0f64, 0.0f64);
     for case in 0..6 {
-        let beta = rng.range(0.05, 0.6);
+        let beta = range(&mut rng, 0.05, 0.6);
         let kind = if case % 2 == 0 {
             LightKind::Point
         } else {
             LightKind::Spot {
-                direction: Vec3::new(rng.range(-0.3, 0.3), -1.0, rng.range(-0.3, 0.3)),
+                direction: Vec3::new(range(&mut rng, -0.3, 0.3), -1.0, range(&mut rng, -0.3, 0.3)),
                 angle_deg: 60.0,
                 blend: 0.4,
             }
         };
         let mut p = shadow_scene(kind, beta, false);
-        p.lights[0].position = Vec3::new(rng.range(-1.0, 1.0), rng.range(0.2, 1.5), rng.range(-1.0, 1.0));
+        p.lights[0].position =
+            Vec3::new(range(&mut rng, -1.0, 1.0), range(&mut rng, 0.2, 1.5), range(&mut rng, -1.0, 1.0));
         let (n_ground, n_box) = match case {
             0 => (0.0, 1000.0),
             1 => (1000.0, 0.0),
-            _ => (rng.exponent(), rng.exponent()),
+            _ => (exponent(&mut rng), exponent(&mut rng)),
         };
         let ground = p.surfaces.ground.as_mut().unwrap();
-        ground.specular = rng.range(0.3, 1.0);
+        ground.specular = range(&mut rng, 0.3, 1.0);
         ground.phong_exponent = n_ground;
-        let a = Vec3::new(rng.range(-1.2, 0.4), 0.0, rng.range(-1.2, 0.0));
+        let a = Vec3::new(range(&mut rng, -1.2, 0.4), 0.0, range(&mut rng, -1.2, 0.0));
         p.surfaces.boxes.push(SurfaceBox {
             min: a,
-            max: a + Vec3::new(rng.range(0.3, 0.8), rng.range(0.2, 0.9), rng.range(0.3, 0.8)),
+            max: a + Vec3::new(range(&mut rng, 0.3, 0.8), range(&mut rng, 0.2, 0.9), range(&mut rng, 0.3, 0.8)),
             albedo: Vec3::splat(0.4),
-            specular: rng.range(0.3, 1.0),
+            specular: range(&mut rng, 0.3, 1.0),
             phong_exponent: n_box,
         });
         // From high above to grazing the ground (the last cases).
-        let height = if case >= 4 { rng.range(0.02, 0.08) } else { rng.range(0.5, 2.5) };
-        let azimuth = rng.range(0.0, std::f64::consts::TAU);
+        let height = if case >= 4 { range(&mut rng, 0.02, 0.08) } else { range(&mut rng, 0.5, 2.5) };
+        let azimuth = range(&mut rng, 0.0, std::f64::consts::TAU);
         p.camera = Camera {
             position: Vec3::new(3.0 * azimuth.cos(), height, 3.0 * azimuth.sin()),
             target: Vec3::new(0.0, if case >= 4 { height * 0.5 } else { 0.0 }, 0.0),

@@ -9,7 +9,7 @@
 //! counters summed over frames 2.. (the sequence's first frame is a cold bake and is reported
 //! apart).
 
-use super::suites::Context;
+use super::context::{image_size, with_resolution, Context};
 use super::BenchError;
 use crate::gpu::{Counters, FrameRequest, StageTimings};
 use crate::scene::animation::{Animation, Channel, Interp, Key, KeyValue, Object, Prop, Track};
@@ -97,8 +97,8 @@ fn counters_json(c: &Counters) -> Value {
 
 pub(super) fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let frames: i32 = if ctx.quick { 12 } else { 48 };
-    let base = super::suites::with_resolution(&ctx.demo("cloud")?, 64);
-    let (width, height) = super::suites::image_size(&base, 320);
+    let base = with_resolution(&ctx.demo("cloud")?, 64);
+    let (width, height) = image_size(&base, 320);
     let adapter = ctx.gpu.context().adapter_summary();
     log(&format!(
         "animation: cloud at {:?} cells, {width}×{height} image, {frames} frames per motion, adapter {adapter}",

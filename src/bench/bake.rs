@@ -7,7 +7,7 @@
 //! The bake holds the fog inside the grid only, so each demo is measured fog-only: without
 //! surfaces and without base fog (its lit render then holds exactly what the bake can).
 
-use super::suites::Context;
+use super::context::Context;
 use super::BenchError;
 use crate::export::exr::write_baked_atlas_exr;
 use crate::export::frame::Frame;

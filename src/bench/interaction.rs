@@ -19,13 +19,14 @@
 //! the same frames' work alone (injection, propagation and march at the preview's size, on a
 //! pipeline of its own) completes: the rate "every frame" playback can reach.
 
+use super::context::{small_particle_scene, LARGE_SCENE};
 use super::BenchError;
 use crate::editor::app::{Quality, StartProject};
+use crate::editor::driver::{DriverSetup, EditorDriver};
 use crate::editor::tools::Tool;
 use crate::editor::view::ViewProjection;
-use crate::editor::{EditorApp, EditorOptions};
+use crate::editor::EditorOptions;
 use egui::{Event, Modifiers, PointerButton, Pos2, Vec2};
-use egui_kittest::Harness;
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
@@ -33,8 +34,9 @@ use std::time::{Duration, Instant};
 /// large scene, whose march steps finely through the whole box).
 const CONVERGE_LIMIT: Duration = Duration::from_secs(60);
 
-struct Driver {
-    h: Harness<'static, EditorApp>,
+/// The editor under the script, and what its frames recorded.
+struct Recorder {
+    h: EditorDriver,
     /// Wall time of every frame of the current interaction, in ms.
     frames: Vec<f64>,
     /// Per input: when it was queued and the session generation it produced.
@@ -50,16 +52,14 @@ struct Driver {
     converge_limit: Duration,
 }
 
-impl Driver {
+impl Recorder {
     /// One frame, painted, with `event` (if any) as its input.
     fn frame(&mut self, event: Option<Event>) -> Result<(), BenchError> {
         let queued = Instant::now();
         let is_input = event.is_some();
-        if let Some(e) = event {
-            self.h.event(e);
-        }
-        self.h.step();
-        self.h.render().map_err(|message| BenchError::Editor(format!("painting a frame failed: {message}")))?;
+        self.h
+            .painted_frame(event)
+            .map_err(|message| BenchError::Editor(format!("painting a frame failed: {message}")))?;
         let end = Instant::now();
         self.frames.push((end - queued).as_secs_f64() * 1e3);
         self.pipeline.push(self.h.state().pipeline_ms().unwrap_or(0.0));
@@ -79,16 +79,12 @@ impl Driver {
         Ok(())
     }
 
-    fn converged(&self) -> bool {
-        self.h.state().preview_status().is_some_and(|s| s.converged)
-    }
-
     /// Frames until the preview converges; returns the time it took. Their frame and
     /// pipeline times go to `settle_frames` and `settle_pipeline`.
     fn settle(&mut self) -> Result<f64, BenchError> {
         let (frames, pipeline) = (self.frames.len(), self.pipeline.len());
         let start = Instant::now();
-        while !self.converged() {
+        while !self.h.converged() {
             if start.elapsed() > self.converge_limit {
                 return Err(BenchError::Editor(format!(
                     "the preview did not converge within {} s",
@@ -129,12 +125,7 @@ impl Driver {
     }
 
     fn press(&mut self, pos: Pos2, pressed: bool) -> Result<(), BenchError> {
-        self.frame(Some(Event::PointerButton {
-            pos,
-            button: PointerButton::Primary,
-            pressed,
-            modifiers: Modifiers::NONE,
-        }))
+        self.frame(Some(EditorDriver::button_event(pos, PointerButton::Primary, pressed)))
     }
 
     /// The figures of the interaction just run, after waiting for convergence.
@@ -234,28 +225,20 @@ fn percentiles(v: &[f64]) -> [f64; 4] {
     [at(0.5), at(0.95), at(0.99), s[s.len() - 1]]
 }
 
-/// The scene name of 10⁵ small particles (`scale`'s scene on a 64³ grid, 2 lights), run
-/// with the preview at ¼ of the viewport's pixels.
-pub const LARGE_SCENE: &str = "large";
-
 /// Runs the script on demo `scene` (or [`LARGE_SCENE`]) with the preview in `quality`.
 pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
     let large = scene == LARGE_SCENE;
-    let project = if large { super::scale::small_particle_scene(100_000, 2, 64) } else { crate::demos::demo(scene)? };
+    let project = if large { small_particle_scene(100_000, 2, 64) } else { crate::demos::demo(scene)? };
     let start = StartProject { project, path: None, name: format!("{scene}.ron"), error: None };
-    let h = Harness::builder()
+    let setup = DriverSetup {
         // The window size whose viewport is about 840×455 points in the default layout.
-        .with_size(Vec2::new(1384.0, 869.0))
-        .wgpu_setup(crate::editor::wgpu_setup())
-        .build_eframe(move |cc| {
-            let mut app = EditorApp::new(cc, start, EditorOptions::default());
-            app.set_quality(quality);
-            if large {
-                app.set_preview_scale(crate::editor::app::PreviewScale::Quarter);
-            }
-            app
-        });
-    let mut d = Driver {
+        size: Vec2::new(1384.0, 869.0),
+        quality,
+        preview_scale: large.then_some(crate::editor::app::PreviewScale::Quarter),
+        options: EditorOptions::default(),
+    };
+    let h = EditorDriver::new(start, setup);
+    let mut d = Recorder {
         h,
         frames: Vec::new(),
         inputs: Vec::new(),
@@ -271,7 +254,7 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
     d.h.state_mut().set_tab_open(crate::editor::Tab::Timeline, false);
     d.frame(None)?;
     d.settle()?;
-    let rect = d.h.state().viewport_rect().ok_or_else(|| BenchError::Editor("the viewport is not shown".into()))?;
+    let rect = d.h.viewport_rect().ok_or_else(|| BenchError::Editor("the viewport is not shown".into()))?;
     log(&format!(
         "interaction: {scene}, viewport {:.0}×{:.0} points, adapter {}",
         rect.width(),
@@ -334,12 +317,7 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
     d.frame(Some(Event::PointerMoved(centre)))?;
     for _ in 0..5 {
         let t = Instant::now();
-        d.frame(Some(Event::MouseWheel {
-            unit: egui::MouseWheelUnit::Point,
-            delta: Vec2::new(0.0, 40.0),
-            phase: egui::TouchPhase::Move,
-            modifiers: Modifiers::NONE,
-        }))?;
+        d.frame(Some(EditorDriver::wheel_event(40.0, Modifiers::NONE)))?;
         while t.elapsed() < Duration::from_millis(100) {
             d.frame(None)?;
         }
@@ -368,7 +346,7 @@ const PLAYBACK_FRAMES: i32 = 24;
 /// Keys the first light with a position to travel across [`PLAYBACK_FRAMES`] frames and plays
 /// them in "every frame" mode: the achieved frames per second of wall time, each frame
 /// converged. None when the scene has no such light.
-fn playback(d: &mut Driver, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Option<Value>, BenchError> {
+fn playback(d: &mut Recorder, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Option<Value>, BenchError> {
     use crate::editor::commands::Command;
     use crate::editor::timeline::PlayMode;
     use crate::scene::animation::{Animation, Channel, Interp, KeyValue, Object, Prop};
@@ -459,7 +437,7 @@ struct PlaybackWork {
 /// Bakes the frames playback showed (2 to [`PLAYBACK_FRAMES`], after frame 1) in order to
 /// convergence on a pipeline of their own at the preview's size, as playback's preview
 /// does but with no editor around it: the rate playback's "every frame" mode can reach.
-fn playback_work(d: &Driver) -> Result<PlaybackWork, BenchError> {
+fn playback_work(d: &Recorder) -> Result<PlaybackWork, BenchError> {
     let app = d.h.state();
     let pipeline = app.pipeline().ok_or_else(|| BenchError::Editor("the editor has no pipeline".into()))?;
     let size = app.preview_size();

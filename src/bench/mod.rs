@@ -24,6 +24,7 @@
 
 mod animation;
 mod bake;
+mod context;
 mod interaction;
 mod plot;
 mod scale;
@@ -69,7 +70,7 @@ pub enum BenchError {
 pub fn run(opts: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
     std::fs::create_dir_all(&opts.out).map_err(|e| write_err(&opts.out, e))?;
     let mut records = Vec::new();
-    let mut ctx = suites::Context::new(opts)?;
+    let mut ctx = context::Context::new(opts)?;
     for suite in &opts.suites {
         let start = records.len();
         run_suite(*suite, &mut ctx, &mut records, log)?;
@@ -130,7 +131,7 @@ fn flatten(prefix: &str, v: &Value) -> Vec<(String, String)> {
 /// One suite: `scale` and `interaction` live beside the others, so the dispatch is here.
 fn run_suite(
     suite: Suite,
-    ctx: &mut suites::Context,
+    ctx: &mut context::Context,
     out: &mut Vec<Value>,
     log: &mut dyn FnMut(&str),
 ) -> Result<(), BenchError> {
@@ -154,14 +155,14 @@ fn run_suite(
                 crate::demos::DEMOS
                     .iter()
                     .map(|(name, _)| name.to_string())
-                    .chain([interaction::LARGE_SCENE.into()])
+                    .chain([context::LARGE_SCENE.into()])
                     .collect()
             } else {
                 ctx.scenes.clone()
             };
             for scene in &scenes {
                 // The large scene in the budgeted preview only: blocking frames there take seconds.
-                let large = scene == interaction::LARGE_SCENE;
+                let large = scene == context::LARGE_SCENE;
                 for &quality in modes.iter().filter(|&&q| !large || q == Quality::Balanced) {
                     out.extend(interaction::run(scene, quality, log)?);
                 }

@@ -7,42 +7,12 @@
 //! (sliced for its progress bar) and saving a project of 10⁴ to 10⁶ particles, with the
 //! plain RON text of the same project for comparison.
 
-use super::suites::{loglog_slope, Context};
+use super::context::{small_particle_scene, Context};
+use super::suites::loglog_slope;
 use super::BenchError;
 use crate::gpu::{FrameReport, InjectPath, OpvLayout};
-use crate::scene::{Light, Particle, Project};
-use glam::{UVec3, Vec3};
+use crate::scene::Project;
 use serde_json::{json, Value};
-
-/// `count` small particles (radius 0.02–0.06 m, the dabs of detailed painting) spread
-/// uniformly through a 4 m box, `lights` lights around it, on a `res`³ grid.
-pub fn small_particle_scene(count: usize, lights: usize, res: u32) -> Project {
-    let mut p = Project::default();
-    p.grid.min = Vec3::splat(-2.0);
-    p.grid.max = Vec3::splat(2.0);
-    p.grid.resolution = UVec3::splat(res);
-    p.medium.base_extinction = 0.01;
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut rnd = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
-    p.particles = (0..count)
-        .map(|_| {
-            let c = Vec3::new(rnd(), rnd(), rnd()) * 4.0 - 2.0;
-            Particle::new(c, 0.02 + 0.04 * rnd(), 0.5 + 3.0 * rnd())
-        })
-        .collect();
-    p.lights = (0..lights)
-        .map(|l| {
-            let a = l as f32 / lights.max(1) as f32 * std::f32::consts::TAU;
-            Light::new(Vec3::new(1.6 * a.cos(), 1.7, 1.6 * a.sin()), 4.0, Vec3::ONE)
-        })
-        .collect();
-    p.camera.position = Vec3::new(0.8, 1.2, 7.0);
-    p.camera.target = Vec3::ZERO;
-    p
-}
 
 /// Peak resident memory of this process in bytes (VmHWM), where the OS reports it.
 pub fn peak_rss_bytes() -> Option<u64> {

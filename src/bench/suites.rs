@@ -1,14 +1,15 @@
 //! The benchmark suites. Every measurement forces the stages it times to rerun and reads
 //! their GPU time (timestamp queries where available).
 
+use super::context::{image_size, with_resolution, Context, OPV_SCHEMES};
 use super::BenchError;
-use crate::demos::demo;
-use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
+use crate::gpu::FrameReport;
 use crate::measure::{depth_error, image_error, opv_error_against, sample_cells};
 use crate::reference::sun::{f_exact, table_error, table_error_paper_metric, FTable, Interp, TableLayout};
 use crate::reference::{
     clipped_optical_depth_cells, grid_light_depth_cells, render_reference, GridMedium64, RefRenderOptions,
 };
+use crate::rng::Lcg;
 use crate::scene::{Ground, Light, LightKind, Noise, Particle, Project, Scheme, StepPolicy, SurfaceBox};
 use glam::{UVec3, Vec3};
 use serde_json::{json, Value};
@@ -37,94 +38,6 @@ pub enum Suite {
     Bake,
 }
 
-pub struct Context {
-    pub(super) gpu: FogPipeline,
-    pub(super) quick: bool,
-    resolutions: Vec<u32>,
-    pub(super) scenes: Vec<String>,
-    schemes: Vec<String>,
-    /// The frame of an animated demo the suites bake (`--frame`).
-    frame: Option<i32>,
-}
-
-impl Context {
-    pub fn new(opts: &super::BenchOptions) -> Result<Self, BenchError> {
-        let large = super::interaction::LARGE_SCENE;
-        if let Some(bad) =
-            opts.scenes.iter().find(|s| *s != large && !crate::demos::DEMOS.iter().any(|(name, _)| name == s))
-        {
-            let known: Vec<&str> = crate::demos::DEMOS.iter().map(|(name, _)| *name).chain([large]).collect();
-            return Err(BenchError::Option(format!(
-                "--scene {bad}: not a bundled demo or `{large}` (10⁵ particles, interaction only); use one of {}",
-                known.join(", ")
-            )));
-        }
-        if let Some(bad) = opts.schemes.iter().find(|s| !OPV_SCHEMES.iter().any(|&(_, label)| label == s.as_str())) {
-            let known: Vec<&str> = OPV_SCHEMES.iter().map(|&(_, label)| label).collect();
-            return Err(BenchError::Option(format!(
-                "--scheme {bad}: not a scheme of the propagation suite; use one of {}",
-                known.join(", ")
-            )));
-        }
-        if let Some(f) = opts.frame {
-            check_frame(f, &opts.scenes)?;
-        }
-        Ok(Self {
-            gpu: FogPipeline::new(GpuContext::new_headless()?),
-            quick: opts.quick,
-            resolutions: opts.resolutions.clone(),
-            scenes: opts.scenes.clone(),
-            schemes: opts.schemes.clone(),
-            frame: opts.frame,
-        })
-    }
-
-    /// The demo `name`; an animated one at `--frame`, or at its first frame.
-    pub(super) fn demo(&self, name: &str) -> Result<Project, BenchError> {
-        let p = demo(name)?;
-        Ok(match p.animation {
-            Some(a) => p.at_frame(self.frame.unwrap_or(a.start)),
-            None => p,
-        })
-    }
-
-    /// Bakes and renders `project` from scratch.
-    pub(super) fn full(&mut self, project: &Project, width: u32, height: u32) -> Result<FrameReport, BenchError> {
-        let request = FrameRequest { width, height, scheme: project.propagation.scheme, force: true };
-        Ok(self.gpu.update(project, &request)?)
-    }
-
-    /// Brings the pipeline up to date with `project`, rerunning only what changed.
-    fn incremental(&mut self, project: &Project, width: u32, height: u32) -> Result<FrameReport, BenchError> {
-        let request = FrameRequest { width, height, scheme: project.propagation.scheme, force: false };
-        Ok(self.gpu.update(project, &request)?)
-    }
-}
-
-/// `--frame f` needs `--scene` to name an animated demo, and f within each animated one's range.
-fn check_frame(f: i32, scenes: &[String]) -> Result<(), BenchError> {
-    let mut animated = Vec::new();
-    for (name, _) in crate::demos::DEMOS {
-        if let Some(a) = demo(name)?.animation {
-            if scenes.iter().any(|s| s == name) && !a.frames().contains(&f) {
-                return Err(BenchError::Option(format!(
-                    "--frame {f}: outside the demo {name}'s animation range {}-{}",
-                    a.start, a.end
-                )));
-            }
-            animated.push(name);
-        }
-    }
-    if !scenes.iter().any(|s| animated.contains(&s.as_str())) {
-        return Err(BenchError::Option(format!(
-            "--frame {f}: no animated demo among --scene {}; name one of {}",
-            if scenes.is_empty() { "(none given)".to_string() } else { scenes.join(",") },
-            animated.join(", ")
-        )));
-    }
-    Ok(())
-}
-
 /// The demo without its noise: the exact optical depth of noisy particles is an adaptive
 /// quadrature, too slow for the scheme and step-policy sweeps over whole demos (the `kinds`
 /// suite measures noise on a small scene).
@@ -133,31 +46,6 @@ fn smooth_demo(ctx: &Context, name: &str) -> Result<Project, BenchError> {
     p.medium.noise = None;
     Ok(p)
 }
-
-/// The project with its grid's longest axis at `longest` cells, the others in proportion.
-pub(super) fn with_resolution(project: &Project, longest: u32) -> Project {
-    let mut p = project.clone();
-    let size = p.grid.size();
-    let scale = longest as f32 / size.max_element();
-    p.grid.resolution = (size * scale).round().as_uvec3().max(UVec3::ONE);
-    p
-}
-
-pub(super) fn image_size(project: &Project, width: u32) -> (u32, u32) {
-    let h = (width as f32 * project.render.height as f32 / project.render.width as f32).round() as u32;
-    (width, h.max(1))
-}
-
-/// The propagation suite's schemes, (scheme, sweep stride, sweep_refine), by record label.
-const OPV_SCHEMES: [((Scheme, u32, bool), &str); 7] = [
-    ((Scheme::Giroud, 4, false), "giroud"),
-    ((Scheme::Sweep, 4, false), "sweep4"),
-    ((Scheme::Sweep, 4, true), "sweep4r"),
-    ((Scheme::Sweep, 8, false), "sweep8"),
-    ((Scheme::Sweep, 8, true), "sweep8r"),
-    ((Scheme::Exact, 4, false), "exact"),
-    ((Scheme::Analytic, 4, false), "analytic"),
-];
 
 pub(super) fn opv(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
     let scenes: Vec<String> = if !ctx.scenes.is_empty() {
@@ -275,11 +163,8 @@ fn opv_suns(
         return Ok(());
     };
     // Drawn once (an LCG from a fixed seed), so the rows are comparable between runs.
-    let mut state = 0x5EED_0036u64;
-    let mut draw = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((state >> 40) as f32) / (1u64 << 24) as f32 * 2.0 - 1.0
-    };
+    let mut rng = Lcg(0x5EED_0036);
+    let mut draw = || rng.f32() * 2.0 - 1.0;
     let random = Vec3::new(draw(), -draw().abs() - 0.1, draw()).normalize();
     let suns = [
         ("demo sun", sun.clone()),
@@ -468,11 +353,8 @@ fn particle_scene(count: usize, lights: usize, res: u32) -> Project {
     p.medium.base_extinction = 0.0;
     let side = (count as f64).cbrt().ceil() as usize;
     let radius = 0.35 / (count as f32).cbrt();
-    let mut state = 12345u64;
-    let mut rnd = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut rng = Lcg(12345);
+    let mut rnd = || rng.f32();
     for n in 0..count {
         let (i, j, k) = (n % side, (n / side) % side, n / (side * side));
         let cell = 1.4 / side as f32;

@@ -22,6 +22,7 @@
 pub mod app;
 pub mod commands;
 mod dispatch;
+pub mod driver;
 mod export;
 mod export_choices;
 mod export_memory;

@@ -114,30 +114,13 @@ impl Default for Brush {
     }
 }
 
-/// A small deterministic generator for brush jitter (xorshift64*).
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Self {
-        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-    /// Uniform in [0, 1).
-    pub fn next_f32(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let v = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        (v >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// A paint stroke in progress: where the last dab went, so dabs follow the spacing.
 #[derive(Clone, Debug)]
 pub struct Stroke {
     pub tag: super::session::EditTag,
     last: Option<Vec3>,
-    rng: Rng,
+    /// The jitter of its dabs, seeded by its tag.
+    rng: crate::rng::XorShiftStar,
     /// A point of the plane (facing the camera) the stroke paints on, fixed where it began:
     /// at the fog's depth or on the working plane.
     pub anchor: Option<Vec3>,
@@ -145,7 +128,7 @@ pub struct Stroke {
 
 impl Stroke {
     pub fn new(tag: super::session::EditTag) -> Self {
-        Self { tag, last: None, rng: Rng::new(tag), anchor: None }
+        Self { tag, last: None, rng: crate::rng::XorShiftStar::new(tag), anchor: None }
     }
 
     /// Dabs for the pointer moving to `point` on a plane spanned by `right`, `up`.
@@ -164,8 +147,8 @@ impl Stroke {
             }
         }
         for p in positions {
-            let a = self.rng.next_f32() * std::f32::consts::TAU;
-            let r = self.rng.next_f32().sqrt() * brush.jitter.max(0.0) * brush.radius;
+            let a = self.rng.f32() * std::f32::consts::TAU;
+            let r = self.rng.f32().sqrt() * brush.jitter.max(0.0) * brush.radius;
             let center = p + (right * a.cos() + up * a.sin()) * r;
             let mut dab = Particle::new(center, brush.radius.max(1e-4), brush.density.max(0.0));
             dab.noise = brush.noise;

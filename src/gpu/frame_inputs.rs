@@ -399,19 +399,7 @@ mod tests {
     use crate::scene::{Ground, SurfaceBox, Surfaces};
     use glam::{DVec3, Vec3};
 
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn f(&mut self) -> f32 {
-            crate::stress::lcg(&mut self.0)
-        }
-        fn range(&mut self, a: f32, b: f32) -> f32 {
-            a + (b - a) * self.f()
-        }
-        fn v(&mut self, a: f32, b: f32) -> Vec3 {
-            Vec3::new(self.range(a, b), self.range(a, b), self.range(a, b))
-        }
-    }
+    use crate::rng::Lcg;
 
     /// The surfaces a light's mask leaves out never block a path from the grid box to it
     /// (the exact f64 test, [`shadowed`]): random boxes inside, across, outside and flush with
@@ -441,8 +429,8 @@ mod tests {
                         (lo, hi)
                     }
                     _ => {
-                        let c = rng.v(-4.0, 4.0);
-                        let h = rng.v(0.05, 1.0);
+                        let c = rng.vec3(-4.0, 4.0);
+                        let h = rng.vec3(0.05, 1.0);
                         (c - h, c + h)
                     }
                 };
@@ -450,12 +438,12 @@ mod tests {
             }
             let ground = Ground { height: rng.range(-1.0, 2.5), ..Ground::default() };
             let surfaces = Surfaces { ground: Some(ground), boxes };
-            let mut light = Light::new(rng.v(-4.0, 4.0), 1.0, Vec3::ONE);
+            let mut light = Light::new(rng.vec3(-4.0, 4.0), 1.0, Vec3::ONE);
             if case % 4 == 1 {
-                light.position = rng.v(-0.9, 0.9) + Vec3::Y;
+                light.position = rng.vec3(-0.9, 0.9) + Vec3::Y;
             } else if case % 4 >= 2 {
                 let axis = [Vec3::X, -Vec3::Y, Vec3::Z, Vec3::Y][(case / 4) % 4];
-                let direction = if case % 4 == 2 { axis } else { rng.v(-1.0, 1.0).normalize() };
+                let direction = if case % 4 == 2 { axis } else { rng.vec3(-1.0, 1.0).normalize() };
                 light.kind = LightKind::Directional { direction };
             }
             let project = Project {
@@ -475,9 +463,9 @@ mod tests {
                 })
                 .collect();
             for k in 0..400 {
-                let mut x = rng.v(0.0, 1.0);
+                let mut x = rng.vec3(0.0, 1.0);
                 if k % 2 == 0 {
-                    x[k / 2 % 3] = if rng.f() < 0.5 { 1e-6 } else { 1.0 - 1e-6 };
+                    x[k / 2 % 3] = if rng.f32() < 0.5 { 1e-6 } else { 1.0 - 1e-6 };
                 }
                 points.push((g_min + x * (g_max - g_min)).as_dvec3());
             }

@@ -233,12 +233,8 @@ pub(crate) fn trilinear_cells(
 mod tests {
     use super::*;
     use crate::reference::Gaussian64;
+    use crate::rng::Lcg;
     use glam::{UVec3, Vec3};
-
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    }
 
     /// Against fine midpoint quadrature of `extinction` itself, for segments inside, through
     /// and outside the box.
@@ -246,11 +242,11 @@ mod tests {
     fn grid_line_integral_matches_fine_quadrature() {
         let grid =
             GridSpec { min: Vec3::new(-1.0, 0.0, 0.5), max: Vec3::new(1.0, 0.5, 2.0), resolution: UVec3::new(7, 3, 5) };
-        let mut s = 3;
-        let values: Vec<f64> = (0..grid.cell_count()).map(|_| lcg(&mut s) * 4.0).collect();
+        let mut s = Lcg(3);
+        let values: Vec<f64> = (0..grid.cell_count()).map(|_| s.f64() * 4.0).collect();
         let m = GridMedium64::new(&grid, values, 0.3);
         for _ in 0..40 {
-            let p = |s: &mut u64| DVec3::new(lcg(s) * 4.0 - 2.0, lcg(s) * 1.5 - 0.5, lcg(s) * 3.0);
+            let p = |s: &mut Lcg| DVec3::new(s.f64() * 4.0 - 2.0, s.f64() * 1.5 - 0.5, s.f64() * 3.0);
             let (a, b) = (p(&mut s), p(&mut s));
             let n = 200_000;
             let h = (b - a).length() / n as f64;

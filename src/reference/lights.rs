@@ -145,13 +145,8 @@ mod tests {
 
     #[test]
     fn closed_form_matches_quadrature() {
-        let mut s = 0x2545_f491_4f6c_dd1du64;
-        let mut r = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut s = crate::rng::XorShift(0x2545_f491_4f6c_dd1d);
+        let mut r = || s.f64();
         let mut worst = 0.0f64;
         for _ in 0..200 {
             let m = medium((0.01 + r()) as f32, (r() * 3.0) as f32, (r() * 4.0 - 2.0) as f32);
@@ -228,13 +223,8 @@ mod tests {
     /// ulps to the exponential).
     #[test]
     fn shader_closed_form_matches_quadrature_over_height_and_zenith() {
-        let mut s = 0x0014_7a11_u64;
-        let mut r = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut s = crate::rng::XorShift(0x0014_7a11);
+        let mut r = || s.f64();
         let (mut worst_finite, mut worst_infinite, mut n) = (0.0f64, 0.0f64, 0);
         for _ in 0..2000 {
             let (beta, k, y0) = ((0.01 + r()) as f32, (0.05 + r() * 4.0) as f32, (r() * 4.0 - 2.0) as f32);

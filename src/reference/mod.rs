@@ -466,14 +466,9 @@ pub(crate) fn par_fill<T: Send>(out: &mut [T], chunk: usize, f: impl Fn(usize) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::Lcg;
     use crate::scene::{Light, Particle};
     use glam::{UVec3, Vec3};
-
-    /// Deterministic pseudo-random numbers in [0, 1).
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    }
 
     fn brute_force(m: &Medium64, a: DVec3, b: DVec3) -> f64 {
         let len = (b - a).length();
@@ -489,11 +484,11 @@ mod tests {
 
     #[test]
     fn optical_depth_matches_brute_force_quadrature() {
-        let mut s = 7;
+        let mut s = Lcg(7);
         for _ in 0..20 {
-            let p = |s: &mut u64| DVec3::new(lcg(s), lcg(s), lcg(s)) * 4.0 - 2.0;
+            let p = |s: &mut Lcg| DVec3::new(s.f64(), s.f64(), s.f64()) * 4.0 - 2.0;
             let gaussians = (0..3)
-                .map(|_| Gaussian64 { center: p(&mut s), radius: 0.1 + lcg(&mut s), density: 0.1 + 5.0 * lcg(&mut s) })
+                .map(|_| Gaussian64 { center: p(&mut s), radius: 0.1 + s.f64(), density: 0.1 + 5.0 * s.f64() })
                 .collect();
             let m = Medium64::new(0.05, gaussians);
             let (a, b) = (p(&mut s), p(&mut s));
@@ -512,8 +507,8 @@ mod tests {
             max: Vec3::new(1.0, 1.0, 0.5),
             resolution: UVec3::new(5, 4, 3),
         };
-        let mut s = 11;
-        let layer = crate::scene::Volume::new(grid, (0..grid.cell_count()).map(|_| lcg(&mut s) as f32 * 3.0).collect());
+        let mut s = Lcg(11);
+        let layer = crate::scene::Volume::new(grid, (0..grid.cell_count()).map(|_| s.f64() as f32 * 3.0).collect());
         let g = Gaussian64 { center: DVec3::new(0.2, 0.5, 0.0), radius: 0.3, density: 2.0 };
         let m = Medium64::new(0.1, vec![g]).with_layer(&grid, &layer);
         let plain = Medium64::new(0.1, vec![g]);
@@ -528,7 +523,7 @@ mod tests {
             "nothing outside the box"
         );
         for _ in 0..10 {
-            let p = |s: &mut u64| DVec3::new(lcg(s) * 3.0 - 1.5, lcg(s) * 1.6 - 0.3, lcg(s) * 1.6 - 0.8);
+            let p = |s: &mut Lcg| DVec3::new(s.f64() * 3.0 - 1.5, s.f64() * 1.6 - 0.3, s.f64() * 1.6 - 0.8);
             let (a, b) = (p(&mut s), p(&mut s));
             let n = 100_000;
             let fine = (0..n).map(|i| m.extinction(a + (b - a) * ((i as f64 + 0.5) / n as f64))).sum::<f64>()

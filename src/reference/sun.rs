@@ -113,11 +113,8 @@ const GAMMAS_PER_PAIR: usize = 8;
 /// pair in four; β = 1 and I0 = 1 (for fixed optical thicknesses the relative error depends
 /// on neither).
 fn sweep(samples: usize, gamma_max: f64) -> Vec<(f64, f64, Vec<f64>)> {
-    let mut state = 0x5eed_u64;
-    let mut next = move || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = crate::rng::Lcg(0x5eed);
+    let mut next = move || rng.f64();
     (0..samples.div_ceil(GAMMAS_PER_PAIR))
         .map(|p| {
             let t_sv = 0.1 * 100f64.powf(next());

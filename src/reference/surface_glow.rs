@@ -87,21 +87,17 @@ pub fn specular_glow_quadrature(beta: f64, d: f64, theta_r: f64, n: f64) -> f64 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::Lcg;
     use crate::surface_table::{g_exact, glow_lookup, glow_radiance, glow_table, GLOW_NT, GLOW_NTHETA, GLOW_T_MAX};
-
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    }
 
     /// Random (β, D, θ_s): optical distances from 1e-3 to 30, every light direction.
     fn cases(n: usize) -> Vec<(f64, f64, f64)> {
-        let mut s = 7u64;
+        let mut s = Lcg(7);
         (0..n)
             .map(|_| {
-                let beta = 10f64.powf(-2.0 + 2.0 * lcg(&mut s));
-                let t = 10f64.powf(-3.0 + 4.5 * lcg(&mut s));
-                (beta, t / beta, PI * lcg(&mut s))
+                let beta = 10f64.powf(-2.0 + 2.0 * s.f64());
+                let t = 10f64.powf(-3.0 + 4.5 * s.f64());
+                (beta, t / beta, PI * s.f64())
             })
             .collect()
     }
@@ -182,10 +178,10 @@ mod tests {
     /// from 0 to the table's maximum (uniform in ln(1 + n)), with the ends included.
     fn spec_cases(n: usize) -> Vec<(f64, f64, f64, f64)> {
         use crate::surface_table::SPEC_N_MAX;
-        let mut s = 11u64;
+        let mut s = Lcg(11);
         let mut out: Vec<(f64, f64, f64, f64)> = cases(n)
             .into_iter()
-            .map(|(beta, d, theta)| (beta, d, theta, (1.0 + SPEC_N_MAX).powf(lcg(&mut s)) - 1.0))
+            .map(|(beta, d, theta)| (beta, d, theta, (1.0 + SPEC_N_MAX).powf(s.f64()) - 1.0))
             .collect();
         for (k, c) in out.iter_mut().enumerate().take(8) {
             c.3 = if k % 2 == 0 { 0.0 } else { SPEC_N_MAX };

@@ -186,13 +186,6 @@ impl Project {
 mod tests {
     use super::*;
 
-    fn xorshift(state: &mut u64) -> f32 {
-        *state ^= *state << 13;
-        *state ^= *state >> 7;
-        *state ^= *state << 17;
-        (*state >> 40) as f32 / (1u64 << 24) as f32
-    }
-
     #[test]
     fn the_support_bounds_the_particle_at_the_stated_fraction() {
         let p = Particle::new(Vec3::ZERO, 0.5, 3.0);
@@ -203,13 +196,13 @@ mod tests {
 
     #[test]
     fn crossing_and_fitting_on_random_scenes() {
-        let mut s = 0x9e3779b97f4a7c15u64;
+        let mut s = crate::rng::XorShift(0x9e3779b97f4a7c15);
         for _ in 0..200 {
             let mut p = Project::default();
-            let n = 1 + (xorshift(&mut s) * 20.0) as usize;
+            let n = 1 + (s.f32() * 20.0) as usize;
             for _ in 0..n {
-                let c = Vec3::new(xorshift(&mut s), xorshift(&mut s), xorshift(&mut s)) * 8.0 - 4.0;
-                p.particles.push(Particle::new(c, 0.05 + xorshift(&mut s), 0.1 + xorshift(&mut s) * 5.0));
+                let c = Vec3::new(s.f32(), s.f32(), s.f32()) * 8.0 - 4.0;
+                p.particles.push(Particle::new(c, 0.05 + s.f32(), 0.1 + s.f32() * 5.0));
             }
             // Brute force: a particle crosses iff a point of its support ball lies outside.
             for (i, q) in p.particles.iter().enumerate() {

@@ -180,13 +180,8 @@ mod tests {
     /// and a round trip through the other kinds comes back to the same light's brightness.
     #[test]
     fn kind_changes_keep_the_centre_lit_as_before() {
-        let mut rng = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut rng = crate::rng::XorShift(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.f32() * 2.0 - 1.0;
         for _ in 0..50 {
             let base = Project::default();
             let c = centre(&base);
