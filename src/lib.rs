@@ -4,14 +4,15 @@
 //! - [`gpu`]: the one module that talks to wgpu: injection, opacity propagation, ray march,
 //!   readback, timings.
 //! - [`reference`]: exact f64 formulas used only to measure the pipeline's error.
-//! - [`output`]: writing rendered images (tone-mapped PNG, linear EXR).
 //! - [`editor`]: the interactive editor window (eframe + egui_dock).
-//! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas.
+//! - [`export`]: interchange: OpenVDB export and import, OpenEXR render / slices / atlas, and
+//!   rendered images (tone-mapped PNG, linear EXR).
 //! - [`farm`]: render-farm jobs (Open Job Description, Slurm) that split a sequence into tasks.
 //! - [`stress`]: the numerical stress matrix behind `fogsmith stress`.
 //! - [`sun_table`]: Sun et al.'s F function and the table the GPU reads.
 //! - [`surface_table`]: Sun et al.'s surface term (fog glow on diffuse surfaces) and its table.
 //! - [`quad`]: adaptive quadrature (the Sun table's construction and the reference).
+//! - [`rng`]: the seeded generators behind every reproducible random draw.
 
 pub mod bench;
 pub mod cli;
@@ -21,7 +22,6 @@ pub mod export;
 pub mod farm;
 pub mod gpu;
 pub mod measure;
-pub mod output;
 pub mod quad;
 pub mod reference;
 pub mod rng;

@@ -165,7 +165,7 @@ fn the_rendered_image_has_the_projects_output_size() {
     let mut pipeline = fogsmith::gpu::FogPipeline::new(fogsmith::gpu::GpuContext::new_headless().expect("adapter"));
     pipeline.update(&p, &fogsmith::gpu::FrameRequest::for_project(&p)).expect("render");
     let reference = dir.path().join("reference.png");
-    fogsmith::output::write_image(&reference, &pipeline.read_image().unwrap(), p.render.exposure).unwrap();
+    fogsmith::export::image::write_image(&reference, &pipeline.read_image().unwrap(), p.render.exposure).unwrap();
     let reference = image::open(&reference).unwrap().to_rgb8();
     let diffs: Vec<i32> =
         png.as_raw().iter().zip(reference.as_raw()).map(|(a, b)| (*a as i32 - *b as i32).abs()).collect();

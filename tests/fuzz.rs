@@ -67,16 +67,12 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
 
-/// A small generator (SplitMix64), fixed per seed.
-struct Rng(u64);
+/// The mutations' draws, fixed per seed: the project's seeded xorshift64* (`fogsmith::rng`).
+struct Rng(fogsmith::rng::XorShiftStar);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     fn below(&mut self, n: usize) -> usize {
         (self.next() % n.max(1) as u64) as usize
@@ -507,7 +503,7 @@ fn every_reader_survives_mutated_files() {
     let started = std::time::Instant::now();
     for target in &targets {
         assert!(!target.seeds.is_empty(), "{}: no seeds", target.name);
-        let mut rng = Rng(seed ^ hash(target.name.as_bytes()));
+        let mut rng = Rng(fogsmith::rng::XorShiftStar::new(seed ^ hash(target.name.as_bytes())));
         let (mut refused, mut read, mut changed, mut peak) = (0, 0, 0, 0usize);
         let originals: Vec<u64> = target
             .seeds

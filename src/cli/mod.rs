@@ -3,7 +3,7 @@
 
 use crate::export::sequence::{FramePattern, FrameSet};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
-use crate::output::write_image;
+use crate::export::image::write_image;
 use crate::scene::{load_project_with, Project, Scheme};
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
@@ -486,7 +486,7 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
 fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std::error::Error>> {
     let ext = output.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if !matches!(ext.as_deref(), Some("png" | "exr")) {
-        return Err(crate::output::OutputError::Format { path: output.to_path_buf() }.into());
+        return Err(crate::export::image::OutputError::Format { path: output.to_path_buf() }.into());
     }
     let mut session = open(args)?;
     let (frames, set) = frames(&session.project, &args.project, args.frames.as_deref(), "--frames")?;

@@ -1,20 +1,24 @@
 //! The editor: an eframe/egui_dock window to paint gaussian fog, place lights and watch the
 //! pipeline's live preview beside slices of its volumes.
 //!
-//! - [`session`]: the project under edit, selection, undo/redo and file state (no UI).
-//! - [`tools`], [`gizmo`], [`view`], [`slices`]: the geometry and data behind tools, the viewport and
-//!   the slice views (no UI either).
+//! - [`session`]: the project under edit and its named edit commands, composed of the
+//!   selection (`selection`), the undo/redo `history` and the animated pose (`pose`),
+//!   with the file it came from (no UI).
+//! - [`tools`], [`gizmo`], [`view`], [`slices`]: the geometry and data behind tools, picking,
+//!   the viewport and the slice views (no UI either).
 //! - [`commands`]: every command in one table (text, tooltip, shortcuts), behind the menus,
 //!   the key dispatch and the help sheet.
 //! - [`app`]: the eframe application: the dock and the state it shows, persisted between runs.
 //! - `state`: what the panels share (the session, view state, jobs, recovery, the preview);
 //!   what acts on it is split by concern: `preview` (the pipeline driver), `jobs`
-//!   (background work and exports), `export` (the Export window; `export_memory` keeps its
-//!   choices per project), `file_actions`, `recovery`, `dispatch` (commands and
-//!   keys), `menus`, `shell` (status bar, messages), `scripted` (`--screenshot`,
-//!   `--measure-fps`).
-//! - `viewport`, `slice_panel`, `panels` and [`timeline`] draw the dockable tabs, from the
-//!   state alone; `timeline` also drives playback.
+//!   (background work and exports), `export_choices` (what an export writes) and `export`
+//!   (its window; `export_memory` keeps the choices per project), `playback` (the frame
+//!   clock), `file_actions`, `recovery`, `dispatch` (commands and keys), `menus`, `shell`
+//!   (status bar, messages), `scripted` (`--screenshot`, `--measure-fps`).
+//! - `viewport` (input and gestures), `overlays` (what it draws over the preview),
+//!   `slice_panel`, `panels` and [`timeline`] draw the dockable tabs, from the state alone.
+//! - [`driver`]: the editor headless with a real pipeline and scripted input, for the tests
+//!   and the interaction bench.
 //!
 //! The editor never calls wgpu itself: it shares egui-wgpu's device with the
 //! [`FogPipeline`](crate::gpu::FogPipeline) and hands the pipeline's display view to egui-wgpu.

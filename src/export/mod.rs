@@ -1,5 +1,6 @@
 //! Interchange: baked grids out as OpenVDB and OpenEXR, and a VDB density in as a base layer.
 //!
+//! - [`image`]: rendered images: tone-mapped PNG, linear HDR EXR.
 //! - [`frame`]: the up axis, units and handedness of the tool a file is for (`--preset`).
 //! - [`usd`]: the whole scene as an OpenUSD stage whose volume points at the exported VDB.
 //! - [`ktx`]: the extinction as a KTX2 3D texture plus a Bevy `FogVolume` snippet.
@@ -28,6 +29,7 @@ pub mod exr;
 pub mod exr_read;
 pub mod frame;
 pub mod godot;
+pub mod image;
 pub mod ktx;
 pub mod plan;
 pub mod sequence;

@@ -350,7 +350,7 @@ pub fn write_plan(
         let size = [image.width, image.height];
         if png {
             staged
-                .write(path, |p| crate::output::write_image(p, image, project.render.exposure))
+                .write(path, |p| super::image::write_image(p, image, project.render.exposure))
                 .map_err(ExportRunError::Failed)?;
             written.png_render = Some((path.clone(), size));
         } else {

@@ -2,7 +2,6 @@
 //! transform, and the export frame the metadata names.
 
 use super::cursor::Cursor;
-use super::tree::ValueType;
 use super::VdbTransform;
 use crate::export::frame::Frame;
 use crate::export::vdb::VDB_MAGIC;
@@ -11,6 +10,14 @@ use std::path::Path;
 
 pub(super) fn float_type(tree_type: &str) -> Option<bool> {
     value_type(tree_type).filter(|t| t.components == 1).map(|t| t.half)
+}
+
+/// What kind of values a tree holds: float or half in the file, 1 (float) or 3 (vec3s)
+/// components. A vec3s grid is read for its structure; its first component stands for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct ValueType {
+    pub(super) half: bool,
+    pub(super) components: usize,
 }
 
 /// The value type of the trees this reader parses: float and vec3s, each float or half.

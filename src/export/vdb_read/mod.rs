@@ -69,10 +69,10 @@ use super::frame::Frame;
 use super::ExportError;
 use crate::scene::{GridSpec, Volume};
 use cursor::{checked_pos, Cursor};
-use file::{float_type, parse_header, value_type};
+use file::{float_type, parse_header, value_type, ValueType};
 use std::collections::HashMap;
 use std::path::Path;
-use tree::{read_grid, ValueType};
+use tree::read_grid;
 
 /// Most leaves (8³ voxels) one imported grid may have: 2¹⁹ leaves = 268 M voxels (1 GiB).
 pub const MAX_LEAVES: usize = 1 << 19;

@@ -8,7 +8,7 @@
 
 use super::compression::read_data;
 use super::cursor::Cursor;
-use super::file::{frame_of, read_transform, skip_metadata, Descriptor};
+use super::file::{frame_of, read_transform, skip_metadata, Descriptor, ValueType};
 use super::{Leaf, VdbFloatGrid, MAX_LEAVES, MAX_TILES};
 use crate::export::vdb::{COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP};
 use crate::export::ExportError;
@@ -88,14 +88,6 @@ pub(super) fn read_grid(cur: &mut Cursor, desc: &Descriptor, kind: ValueType) ->
     let grid = VdbFloatGrid { name: desc.name.clone(), background, transform, half, metadata, frame, leaves, tiles };
     check_statistics(cur, &grid)?;
     Ok(grid)
-}
-
-/// What kind of values a tree holds: float or half in the file, 1 (float) or 3 (vec3s)
-/// components. A vec3s grid is read for its structure; its first component stands for it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct ValueType {
-    pub(super) half: bool,
-    pub(super) components: usize,
 }
 
 /// One value at full precision (backgrounds, tiles and inactive values are never half).
