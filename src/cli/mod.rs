@@ -1,9 +1,9 @@
 //! Command-line interface: the editor (no subcommand), headless rendering, export, render-farm
 //! jobs, verification and adapter information.
 
+use crate::export::image::write_image;
 use crate::export::sequence::{FramePattern, FrameSet};
 use crate::gpu::{FogPipeline, FrameReport, FrameRequest, GpuContext};
-use crate::export::image::write_image;
 use crate::scene::{load_project_with, Project, Scheme};
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
