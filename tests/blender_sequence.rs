@@ -143,3 +143,52 @@ fn blender_imports_the_animated_stage_and_cycles_matches_each_frame() {
         assert!((ratio - 1.0).abs() <= 0.05, "frame {f}: Cycles/Fogsmith mean radiance {ratio:.4}, allowed 1 ± 0.05");
     }
 }
+
+#[test]
+fn the_blender_addon_imports_a_vdb_sequence_alone_with_its_material_and_frame_rate() {
+    let py = venv_python("bpy");
+    fogsmith::cli::ensure_runtime_dir();
+    let bin = env!("CARGO_BIN_EXE_fogsmith");
+    let tmp = common::temp_dir();
+    let dir = tmp.path();
+    let project = scene();
+    let ron = dir.join("anim.ron");
+    fogsmith::scene::io::save_project(&ron, &project).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let vdbs = dir.join("cache/fog.####.vdb");
+    run_ok(
+        Command::new(bin).args(["export", &s(&ron), "--preset", "blender", "--frames", "1-4", "--vdb", &s(&vdbs)]),
+        "export",
+    );
+    let first = dir.join("cache/fog.0001.vdb");
+    let stdout = run_ok(
+        Command::new(&py).arg(root().join("tests/blender_import.py")).arg(s(&first)),
+        "Blender import through the add-on",
+    );
+    let line = stdout.lines().rev().find(|l| l.starts_with('{')).expect("a JSON line from blender_import.py");
+    let b: Value = serde_json::from_str(line).unwrap();
+    eprintln!("{b}");
+    let fps = b["fps"].as_f64().unwrap();
+    assert!((fps - 12.0).abs() < 1e-6, "the scene plays at {fps} frames/s, the files at 12: {b}");
+    let vols = b["volumes"].as_array().unwrap();
+    assert_eq!(vols.len(), 1, "{b}");
+    let v = &vols[0];
+    assert_eq!(v["is_sequence"], true, "{b}");
+    assert_eq!(
+        (v["frame_start"].as_i64(), v["frame_duration"].as_i64(), v["frame_offset"].as_i64()),
+        (Some(1), Some(4), Some(0))
+    );
+    assert_eq!(v["material"], "Fogsmith Fog", "{b}");
+    let albedo = project.medium.albedo as f64;
+    for c in v["color"].as_array().unwrap() {
+        assert!((c.as_f64().unwrap() - albedo).abs() < 1e-6, "colour {c}, albedo {albedo}: {b}");
+    }
+    let g = v["anisotropy"].as_f64().unwrap();
+    assert!((g - project.medium.anisotropy as f64).abs() < 1e-6, "anisotropy {g}: {b}");
+    // Half a voxel back along each axis: the grid's cells are 0.1 m in every direction.
+    let half = 0.5 * project.grid.cell_size().x as f64;
+    for c in v["location"].as_array().unwrap() {
+        let c = c.as_f64().unwrap();
+        assert!((c.abs() - half).abs() < 1e-5, "the volume is at {c} on an axis, not half a voxel ({half}) back: {b}");
+    }
+}

@@ -287,6 +287,7 @@ pub fn write_plan(
             threshold: s.threshold,
             frame,
             time: inputs.time,
+            medium: Some((project.medium.albedo, project.medium.anisotropy)),
             ..VdbOptions::default()
         };
         check()?;

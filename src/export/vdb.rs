@@ -71,7 +71,8 @@
 //! `handedness` ("right" or "left"), and on a light's grids `light_index` (int32, its place
 //! in the list), `light_id` (int32, its stable id in the project), `light_position` (vec3s, in the export frame), `light_intensity` (float, W/sr),
 //! `light_color` (vec3s, linear RGB). A frame of an animation adds `frame` (int32) and `fps`
-//! (float). The file's own metadata holds `creator`, the export frame and the time.
+//! (float). The file's own metadata holds `creator`, the export frame and the time, and for an
+//! export of a project the medium's `fogsmith_albedo` and `fogsmith_anisotropy` (floats).
 
 use super::frame::Frame;
 use super::sequence::FrameTime;
@@ -118,6 +119,10 @@ pub struct VdbOptions {
     pub frame: Frame,
     /// The animation frame and rate the grids are of; None for a still.
     pub time: Option<FrameTime>,
+    /// The medium's albedo and anisotropy g, recorded in the file's metadata as
+    /// `fogsmith_albedo` and `fogsmith_anisotropy` so that an importer (the Blender add-on)
+    /// can build the fog's material from the file alone. Default None: neither is written.
+    pub medium: Option<(f32, f32)>,
 }
 
 impl Default for VdbOptions {
@@ -129,6 +134,7 @@ impl Default for VdbOptions {
             tiles: true,
             frame: Frame::NATIVE,
             time: None,
+            medium: None,
         }
     }
 }
@@ -447,6 +453,10 @@ fn encode_vdb_with_progress(
     // File-level metadata, sorted by name.
     let mut file_meta: BTreeMap<&str, MetaValue> = frame_metadata(opts).into_iter().collect();
     file_meta.insert("creator", MetaValue::String("fogsmith".into()));
+    if let Some((albedo, anisotropy)) = opts.medium {
+        file_meta.insert("fogsmith_albedo", MetaValue::Float(albedo));
+        file_meta.insert("fogsmith_anisotropy", MetaValue::Float(anisotropy));
+    }
     put_u32(&mut out, file_meta.len() as u32);
     for (k, v) in &file_meta {
         put_meta(&mut out, k, v);
