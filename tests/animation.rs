@@ -2,6 +2,8 @@
 //! `Project::at_frame`, the key-editing API, deleting animated objects, and every
 //! validation error of the animation with the track and key it names.
 
+mod common;
+
 use fogsmith::scene::{
     parse_project, Animation, Channel, Interp, Key, KeyValue, LightKind, Noise, Object, Particle, Project, Prop, Track,
 };
@@ -233,6 +235,14 @@ fn the_documented_example_loads() {
     let still = p.at_frame(100);
     assert!(still.particles[0].hidden);
     assert_eq!(still.lights[0].position, Vec3::new(2.0, 1.5, 0.0));
+    // Saved and loaded again, the animation is the same, key for key.
+    let dir = common::temp_dir();
+    let path = dir.path().join("animated.ron");
+    fogsmith::scene::io::save_project(&path, &p).unwrap();
+    let again = fogsmith::scene::io::load_project(&path).unwrap();
+    assert_eq!(again.animation, p.animation);
+    assert_eq!(again.tracks, p.tracks);
+    assert_eq!(again.at_frame(100).lights[0].position, still.lights[0].position);
 }
 
 #[test]
