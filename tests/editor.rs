@@ -15,8 +15,8 @@ use std::path::PathBuf;
 
 mod common;
 use common::editor::{
-    build, compare_with_fresh_bake_of, converge, demo, harness, harness_scaled, harness_with, progressive_harness,
-    read_ev, wait_idle,
+    build, compare_with_fresh_bake_of, converge, demo, harness, harness_scaled, harness_with, has_label,
+    progressive_harness, read_ev, wait_idle,
 };
 use fogsmith::editor::driver::EditorDriver;
 
@@ -513,6 +513,159 @@ fn a_light_kind_changed_in_the_inspector_renders_as_that_kind() {
     h.run_steps(3);
     assert!(matches!(h.state().session().project().lights[0].kind, LightKind::Point), "two undos: a point again");
     assert_eq!(differs_from_fresh_bake(&h), 0);
+}
+
+/// The artist's steps of the report: point → spot → sun → point in the Inspector. The light
+/// ends where it started, with the power it started with, and the preview is lit as before.
+#[test]
+fn a_kind_round_trip_in_the_inspector_keeps_the_lights_position_and_power() {
+    use fogsmith::scene::LightKind;
+    let mut h = harness(demo());
+    h.state_mut().session_mut().selection.lights.insert(0);
+    h.run_steps(3);
+    let start = h.state().session().project().lights[0].clone();
+    assert!(matches!(start.kind, LightKind::Point), "the demo's light 0 is a point light: {start:?}");
+    for kind in ["spot", "sun", "point"] {
+        h.get_by_label(kind).click();
+        h.run_steps(3);
+        let l = &h.state().session().project().lights[0];
+        assert!(
+            (l.position - start.position).length() < 1e-4,
+            "after {kind}: at {} (was {})",
+            l.position,
+            start.position
+        );
+    }
+    let end = h.state().session().project().lights[0].clone();
+    assert!(matches!(end.kind, LightKind::Point), "a point light again: {end:?}");
+    assert!(
+        (end.intensity - start.intensity).abs() <= 1e-4 * start.intensity,
+        "power {} W/sr, was {} W/sr",
+        end.intensity,
+        start.intensity
+    );
+    assert_eq!(differs_from_fresh_bake(&h), 0, "the preview renders the restored light as a fresh bake does");
+}
+
+fn street_wind() -> StartProject {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("projects/street-wind.ron");
+    StartProject::resolve(Some(path)).expect("the bundled street-wind demo loads")
+}
+
+fn outside_box(p: &fogsmith::scene::Project, from: usize) -> Vec<glam::Vec3> {
+    let g = p.grid;
+    p.particles[from..].iter().map(|q| q.center).filter(|c| c.cmplt(g.min).any() || c.cmpgt(g.max).any()).collect()
+}
+
+/// The report's steps on street-wind: B, then strokes across the upper middle of the
+/// viewport and across its middle. Every painted particle lies inside the grid box, the
+/// middle stroke paints fog, and while the brush looks past the box the viewport says so.
+#[test]
+fn painting_keeps_particles_inside_the_grid_and_says_when_it_cannot() {
+    let mut h = harness(street_wind());
+    let rect = h.state().viewport_rect().expect("viewport");
+    h.shortcut(Modifiers::NONE, egui::Key::B);
+    assert_eq!(h.state().tool(), Tool::Paint);
+    let before = h.state().session().project().particles.len();
+    let mut told = false;
+    for y in [0.12, 0.3, 0.5] {
+        let (a, b) = (rect.lerp_inside(Vec2::new(0.2, y)), rect.lerp_inside(Vec2::new(0.8, y)));
+        h.move_to(a);
+        h.press(a, PointerButton::Primary, true);
+        for k in 1..=10 {
+            h.move_to(a + (b - a) * (k as f32 / 10.0));
+            told |= h.state().viewport_notice().is_some();
+        }
+        h.press(b, PointerButton::Primary, false);
+        h.run_steps(2);
+        assert_eq!(h.state().viewport_notice(), None, "the notice goes with the stroke");
+    }
+    let p = h.state().session().project();
+    assert!(p.particles.len() > before + 10, "the strokes painted: {before} → {}", p.particles.len());
+    assert_eq!(outside_box(p, before), Vec::<glam::Vec3>::new(), "no painted particle outside the grid box");
+    // The top of street-wind's view looks over the box: part of the first stroke could not paint.
+    let g = p.grid;
+    let view = ViewProjection::new(&p.camera, rect);
+    let misses = (0..=10).any(|k| {
+        let at = rect.lerp_inside(Vec2::new(0.2 + 0.06 * k as f32, 0.12));
+        fogsmith::editor::tools::into_grid_along_ray(&g, view.position, view.ray(at), view.position).is_none()
+    });
+    assert_eq!(told, misses, "the viewport says so exactly when the brush looked past the box");
+}
+
+/// Particles poking out of the box bring the warning over the viewport, which neither moves
+/// nor shrinks: a press aimed at a handle lands where it was aimed.
+#[test]
+fn the_grid_warning_moves_no_viewport_pixel() {
+    let mut start = demo();
+    let crossing = start.project.particles_crossing_grid();
+    let mut k = 0;
+    start.project.particles.retain(|_| {
+        k += 1;
+        !crossing.contains(&(k - 1))
+    });
+    assert!(start.project.particles_crossing_grid().is_empty());
+    let mut h = harness(start);
+    h.run_steps(2);
+    assert!(!has_label(&h, "Fit grid to particles"), "no warning while every particle is inside");
+    let rect = h.state().viewport_rect().expect("viewport");
+    let g = h.state().session().project().grid;
+    let c = (g.min + g.max) * 0.5;
+    h.state_mut()
+        .session_mut()
+        .add_particles(0, [fogsmith::scene::Particle::new(glam::Vec3::new(c.x, c.y, g.max.z + 0.5), 0.3, 2.0)]);
+    h.run_steps(3);
+    h.get_by_label("Fit grid to particles");
+    assert_eq!(h.state().viewport_rect(), Some(rect), "the viewport stays where it was");
+}
+
+/// In "wait for full" mode, B and a stroke at once (the artist's hand is faster than a full
+/// frame, so they arrive in one frame's input) paint the stroke as one undo step.
+#[test]
+fn a_stroke_right_after_pressing_b_lands() {
+    let mut h = harness(demo());
+    h.state_mut().set_tool(Tool::Select);
+    h.run_steps(2);
+    let rect = h.state().viewport_rect().expect("viewport");
+    let (a, b) = (rect.center() - Vec2::new(60.0, 0.0), rect.center() + Vec2::new(60.0, 10.0));
+    // Each event in a frame of its own; the key in one frame and the stroke in the next; all
+    // of it in one frame.
+    for (batched, key_apart) in [(false, true), (true, true), (true, false)] {
+        h.state_mut().set_tool(Tool::Select);
+        h.move_to(a);
+        let before = h.state().session().project().particles.len();
+        let undo = h.state().session().undo_len();
+        h.key_press(egui::Key::B);
+        if key_apart {
+            h.step();
+        }
+        h.event(Event::PointerButton {
+            pos: a,
+            button: PointerButton::Primary,
+            pressed: true,
+            modifiers: Modifiers::NONE,
+        });
+        if !batched {
+            h.step();
+        }
+        for k in 1..=8 {
+            h.event(Event::PointerMoved(a + (b - a) * (k as f32 / 8.0)));
+            if !batched {
+                h.step();
+            }
+        }
+        h.event(Event::PointerButton {
+            pos: b,
+            button: PointerButton::Primary,
+            pressed: false,
+            modifiers: Modifiers::NONE,
+        });
+        h.run_steps(3);
+        assert_eq!(h.state().tool(), Tool::Paint);
+        let after = h.state().session().project().particles.len();
+        assert!(after > before + 3, "batched {batched}: the stroke painted: {before} → {after}");
+        assert_eq!(h.state().session().undo_len(), undo + 1, "batched {batched}: one undo step");
+    }
 }
 
 fn screen_of(h: &EditorDriver, p: glam::Vec3) -> Pos2 {

@@ -179,6 +179,11 @@ impl EditorApp {
     pub fn viewport_rect(&self) -> Option<egui::Rect> {
         self.state.view.viewport_rect
     }
+    /// What the viewport says over its image about the gesture under way (e.g. a brush
+    /// outside the grid box).
+    pub fn viewport_notice(&self) -> Option<&'static str> {
+        self.state.viewport_notice()
+    }
     pub fn tool(&self) -> Tool {
         self.state.view.tool
     }
@@ -422,7 +427,8 @@ impl egui_dock::TabViewer for EditorState {
 
     fn scroll_bars(&self, tab: &Tab) -> [bool; 2] {
         match tab {
-            Tab::Inspector | Tab::Stats | Tab::Timeline => [false, true],
+            // The Inspector scrolls its rows itself, above its notice strip.
+            Tab::Stats | Tab::Timeline => [false, true],
             _ => [false, false],
         }
     }

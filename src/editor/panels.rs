@@ -257,8 +257,16 @@ pub(crate) fn unkeyed_warning(state: &EditorState, ui: &mut Ui) {
     );
 }
 
+/// The Inspector: its rows scroll, and the notice of unkeyed edits sits in a strip below
+/// them, so its coming and going moves no row under the pointer.
 pub(crate) fn inspector(state: &mut EditorState, ui: &mut Ui) {
-    unkeyed_warning(state, ui);
+    if !state.session.unkeyed().is_empty() {
+        egui::Panel::bottom("inspector-unkeyed").show(ui, |ui| unkeyed_warning(state, ui));
+    }
+    egui::ScrollArea::vertical().auto_shrink([false, false]).show(ui, |ui| inspector_rows(state, ui));
+}
+
+fn inspector_rows(state: &mut EditorState, ui: &mut Ui) {
     egui::CollapsingHeader::new("Selection").default_open(true).show(ui, |ui| selection_inspector(state, ui));
     egui::CollapsingHeader::new("Medium").default_open(true).show(ui, |ui| {
         let m = state.session.project().medium;

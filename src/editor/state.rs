@@ -527,6 +527,16 @@ impl EditorState {
         Version { epoch: self.epoch, generation: self.session.content_generation() }
     }
 
+    /// What the viewport says over its image about the gesture under way, if anything.
+    pub(crate) fn viewport_notice(&self) -> Option<&'static str> {
+        match &self.view.gesture {
+            Some(Gesture::Paint(stroke)) if stroke.outside => Some(
+                "The brush is outside the grid box: Paint lays fog only inside it (move or resize the grid in the Inspector to paint here)",
+            ),
+            _ => None,
+        }
+    }
+
     pub(crate) fn error(&mut self, text: impl Into<String>) {
         let born = self.ctx.input(|i| i.time);
         self.toasts.push(Toast { text: text.into(), error: true, born });

@@ -5,7 +5,7 @@
 
 use super::view::ViewProjection;
 pub use super::view::{box_select, box_select_with, pick, pick_with, under_brush, Hit, LIGHT_PICK_RADIUS};
-use crate::scene::{Particle, Project};
+use crate::scene::{GridSpec, Particle, Project};
 use egui::Pos2;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -63,14 +63,7 @@ pub const FOG_DEPTH_TAU: f32 = 0.5;
 /// None when it never does.
 pub fn fog_depth_point(ev: &crate::scene::Volume, origin: Vec3, dir: Vec3, tau: f32) -> Option<Vec3> {
     let g = &ev.grid;
-    let inv = dir.recip();
-    let (ta, tb) = ((g.min - origin) * inv, (g.max - origin) * inv);
-    let t0 = ta.min(tb).max_element().max(0.0);
-    let t1 = ta.max(tb).min_element();
-    // Also rejects NaN bounds.
-    if t0.partial_cmp(&t1) != Some(std::cmp::Ordering::Less) || !t0.is_finite() || !t1.is_finite() {
-        return None;
-    }
+    let (t0, t1) = ray_in_box(g, origin, dir)?;
     let cell = g.cell_size();
     let dt = 0.5 * cell.min_element();
     let n = g.resolution.as_ivec3();
@@ -88,6 +81,30 @@ pub fn fog_depth_point(ev: &crate::scene::Volume, origin: Vec3, dir: Vec3, tau: 
         t += step;
     }
     None
+}
+
+/// The part `t0..t1` (t0 ≥ 0) of the ray `origin + t·dir` inside `grid`'s box; None when the
+/// ray misses the box.
+fn ray_in_box(g: &GridSpec, origin: Vec3, dir: Vec3) -> Option<(f32, f32)> {
+    let inv = dir.recip();
+    let (ta, tb) = ((g.min - origin) * inv, (g.max - origin) * inv);
+    let t0 = ta.min(tb).max_element().max(0.0);
+    let t1 = ta.max(tb).min_element();
+    // Also rejects NaN bounds.
+    if t0.partial_cmp(&t1) != Some(std::cmp::Ordering::Less) || !t0.is_finite() || !t1.is_finite() {
+        return None;
+    }
+    Some((t0, t1))
+}
+
+/// `point`, a point of the ray `origin + t·dir` (unit `dir`), moved along the ray to the
+/// nearest point inside `grid`'s box: where Paint may lay a dab. None when the ray misses the
+/// box, so that no painted fog lands where the grid cannot hold it.
+pub fn into_grid_along_ray(grid: &GridSpec, origin: Vec3, dir: Vec3, point: Vec3) -> Option<Vec3> {
+    let (t0, t1) = ray_in_box(grid, origin, dir)?;
+    let inset = 1e-4 * (t1 - t0);
+    let t = (point - origin).dot(dir).clamp(t0 + inset, t1 - inset);
+    Some((origin + dir * t).clamp(grid.min, grid.max))
 }
 
 /// Brush settings shared by Paint, Scale and Erase.
@@ -124,11 +141,13 @@ pub struct Stroke {
     /// A point of the plane (facing the camera) the stroke paints on, fixed where it began:
     /// at the fog's depth or on the working plane.
     pub anchor: Option<Vec3>,
+    /// Whether the pointer's last position looks past the grid box, where nothing is painted.
+    pub outside: bool,
 }
 
 impl Stroke {
     pub fn new(tag: super::session::EditTag) -> Self {
-        Self { tag, last: None, rng: crate::rng::XorShiftStar::new(tag), anchor: None }
+        Self { tag, last: None, rng: crate::rng::XorShiftStar::new(tag), anchor: None, outside: false }
     }
 
     /// Dabs for the pointer moving to `point` on a plane spanned by `right`, `up`.

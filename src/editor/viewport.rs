@@ -14,7 +14,6 @@ use glam::Vec3;
 
 pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     toolbar(state, ui);
-    grid_warning(state, ui);
     let rect = ui.available_rect_before_wrap();
     if rect.width() < 8.0 || rect.height() < 8.0 {
         return;
@@ -51,9 +50,13 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
             viewport_message(&painter, rect, &msg, ui.visuals().error_fg_color);
         }
     }
+    if let Some(text) = state.viewport_notice() {
+        viewport_message(&painter, rect, text, ui.visuals().warn_fg_color);
+    }
     overlays::overlays(state, &painter, rect, response.hover_pos());
     overlays::motion_paths(state, &painter, rect);
     overlays::gizmo_overlay(state, &painter, rect, response.hover_pos().or(ui.input(|i| i.pointer.latest_pos())));
+    grid_warning(state, ui, rect);
 }
 
 /// A message over the lower part of the viewport, wrapped to its width on a dark backing, so
@@ -67,8 +70,10 @@ fn viewport_message(painter: &egui::Painter, rect: Rect, text: &str, colour: Col
     painter.galley(at, galley, colour);
 }
 
-/// A warning row while particles reach outside the grid box, with "Fit grid to particles".
-fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
+/// A warning while particles reach outside the grid box, with "Fit grid to particles": it
+/// floats over the top of the viewport, so its coming and going moves nothing under the
+/// pointer.
+fn grid_warning(state: &mut EditorState, ui: &mut Ui, rect: Rect) {
     thread_local! {
         /// The count for one state of the project and its particles then: counting visits
         /// every particle, so a stroke's dabs are counted on their own.
@@ -91,6 +96,19 @@ fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
     if crossing == 0 {
         return;
     }
+    let area = egui::Area::new(ui.id().with("grid-warning"))
+        .order(egui::Order::Middle)
+        .fixed_pos(rect.min + egui::vec2(8.0, 8.0))
+        .constrain_to(rect);
+    area.show(ui.ctx(), |ui| {
+        egui::Frame::popup(ui.style()).show(ui, |ui| {
+            ui.set_max_width((rect.width() - 40.0).max(120.0));
+            grid_warning_row(state, ui, crossing);
+        })
+    });
+}
+
+fn grid_warning_row(state: &mut EditorState, ui: &mut Ui, crossing: usize) {
     ui.horizontal_wrapped(|ui| {
         let text = format!(
             "⚠ {crossing} particle{} reach{} outside the grid box: their fog is cut off at its faces",
@@ -467,8 +485,11 @@ fn start_gesture(state: &mut EditorState, vp: &ViewProjection, pos: Pos2, modifi
         Tool::Paint => {
             let mut stroke = Stroke::new(state.session.new_tag());
             stroke.anchor = paint_point(state, vp, pos);
-            if let Some(point) = stroke.anchor {
-                let dabs = stroke.dabs_to(point, vp.right, vp.up, &state.view.brush);
+            let grid = state.session.project().grid;
+            let inside = stroke.anchor.and_then(|p| tools::into_grid_along_ray(&grid, vp.position, vp.ray(pos), p));
+            stroke.outside = inside.is_none();
+            if let Some(point) = inside {
+                let dabs = inside_grid(&grid, stroke.dabs_to(point, vp.right, vp.up, &state.view.brush));
                 state.session.add_particles(stroke.tag, dabs);
             }
             Some(Gesture::Paint(stroke))
@@ -542,6 +563,14 @@ fn paint_point(state: &mut EditorState, vp: &ViewProjection, pos: Pos2) -> Optio
     tools::working_plane_point(state.session.project(), vp, pos)
 }
 
+/// `dabs` with their centres kept inside the grid box (a jittered dab may fall just outside).
+fn inside_grid(grid: &crate::scene::GridSpec, mut dabs: Vec<crate::scene::Particle>) -> Vec<crate::scene::Particle> {
+    for d in &mut dabs {
+        d.center = d.center.clamp(grid.min, grid.max);
+    }
+    dabs
+}
+
 fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2], modifiers: egui::Modifiers) {
     let alt = modifiers.alt;
     let brush = state.view.brush;
@@ -549,10 +578,15 @@ fn continue_gesture(state: &mut EditorState, vp: &ViewProjection, points: &[Pos2
     let Some(&last) = points.last() else { return };
     match &mut state.view.gesture {
         Some(Gesture::Paint(stroke)) => {
+            let grid = state.session.project().grid;
             let mut dabs = Vec::new();
             for &p in points {
-                if let Some(point) = stroke.anchor.and_then(|a| vp.on_view_plane(p, a)) {
-                    dabs.extend(stroke.dabs_to(point, vp.right, vp.up, &brush));
+                let on_plane = stroke.anchor.and_then(|a| vp.on_view_plane(p, a));
+                let inside =
+                    on_plane.and_then(|point| tools::into_grid_along_ray(&grid, vp.position, vp.ray(p), point));
+                stroke.outside = on_plane.is_some() && inside.is_none();
+                if let Some(point) = inside {
+                    dabs.extend(inside_grid(&grid, stroke.dabs_to(point, vp.right, vp.up, &brush)));
                 }
             }
             if !dabs.is_empty() {

@@ -114,11 +114,13 @@ impl Project {
         }
     }
 
-    /// Light `i` turned into `kind`, lighting the grid's centre as brightly as before (fog
-    /// aside): a point or spot light of I W/sr at distance d gives E = I/d² W/m² there, which
-    /// a sun takes as its irradiance, and a sun becomes a light at its anchor with I = E·d².
-    /// A new spot aims at the centre (or keeps a sun's direction); a new sun shines from
-    /// where the light was (or along a spot's axis).
+    /// Light `i` turned into `kind`: it keeps its position, and it lights the grid's centre
+    /// as brightly as before (fog aside). A point or spot light of I W/sr at distance d gives
+    /// E = I/d² W/m² there, which a sun takes as its irradiance; a sun becomes a light at its
+    /// stored position with I = E·d² (at its anchor when that position is unusable: not
+    /// finite, or at the centre). A new spot aims at the centre (or along a sun's direction);
+    /// a new sun shines from where the light stands towards the centre (or along a spot's
+    /// axis). A round trip through the kinds gives back the light it started from.
     pub fn light_as_kind(&self, i: usize, kind: LightKindChoice) -> Option<Light> {
         let l = self.lights.get(i)?;
         let centre = self.grid_centre();
@@ -129,9 +131,10 @@ impl Project {
         let towards_centre = (centre - l.position).normalize_or(Vec3::NEG_Y);
         match (&l.kind, kind) {
             (LightKind::Directional { direction }, _) => {
-                let d = self.sun_distance();
-                out.position = self.light_anchor(l);
-                out.intensity = l.intensity * d * d;
+                let near = 1e-4 * self.sun_distance();
+                let usable = l.position.is_finite() && (centre - l.position).length() > near;
+                out.position = if usable { l.position } else { self.light_anchor(l) };
+                out.intensity = l.intensity * (centre - out.position).length_squared();
                 out.kind = match kind {
                     LightKindChoice::Spot => LightKind::Spot {
                         direction: direction.normalize_or(Vec3::NEG_Y),
@@ -149,7 +152,6 @@ impl Project {
                 };
                 out.intensity = l.intensity / d2;
                 out.kind = LightKind::Directional { direction };
-                out.position = self.light_anchor(&out);
             }
             (_, LightKindChoice::Spot) => {
                 out.kind = LightKind::Spot {
@@ -208,6 +210,47 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Point → spot → sun → point (and every other order of the kinds) ends where it
+    /// started, with the power it started with; a sun with no usable position stands at its
+    /// anchor when it becomes a point light.
+    #[test]
+    fn a_round_trip_through_the_kinds_keeps_position_and_power() {
+        let mut rng = crate::rng::XorShift(0x9e37_79b9_7f4a_7c15);
+        let mut next = || rng.f32() * 2.0 - 1.0;
+        use LightKindChoice::{Point, Spot, Sun};
+        for _ in 0..50 {
+            let c = centre(&Project::default());
+            let position = c + Vec3::new(next(), next(), next()) * 4.0;
+            let start = Light::new(position, 0.5 + next().abs() * 20.0, Vec3::ONE);
+            for path in [[Spot, Sun, Point], [Sun, Spot, Point], [Sun, Point, Point], [Spot, Point, Point]] {
+                let mut p = project(start.clone());
+                for kind in path {
+                    let l = p.light_as_kind(0, kind).unwrap();
+                    assert!(
+                        (l.position - position).length() < 1e-5,
+                        "{path:?} at {kind:?}: {} vs {position}",
+                        l.position
+                    );
+                    p.replace_light(0, l);
+                }
+                let l = &p.lights[0];
+                assert!(matches!(l.kind, LightKind::Point));
+                assert!(
+                    (l.intensity - start.intensity).abs() <= 1e-4 * start.intensity,
+                    "{path:?}: {} vs {}",
+                    l.intensity,
+                    start.intensity
+                );
+            }
+        }
+        let sun =
+            Light { kind: LightKind::Directional { direction: Vec3::NEG_Y }, ..Light::new(Vec3::NAN, 2.0, Vec3::ONE) };
+        let p = project(sun.clone());
+        let l = p.light_as_kind(0, Point).unwrap();
+        assert_eq!(l.position, p.light_anchor(&sun));
+        assert!((l.intensity - 2.0 * p.sun_distance().powi(2)).abs() < 1e-3 * l.intensity);
     }
 
     /// A sun stands outside the grid up-sun of its centre; dragging that anchor re-aims it
