@@ -459,3 +459,44 @@ fn a_cancelled_sequence_keeps_its_completed_frames_and_nothing_else() {
     }
     assert_eq!(left.len(), 2 + frames.len(), "the project, the state folder and the completed frames only: {left:?}");
 }
+
+/// After an export into another folder, the next Export, Save As and Open start there (each
+/// kind then keeps its own folder); an export into a folder that does not exist is refused at
+/// once, before any bake, with the folder named.
+#[test]
+fn dialogs_remember_their_folder_and_a_missing_folder_is_refused_at_once() {
+    use fogsmith::editor::files::DialogKind;
+    let dir = common::temp_dir();
+    let project = project_file(dir.path(), "fog.ron", |_| {});
+    let mut h = editor(&project, &dir.path().join("state"));
+    let home = std::fs::canonicalize(dir.path()).unwrap();
+    for kind in [DialogKind::Export, DialogKind::SaveAs, DialogKind::Open] {
+        assert_eq!(h.state().dialog_start(kind), Some(home.clone()), "{kind:?} starts in the project's folder");
+    }
+    let out = dir.path().join("renders");
+    std::fs::create_dir(&out).unwrap();
+    let choices = fogsmith::editor::app::ExportChoices { format: ExportFormat::Vdb, ..Default::default() };
+    h.state_mut().export(choices, out.join("fog.vdb"));
+    common::editor::wait_idle(&mut h);
+    assert!(out.join("fog.vdb").is_file(), "the export was written: {:?}", h.state().messages());
+    let out = std::fs::canonicalize(&out).unwrap();
+    for kind in [DialogKind::Export, DialogKind::SaveAs, DialogKind::Open] {
+        assert_eq!(h.state().dialog_start(kind), Some(out.clone()), "{kind:?} starts where the export went");
+    }
+    h.state_mut().save_as(dir.path().join("fog.ron"));
+    common::editor::wait_idle(&mut h);
+    assert_eq!(h.state().dialog_start(DialogKind::SaveAs), Some(home.clone()), "Save As keeps its own folder");
+    assert_eq!(h.state().dialog_start(DialogKind::Export), Some(out), "and Export its own");
+
+    let missing = dir.path().join("rendrs").join("fog.vdb");
+    let before = h.state().messages().len();
+    h.state_mut().export(choices, missing.clone());
+    assert_eq!(h.state().busy(), 0, "nothing is baked or written");
+    let messages = h.state().messages();
+    let new: Vec<_> = messages[before..].iter().filter(|(error, _)| *error).collect();
+    assert!(
+        new.iter().any(|(_, m)| m.contains("rendrs") && m.contains("does not exist")),
+        "the error names the missing folder at once: {messages:?}"
+    );
+    assert!(!missing.parent().unwrap().exists(), "no folder was made");
+}

@@ -55,6 +55,7 @@ impl StartProject {
 struct Persisted {
     dock: Option<DockState<Tab>>,
     recent: Vec<PathBuf>,
+    folders: super::files::DialogFolders,
     tool: Tool,
     brush: Brush,
     slices: SliceSettings,
@@ -127,6 +128,7 @@ impl EditorApp {
             gpu_missing,
             toasts: Vec::new(),
             recent: persisted.recent,
+            folders: persisted.folders,
             confirm: None,
             after_save: None,
             options,
@@ -253,14 +255,18 @@ impl EditorApp {
     pub fn request(&mut self, action: Action) {
         self.state.request(action);
     }
-    /// Saves to `path` in the background.
+    /// Saves to `path` in the background, as after choosing it in the Save As dialog.
     pub fn save_as(&mut self, path: PathBuf) {
-        self.state.save_to(path);
+        self.state.picked(super::state::Pick::SaveAs, path);
     }
     /// Exports to `path` in the background, as the Export window does with `choices` once
-    /// `path` is chosen.
+    /// `path` is chosen in its dialog.
     pub fn export(&mut self, choices: ExportChoices, path: PathBuf) {
-        self.state.export_to(choices, path);
+        self.state.picked(super::state::Pick::Export(choices), path);
+    }
+    /// The folder a file dialog of `kind` would start in now.
+    pub fn dialog_start(&self, kind: super::files::DialogKind) -> Option<PathBuf> {
+        self.state.dialog_directory(kind)
     }
     /// The Export window's choices while it is open.
     pub fn export_window(&self) -> Option<ExportChoices> {
@@ -382,6 +388,7 @@ impl eframe::App for EditorApp {
         let persisted = Persisted {
             dock: Some(self.dock.clone()),
             recent: self.state.recent.clone(),
+            folders: self.state.folders.clone(),
             tool: self.state.view.tool,
             brush: self.state.view.brush,
             slices: self.state.view.slices,

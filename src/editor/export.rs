@@ -55,7 +55,7 @@ impl EditorState {
             filter,
             extension,
             file_name: Some(self.export_file_name(&choices)),
-            directory: self.dialog_directory(),
+            directory: self.dialog_directory(super::files::DialogKind::Export),
         };
         self.choose_file(Pick::Export(choices), spec);
     }

@@ -2,7 +2,7 @@
 //! unsaved changes), the file dialogs they open, recent files, dropped files and
 //! File → Import VDB….
 
-use super::files::{DialogSpec, FileDialogs};
+use super::files::{DialogKind, DialogSpec, FileDialogs};
 use super::state::{Action, EditorState, JobResult, LoadJob, Pick};
 use crate::scene::{load_project_with, save_project, Project};
 use egui::{Context, Id};
@@ -86,7 +86,7 @@ impl EditorState {
                     filter: "Fogsmith project",
                     extension: "ron",
                     file_name: None,
-                    directory: self.dialog_directory(),
+                    directory: self.dialog_directory(DialogKind::Open),
                 };
                 self.choose_file(Pick::Open, spec);
             }
@@ -122,14 +122,17 @@ impl EditorState {
             filter: "Fogsmith project",
             extension: "ron",
             file_name: Some(name),
-            directory: self.dialog_directory(),
+            directory: self.dialog_directory(DialogKind::SaveAs),
         };
         self.choose_file(Pick::SaveAs, spec);
     }
 
-    /// The project's folder, where dialogs start.
-    pub(super) fn dialog_directory(&self) -> Option<PathBuf> {
-        self.session.path().and_then(Path::parent).filter(|d| !d.as_os_str().is_empty()).map(Path::to_owned)
+    /// Where a dialog of `kind` starts: the folder it last chose for this project (or the
+    /// folder any dialog of the project last chose), else the project's folder.
+    pub(super) fn dialog_directory(&self, kind: DialogKind) -> Option<PathBuf> {
+        let project_folder =
+            || self.session.path().and_then(Path::parent).filter(|d| !d.as_os_str().is_empty()).map(Path::to_owned);
+        self.folders.get(self.session.path(), kind).or_else(project_folder)
     }
 
     /// Asks for a file with the system's dialog, or the built-in one where that cannot open.
@@ -185,7 +188,7 @@ impl EditorState {
             filter: "OpenVDB",
             extension: "vdb",
             file_name: None,
-            directory: self.dialog_directory(),
+            directory: self.dialog_directory(DialogKind::ImportVdb),
         };
         self.choose_file(Pick::ImportVdb, spec);
     }
@@ -219,6 +222,14 @@ impl EditorState {
     }
 
     pub(super) fn picked(&mut self, purpose: Pick, path: PathBuf) {
+        let kind = match purpose {
+            Pick::Open => DialogKind::Open,
+            Pick::SaveAs => DialogKind::SaveAs,
+            Pick::Export(_) => DialogKind::Export,
+            Pick::ImportVdb => DialogKind::ImportVdb,
+        };
+        let project = self.session.path().map(Path::to_owned);
+        self.folders.remember(project.as_deref(), kind, &path);
         match purpose {
             Pick::Open => self.perform(Action::Open(path)),
             Pick::SaveAs => self.save_to(path),

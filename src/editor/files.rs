@@ -120,3 +120,100 @@ mod tests {
         assert!(matches!(forced, FileDialogs::BuiltIn { .. }));
     }
 }
+
+/// The kinds of file dialog, each remembering its own folder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum DialogKind {
+    Open,
+    SaveAs,
+    Export,
+    ImportVdb,
+}
+
+/// Folders remembered, most recent first.
+const MAX_FOLDERS: usize = 256;
+
+/// The folder where each kind of dialog last chose a file, per project (by its file; the
+/// untitled project under `None`), remembered between runs. A dialog starts in its own kind's
+/// folder, else in the folder any dialog of the project last chose, else the project's.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DialogFolders {
+    entries: Vec<(Option<PathBuf>, DialogKind, PathBuf)>,
+}
+
+impl DialogFolders {
+    /// Where a dialog of `kind` for `project` starts, if one was remembered and still exists.
+    pub fn get(&self, project: Option<&Path>, kind: DialogKind) -> Option<PathBuf> {
+        let mine = |e: &&(Option<PathBuf>, DialogKind, PathBuf)| e.0.as_deref() == project && e.2.is_dir();
+        let of_kind = self.entries.iter().filter(mine).find(|e| e.1 == kind);
+        of_kind.or_else(|| self.entries.iter().find(mine)).map(|e| e.2.clone())
+    }
+
+    /// `file` was chosen in a dialog of `kind` for `project`: its folder is remembered.
+    pub fn remember(&mut self, project: Option<&Path>, kind: DialogKind, file: &Path) {
+        let Some(folder) = file.parent().filter(|d| !d.as_os_str().is_empty()) else { return };
+        let folder = std::fs::canonicalize(folder).unwrap_or_else(|_| folder.to_path_buf());
+        let project = project.map(Path::to_path_buf);
+        self.entries.retain(|e| !(e.0 == project && e.1 == kind));
+        self.entries.insert(0, (project, kind, folder));
+        self.entries.truncate(MAX_FOLDERS);
+    }
+}
+
+/// Why files cannot be written in `path`'s folder, in the words a dialog's error needs; None
+/// when they can. Checked before an export bakes anything.
+pub fn output_folder_problem(path: &Path) -> Option<String> {
+    let folder = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !folder.exists() {
+        return Some(format!(
+            "the folder {} does not exist; choose an existing folder (or create it first)",
+            folder.display()
+        ));
+    }
+    if !folder.is_dir() {
+        return Some(format!("{} is not a folder; choose a folder to write in", folder.display()));
+    }
+    let probe = folder.join(format!(".fogsmith-write-check-{}", std::process::id()));
+    match std::fs::OpenOptions::new().write(true).create_new(true).open(&probe) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            None
+        }
+        Err(e) => {
+            Some(format!("cannot write in the folder {}: {e}; choose a folder you can write to", folder.display()))
+        }
+    }
+}
+
+#[cfg(test)]
+mod folder_tests {
+    use super::*;
+
+    #[test]
+    fn each_dialog_kind_remembers_its_folder_per_project() {
+        let root = std::env::temp_dir().join(format!("fogsmith-folders-{}", std::process::id()));
+        let (a, b) = (root.join("a"), root.join("b"));
+        std::fs::create_dir_all(&a).unwrap();
+        std::fs::create_dir_all(&b).unwrap();
+        let (a, b) = (std::fs::canonicalize(&a).unwrap(), std::fs::canonicalize(&b).unwrap());
+        let p = root.join("p.ron");
+        let mut f = DialogFolders::default();
+        assert_eq!(f.get(Some(&p), DialogKind::Export), None);
+        f.remember(Some(&p), DialogKind::Export, &a.join("fog.vdb"));
+        assert_eq!(f.get(Some(&p), DialogKind::Export), Some(a.clone()));
+        assert_eq!(
+            f.get(Some(&p), DialogKind::Open),
+            Some(a.clone()),
+            "other kinds start where the project's last dialog chose"
+        );
+        assert_eq!(f.get(None, DialogKind::Export), None, "another project has its own folders");
+        f.remember(Some(&p), DialogKind::SaveAs, &b.join("p2.ron"));
+        assert_eq!(f.get(Some(&p), DialogKind::Export), Some(a.clone()));
+        assert_eq!(f.get(Some(&p), DialogKind::SaveAs), Some(b.clone()));
+        std::fs::remove_dir_all(&a).unwrap();
+        assert_eq!(f.get(Some(&p), DialogKind::Export), Some(b), "a folder since removed is skipped");
+        assert!(output_folder_problem(&root.join("missing/fog.vdb")).unwrap().contains("does not exist"));
+        assert_eq!(output_folder_problem(&root.join("b/fog.vdb")), None);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}

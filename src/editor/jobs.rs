@@ -41,6 +41,9 @@ impl EditorState {
         if let Some(problem) = choices.problems(self.session.project(), &path).into_iter().next() {
             return self.error(format!("Cannot export to {}: {problem}", path.display()));
         }
+        if let Some(problem) = super::files::output_folder_problem(&path) {
+            return self.error(format!("Cannot export to {}: {problem}", path.display()));
+        }
         let plan = choices.plan(&path);
         let Some(gpu) = &self.gpu else {
             let why = self.gpu_missing.clone().unwrap_or_else(|| "the pipeline is not running".into());

@@ -316,6 +316,8 @@ pub struct EditorState {
     pub(crate) gpu_missing: Option<String>,
     pub(crate) toasts: Vec<Toast>,
     pub(crate) recent: Vec<PathBuf>,
+    /// Where each kind of file dialog last chose, per project.
+    pub(crate) folders: super::files::DialogFolders,
     pub(crate) confirm: Option<Action>,
     pub(super) after_save: Option<Action>,
     pub(super) options: EditorOptions,
