@@ -1191,6 +1191,10 @@ fn particles_outside_the_grid_are_named_and_the_grid_fits_them() {
     let fitted = h.state().session().project().grid;
     assert_eq!(fitted.resolution, g.resolution, "the resolution is kept");
     assert!(fitted.max.z > g.max.z + 0.5, "the box grew to hold the particle outside: {fitted:?}");
+    assert!(
+        fitted.min.cmpge(g.min).all() && fitted.max.x <= g.max.x && fitted.max.y <= g.max.y,
+        "not through the floor, walls or ceiling: {fitted:?} from {g:?}"
+    );
     assert!(h.state().session().project().particles_crossing_grid().is_empty());
     assert!(h.query_by_label_contains("reach outside the grid box").is_none(), "the warning is gone");
     assert_eq!(h.state().gpu_error(), None, "the preview renders the fitted grid");
@@ -1228,7 +1232,7 @@ fn every_command_shortcut_dispatches_and_is_on_the_help_sheet() {
             assert!(
                 sheet
                     .iter()
-                    .any(|(keys, what)| what == c.text() && keys.split(" / ").any(|k| k == format_shortcut(&s))),
+                    .any(|(keys, what)| *what == c.sheet_text() && keys.split(" / ").any(|k| k == format_shortcut(&s))),
                 "{c:?} ({}) is on the help sheet",
                 format_shortcut(&s)
             );
@@ -1252,6 +1256,54 @@ fn every_command_shortcut_dispatches_and_is_on_the_help_sheet() {
     h.run_steps(2);
     h.get_by_label("Ctrl+Shift+Z / Ctrl+Y");
     h.get_by_label("Next slice");
+}
+
+/// With a light selected, every field of the Inspector lies inside the window: the
+/// position's three fields wrap instead of running past the panel's right edge.
+#[test]
+fn the_inspectors_vector_fields_stay_inside_the_window() {
+    let mut h = harness(demo());
+    h.state_mut().session_mut().selection.lights.insert(0);
+    h.run_steps(3);
+    let width = 1280.0;
+    let fields: Vec<_> = h.get_all_by_role(egui::accesskit::Role::SpinButton).map(|n| n.rect()).collect();
+    assert!(fields.len() >= 6, "the Inspector shows the light's fields: {}", fields.len());
+    for r in &fields {
+        assert!(r.max.x <= width - 4.0, "a field runs past the right edge: {r:?}");
+    }
+}
+
+/// F1's sheet on a short window: it fits the window and scrolls to its last line, and the
+/// Scale tool and scaling the selection read differently.
+#[test]
+fn the_shortcuts_sheet_scrolls_within_a_short_window() {
+    use fogsmith::editor::commands::help_sheet;
+    let setup = fogsmith::editor::driver::DriverSetup { size: Vec2::new(1000.0, 480.0), ..Default::default() };
+    let mut h = EditorDriver::new(demo(), setup);
+    h.run_steps(2);
+    h.key_press(egui::Key::F1);
+    h.run_steps(3);
+    let sheet = help_sheet();
+    let (_, last) = sheet.last().unwrap();
+    h.get_by_label("Scale tool");
+    h.get_by_label("Scale the selection");
+    let first = h.get_by_label(&sheet[0].1).rect();
+    let bottom = 480.0;
+    assert!(h.get_by_label(last).rect().min.y > bottom, "the sheet is longer than the window");
+    let over = Pos2::new(((first.min.x + first.max.x) * 0.5) as f32, (first.max.y + 20.0) as f32);
+    h.event(Event::PointerMoved(over));
+    for _ in 0..40 {
+        h.event(Event::MouseWheel {
+            unit: egui::MouseWheelUnit::Point,
+            delta: Vec2::new(0.0, -200.0),
+            phase: egui::TouchPhase::Move,
+            modifiers: Modifiers::NONE,
+        });
+        h.step();
+    }
+    h.run_steps(3);
+    let end = h.get_by_label(last).rect();
+    assert!(end.max.y <= bottom && end.min.y >= 0.0, "its last line scrolled into the window: {end:?}");
 }
 
 /// The slice plane shows in the viewport as a translucent quad in its axis colour, and the

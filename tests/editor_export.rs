@@ -500,3 +500,30 @@ fn dialogs_remember_their_folder_and_a_missing_folder_is_refused_at_once() {
     );
     assert!(!missing.parent().unwrap().exists(), "no folder was made");
 }
+
+/// Errors do not pile up over the panels: the same error again counts up on its toast, at
+/// most three toasts show at once with the rest folded into one line, and "Dismiss all"
+/// closes every one.
+#[test]
+fn error_toasts_fold_instead_of_piling_up() {
+    let dir = common::temp_dir();
+    let project = project_file(dir.path(), "fog.ron", |_| {});
+    let mut h = editor(&project, &dir.path().join("state"));
+    let choices = fogsmith::editor::app::ExportChoices { format: ExportFormat::Vdb, ..Default::default() };
+    for k in 0..6 {
+        h.state_mut().export(choices, dir.path().join(format!("missing-{k}")).join("fog.vdb"));
+    }
+    for _ in 0..3 {
+        h.state_mut().export(choices, dir.path().join("missing-5").join("fog.vdb"));
+    }
+    h.run_steps(2);
+    let errors = h.state().messages().into_iter().filter(|(error, _)| *error).count();
+    assert_eq!(errors, 6, "one message per distinct error");
+    assert!(has_label(&h, "(×4)"), "the repeated error counts up");
+    assert_eq!(h.get_all_by_label("✕").count(), 3, "three toasts on screen");
+    h.get_by_label("3 earlier messages");
+    h.get_by_label("Dismiss all").click();
+    h.run_steps(2);
+    assert!(h.state().messages().is_empty(), "Dismiss all closed them: {:?}", h.state().messages());
+    assert_eq!(h.query_all_by_label("✕").count(), 0);
+}

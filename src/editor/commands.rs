@@ -357,11 +357,23 @@ pub const GESTURES: &[(&str, &str)] = &[
 ];
 
 /// The Help → Shortcuts sheet: (keys, what they do), every command with a shortcut first.
+impl Command {
+    /// The command's line on the help sheet: its menu text, told apart where two read alike
+    /// (the Scale tool and scaling the selection).
+    pub fn sheet_text(self) -> String {
+        match self.tool() {
+            Some(_) => format!("{} tool", self.text()),
+            None if self == Command::ScaleSelection => "Scale the selection".into(),
+            None => self.text().to_string(),
+        }
+    }
+}
+
 pub fn help_sheet() -> Vec<(String, String)> {
     Command::ALL
         .iter()
         .filter(|c| !c.shortcuts().is_empty())
-        .map(|c| (c.shortcut_text(), c.text().to_string()))
+        .map(|c| (c.shortcut_text(), c.sheet_text()))
         .chain(GESTURES.iter().map(|(k, v)| (k.to_string(), v.to_string())))
         .collect()
 }
@@ -369,6 +381,14 @@ pub fn help_sheet() -> Vec<(String, String)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn no_two_lines_of_the_help_sheet_read_alike() {
+        let sheet = help_sheet();
+        for (i, (_, text)) in sheet.iter().enumerate() {
+            assert!(!sheet[..i].iter().any(|(_, t)| t == text), "{text:?} is on the sheet twice");
+        }
+    }
 
     #[test]
     fn all_lists_every_command_once_and_the_mappings_round_trip() {

@@ -176,18 +176,30 @@ fn drag(
     (r.changed() && v != value).then(|| (v, r.id.value()))
 }
 
+/// The width three labelled fields of a vector need on one row, points.
+const VEC3_ROW_WIDTH: f32 = 3.0 * 84.0;
+
+/// Three fields, x y z, on one row where the panel is wide enough, else one per line (never
+/// cut off at the panel's edge).
 fn drag_vec3(ui: &mut Ui, value: Vec3, speed: f64, unit: &str, tip: &str) -> Option<(Vec3, u64)> {
     let mut out = None;
-    ui.horizontal(|ui| {
+    let layout = if ui.available_width() >= VEC3_ROW_WIDTH {
+        egui::Layout::left_to_right(egui::Align::Center)
+    } else {
+        egui::Layout::top_down(egui::Align::Min)
+    };
+    ui.with_layout(layout, |ui| {
         for (axis, label) in ["x", "y", "z"].iter().enumerate() {
-            ui.label(*label);
-            // Within the coordinates a project may hold: an edit is valid as it enters.
-            let limit = crate::scene::MAX_COORDINATE;
-            if let Some((v, id)) = drag(ui, value[axis], speed, -limit..=limit, unit, tip) {
-                let mut w = value;
-                w[axis] = v;
-                out = Some((w, id));
-            }
+            ui.horizontal(|ui| {
+                ui.label(*label);
+                // Within the coordinates a project may hold: an edit is valid as it enters.
+                let limit = crate::scene::MAX_COORDINATE;
+                if let Some((v, id)) = drag(ui, value[axis], speed, -limit..=limit, unit, tip) {
+                    let mut w = value;
+                    w[axis] = v;
+                    out = Some((w, id));
+                }
+            });
         }
     });
     out

@@ -94,7 +94,10 @@ impl EditorState {
 
     pub(super) fn shortcuts_window(&mut self, ctx: &Context) {
         let mut open = self.view.show_shortcuts;
-        egui::Window::new("Shortcuts").open(&mut open).resizable(false).show(ctx, |ui| {
+        // Never taller than the window: the sheet scrolls instead of running off its bottom.
+        let height = (ctx.content_rect().height() - 96.0).max(120.0);
+        let sheet = egui::Window::new("Shortcuts").open(&mut open).resizable(false).vscroll(true).max_height(height);
+        sheet.show(ctx, |ui| {
             egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
                 for (k, v) in super::commands::help_sheet() {
                     ui.label(k);
@@ -113,11 +116,23 @@ impl EditorState {
             ctx.request_repaint_after(std::time::Duration::from_millis(250));
         }
         let mut dismiss = None;
+        let mut dismiss_all = false;
+        let hidden = self.toasts.len().saturating_sub(super::state::TOASTS_SHOWN);
         egui::Area::new(Id::new("toasts"))
             .order(egui::Order::Foreground)
             .anchor(egui::Align2::RIGHT_BOTTOM, [-12.0, -36.0])
             .show(ctx, |ui| {
-                for (i, t) in self.toasts.iter().enumerate() {
+                if hidden > 0 {
+                    egui::Frame::popup(ui.style()).show(ui, |ui| {
+                        ui.horizontal(|ui| {
+                            ui.label(format!("{hidden} earlier message{}", if hidden == 1 { "" } else { "s" }));
+                            if ui.small_button("Dismiss all").on_hover_text("Close every message").clicked() {
+                                dismiss_all = true;
+                            }
+                        });
+                    });
+                }
+                for (i, t) in self.toasts.iter().enumerate().skip(hidden) {
                     egui::Frame::popup(ui.style()).show(ui, |ui| {
                         ui.set_max_width(420.0);
                         // The button first and the text wrapped after it, so a long message
@@ -126,7 +141,10 @@ impl EditorState {
                             if ui.small_button("✕").on_hover_text("Dismiss").clicked() {
                                 dismiss = Some(i);
                             }
-                            let text = egui::RichText::new(&t.text);
+                            let text = match t.count {
+                                1 => egui::RichText::new(&t.text),
+                                n => egui::RichText::new(format!("{} (×{n})", t.text)),
+                            };
                             let text = if t.error { text.color(ui.visuals().error_fg_color) } else { text };
                             ui.add(egui::Label::new(text).wrap());
                         });
@@ -135,6 +153,9 @@ impl EditorState {
             });
         if let Some(i) = dismiss {
             self.toasts.remove(i);
+        }
+        if dismiss_all {
+            self.toasts.clear();
         }
     }
 }

@@ -144,7 +144,12 @@ pub(crate) struct Toast {
     pub text: String,
     pub error: bool,
     pub born: f64,
+    /// How many times the same message came (shown as "×N" instead of a pile of copies).
+    pub count: u32,
 }
+
+/// Toasts on screen at once: the newest; the rest fold into one line with "Dismiss all".
+pub(crate) const TOASTS_SHOWN: usize = 3;
 
 /// The pipeline on egui-wgpu's device and the texture its frames are shown through.
 pub(crate) struct GpuView {
@@ -540,13 +545,21 @@ impl EditorState {
     }
 
     pub(crate) fn error(&mut self, text: impl Into<String>) {
-        let born = self.ctx.input(|i| i.time);
-        self.toasts.push(Toast { text: text.into(), error: true, born });
+        self.toast(text.into(), true);
     }
 
     pub(crate) fn info(&mut self, text: impl Into<String>) {
+        self.toast(text.into(), false);
+    }
+
+    /// A message as the newest toast; the same message again counts up instead of piling up.
+    fn toast(&mut self, text: String, error: bool) {
         let born = self.ctx.input(|i| i.time);
-        self.toasts.push(Toast { text: text.into(), error: false, born });
+        let count = match self.toasts.iter().position(|t| t.text == text && t.error == error) {
+            Some(i) => self.toasts.remove(i).count + 1,
+            None => 1,
+        };
+        self.toasts.push(Toast { text, error, born, count });
     }
 
     pub(super) fn replace_project(&mut self, project: Project, path: Option<PathBuf>, name: &str) {

@@ -140,8 +140,17 @@ pub(crate) fn fit_grid(state: &mut EditorState) {
         Ok(g) => {
             state.session.edit_grid(crate::editor::session::NEW_STEP, |grid| *grid = g);
             let r = g.resolution;
+            let left = state.session.project().particles_crossing_grid().len();
+            let rest = match left {
+                0 => String::new(),
+                n => format!(
+                    "; {n} particle{} still reach{} past a wall's or floor's edge where the box grew (Fit again to hold them too)",
+                    if n == 1 { "" } else { "s" },
+                    if n == 1 { "es" } else { "" }
+                ),
+            };
             state.info(format!(
-                "Grid fitted to the particles: ({:.2}, {:.2}, {:.2}) to ({:.2}, {:.2}, {:.2}) m, {}×{}×{} cells",
+                "Grid fitted to the particles: ({:.2}, {:.2}, {:.2}) to ({:.2}, {:.2}, {:.2}) m, {}×{}×{} cells{rest}",
                 g.min.x, g.min.y, g.min.z, g.max.x, g.max.y, g.max.z, r.x, r.y, r.z
             ));
         }

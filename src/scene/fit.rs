@@ -10,7 +10,11 @@
 //! A face of the box hidden behind an opaque surface does not count: the ground seals the
 //! bottom face when it lies at or above it (all fog below the face is underground), and a
 //! surface box seals a face when it covers the whole face from outside (a wall flush with
-//! it). Fog cut there is never seen.
+//! it). Fog cut there is never seen. A particle's cut at an open face does not count either
+//! where a wall flush with that face covers the face at the point nearest the particle's
+//! centre, where the cut fog is densest: the gaussian's tail past the wall's edge is what
+//! may show. Fitting moves a face out only as far as the cuts that count there need, so it
+//! never pushes the box through a floor or wall for fog the floor or wall hides.
 //!
 //! [`Project::fit_grid_to_particles`] gives the box that just holds every visible particle's
 //! support, keeping either the cell size or the resolution.
@@ -85,66 +89,88 @@ impl Project {
     /// [`Self::particles_crossing_grid`] among the particles from index `start` on.
     pub fn particles_crossing_grid_from(&self, start: usize) -> Vec<usize> {
         let sealed = self.sealed_grid_faces();
-        let g = &self.grid;
         self.particles
             .iter()
             .enumerate()
             .skip(start)
             .filter(|(_, p)| {
-                let r = p.support_radius();
-                !p.hidden
-                    && p.density > 0.0
-                    && (0..3).any(|a| {
-                        (!sealed[a][0] && p.center[a] - r < g.min[a]) || (!sealed[a][1] && p.center[a] + r > g.max[a])
-                    })
+                !p.hidden && p.density > 0.0 && (0..3).any(|a| (0..2).any(|side| self.cut_at(p, a, side, &sealed)))
             })
             .map(|(i, _)| i)
             .collect()
     }
 
-    /// The grid box that just holds every visible particle's support, keeping the cell size
-    /// (resolution rounded up, the box grown to whole cells on its open sides) or the
-    /// resolution. A sealed face (see [`Self::sealed_grid_faces`]) never moves outwards.
-    /// An error says why there is nothing sensible to fit.
-    pub fn fit_grid_to_particles(&self, keep: FitKeep) -> Result<GridSpec, String> {
-        // Moving faces can uncover a face a wall sealed: refit with only the faces that stay
-        // sealed around the result (at most six rounds, one per face given up).
-        let mut sealed = self.sealed_grid_faces();
-        loop {
-            let grid = self.fit_with(keep, sealed)?;
-            let mut fitted = self.clone();
-            fitted.grid = grid;
-            let now = fitted.sealed_grid_faces();
-            let kept = std::array::from_fn(|a| [sealed[a][0] && now[a][0], sealed[a][1] && now[a][1]]);
-            if kept == sealed {
-                return Ok(grid);
-            }
-            sealed = kept;
+    /// Whether particle `p`'s support crosses face `side` (0: min, 1: max) of axis `a` where
+    /// no surface hides the cut: the face is open, and no surface box flush with it covers
+    /// the point of the face nearest the particle's centre, where the cut fog is densest.
+    fn cut_at(&self, p: &Particle, a: usize, side: usize, sealed: &[[bool; 2]; 3]) -> bool {
+        let g = &self.grid;
+        let r = p.support_radius();
+        let crosses = if side == 0 { p.center[a] - r < g.min[a] } else { p.center[a] + r > g.max[a] };
+        if !crosses || sealed[a][side] {
+            return false;
         }
+        let eps = 1e-4 * g.size().max_element();
+        let plane = if side == 0 { g.min[a] } else { g.max[a] };
+        let (u, v) = ((a + 1) % 3, (a + 2) % 3);
+        // The cut's densest point: the point of the face nearest the particle's centre.
+        let (cu, cv) = (p.center[u].clamp(g.min[u], g.max[u]), p.center[v].clamp(g.min[v], g.max[v]));
+        !self.surfaces.boxes.iter().any(|b| {
+            let flush = if side == 0 {
+                b.min[a] < plane && b.max[a] >= plane - eps
+            } else {
+                b.max[a] > plane && b.min[a] <= plane + eps
+            };
+            flush && b.min[u] <= cu + eps && b.max[u] >= cu - eps && b.min[v] <= cv + eps && b.max[v] >= cv - eps
+        })
     }
 
-    fn fit_with(&self, keep: FitKeep, sealed: [[bool; 2]; 3]) -> Result<GridSpec, String> {
+    /// The grid box that just holds every visible particle's support where it shows, keeping
+    /// the cell size (resolution rounded up, the box grown to whole cells on its open sides)
+    /// or the resolution. A face moves outwards only as far as the particles whose cut there
+    /// counts (see the module) need; a sealed face (see [`Self::sealed_grid_faces`]) never
+    /// does. An error says why there is nothing sensible to fit.
+    ///
+    /// The cuts are judged on the box as it is: a face that grows can widen the footprint of
+    /// a cut at a neighbouring face past a wall's edge, so a few particles may count as cut
+    /// on the fitted box (the caller says so); fitting again would then move that face too.
+    pub fn fit_grid_to_particles(&self, keep: FitKeep) -> Result<GridSpec, String> {
+        let sealed = self.sealed_grid_faces();
+        let g = self.grid;
+        let visible: Vec<&Particle> = self.particles.iter().filter(|p| !p.hidden && p.density > 0.0).collect();
+        if visible.is_empty() {
+            return Err("there are no visible particles to fit the grid to".into());
+        }
+        // Per face: the box just holding every support, but no further out than the face
+        // itself where no cut counts there, and as far as the counted cuts need.
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for p in self.particles.iter().filter(|p| !p.hidden && p.density > 0.0) {
+        let mut lo_cut = Vec3::splat(f32::INFINITY);
+        let mut hi_cut = Vec3::splat(f32::NEG_INFINITY);
+        for p in &visible {
             let r = p.support_radius();
             lo = lo.min(p.center - r);
             hi = hi.max(p.center + r);
+            for a in 0..3 {
+                if self.cut_at(p, a, 0, &sealed) {
+                    lo_cut[a] = lo_cut[a].min(p.center[a] - r);
+                }
+                if self.cut_at(p, a, 1, &sealed) {
+                    hi_cut[a] = hi_cut[a].max(p.center[a] + r);
+                }
+            }
         }
         if !lo.is_finite() || !hi.is_finite() {
-            return Err("there are no visible particles to fit the grid to".into());
+            return Err("the visible particles' extent is not finite; fix their positions and radii first".into());
         }
+        let lo = lo.max(g.min).min(lo_cut);
+        let hi = hi.min(g.max).max(hi_cut);
         // A hair of slack, so rounding never puts a support's edge just outside the new box.
         let pad = Vec3::splat((hi - lo).max_element() * 1e-5 + 1e-6);
-        let (mut lo, mut hi) = (lo - pad, hi + pad);
-        let g = self.grid;
+        // Faces that stay where they are get no slack.
+        let lo = Vec3::from_array(std::array::from_fn(|a| if lo[a] >= g.min[a] { lo[a] } else { lo[a] - pad[a] }));
+        let hi = Vec3::from_array(std::array::from_fn(|a| if hi[a] <= g.max[a] { hi[a] } else { hi[a] + pad[a] }));
         for a in 0..3 {
-            if sealed[a][0] {
-                lo[a] = lo[a].max(g.min[a]);
-            }
-            if sealed[a][1] {
-                hi[a] = hi[a].min(g.max[a]);
-            }
             if hi[a] <= lo[a] {
                 return Err(
                     "the visible particles lie outside the sealed faces of the grid box; move them in first".into()
@@ -168,7 +194,10 @@ impl Project {
                 let extra = resolution.as_vec3() * cell - (hi - lo);
                 let (mut min, mut max) = (lo, hi);
                 for a in 0..3 {
-                    let to_min = match sealed[a] {
+                    // A face held where it was (particles cut there behind a surface) stays
+                    // put; the other side takes the rest.
+                    let pinned = [lo[a] == g.min[a], hi[a] == g.max[a]];
+                    let to_min = match pinned {
                         [true, false] => 0.0,
                         [false, true] => 1.0,
                         _ => 0.5,
@@ -263,11 +292,31 @@ mod tests {
             albedo: Vec3::splat(0.5),
             ..SurfaceBox::default()
         };
-        p.surfaces.boxes.push(SurfaceBox { max: Vec3::new(-2.0, 4.1, 1.0), ..wall });
-        assert_eq!(p.particles_crossing_grid(), [1], "a wall that covers part of the face does not seal it");
+        p.surfaces.boxes.push(SurfaceBox { max: Vec3::new(-2.0, 4.1, -0.5), ..wall });
+        assert_eq!(p.particles_crossing_grid(), [1], "a wall beside the particle's cut does not hide it");
+        p.surfaces.boxes.push(SurfaceBox { max: Vec3::new(-2.0, 4.1, 0.1), ..wall });
+        assert!(p.particles_crossing_grid().is_empty(), "a wall over the cut's densest point hides it");
+        p.surfaces.boxes.pop();
         p.surfaces.boxes.push(wall);
         assert!(p.particles_crossing_grid().is_empty(), "a flush wall over the whole face seals it");
         let g = p.fit_grid_to_particles(FitKeep::CellSize).unwrap();
         assert_eq!((g.min.x, g.min.y), (-2.0, 0.0), "sealed faces do not move outwards: {g:?}");
+    }
+
+    /// The cornell demo: fitting keeps the box on the floor, between the walls and under the
+    /// ceiling, and after it no particle's fog is cut where it shows.
+    #[test]
+    fn fitting_the_cornell_demo_keeps_the_box_inside_the_room() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("projects/cornell.ron");
+        let p = crate::scene::load_project(&path).unwrap();
+        for keep in [FitKeep::CellSize, FitKeep::Resolution] {
+            let g = p.fit_grid_to_particles(keep).unwrap();
+            assert!(g.min.cmpge(p.grid.min).all(), "{keep:?}: not through the floor or walls: {g:?}");
+            assert!(g.max.x <= p.grid.max.x && g.max.y <= p.grid.max.y, "{keep:?}: nor the ceiling: {g:?}");
+            assert!(g.max.z > p.grid.max.z, "{keep:?}: it grows out of the open front: {g:?}");
+            let mut fitted = p.clone();
+            fitted.grid = g;
+            assert_eq!(fitted.particles_crossing_grid(), Vec::<usize>::new(), "{keep:?}: {g:?}");
+        }
     }
 }
