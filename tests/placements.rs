@@ -128,9 +128,25 @@ fn scene(rng: &mut Lcg, resolution: UVec3, base: f32, min_radius: f32) -> (Proje
 /// The scenes' seed: PLACEMENT_SEED, else the one the bounds were measured on.
 const SEED: u64 = 0x5EED_0012;
 
+/// The grids of the sweep's scenes: a cube, boxes of mixed aspect and a long thin one.
+const GRIDS: [UVec3; 4] = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
+
+/// Flat grids, as ground fog and street mist use: one layer deep, and three.
+const THIN_GRIDS: [UVec3; 3] = [UVec3::new(64, 64, 1), UVec3::new(48, 3, 40), UVec3::new(96, 2, 96)];
+
 fn worst_by_class(scheme: Scheme, stride: u32, refine: Option<f32>, min_radius: f32, seed: u64) -> Vec<(f64, f64)> {
+    worst_by_class_on(&GRIDS, scheme, stride, refine, min_radius, seed)
+}
+
+fn worst_by_class_on(
+    grids: &[UVec3],
+    scheme: Scheme,
+    stride: u32,
+    refine: Option<f32>,
+    min_radius: f32,
+    seed: u64,
+) -> Vec<(f64, f64)> {
     let mut gpu = pipeline();
-    let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
     let mut worst = vec![(0.0f64, 0.0f64); CLASSES.len()];
     let mut rng = Lcg(seed);
     for (g, &res) in grids.iter().enumerate() {
@@ -230,6 +246,23 @@ fn check_sweep(min_radius: f32, refine: Option<f32>, bounds: [f64; 8], seeds: &[
     }
 }
 
+/// The refined sweep on [`THIN_GRIDS`]: every class within 5e-3. The worst measured is
+/// 4.14e-3 (light inside, 64×64×1, seed 7), at the outermost cell of a ray along the layer;
+/// the cells four and more inwards are within 2e-5. Above the 2e-3 of thicker grids.
+const THIN_SWEEP_SCHEME_BOUNDS: [f64; 8] = [5e-3; 8];
+
+#[test]
+fn refined_sweep_is_accurate_on_thin_grids() {
+    let seeds = std::env::var("PLACEMENT_SEED")
+        .map_or(vec![SEED, 7, 99], |s| vec![s.parse().expect("PLACEMENT_SEED is a number")]);
+    for seed in seeds {
+        let worst = worst_by_class_on(&THIN_GRIDS, Scheme::Sweep, 8, Some(DEFAULT_SWEEP_TOLERANCE), 1.0, seed);
+        for ((class, (s, _)), bound) in CLASSES.iter().zip(&worst).zip(THIN_SWEEP_SCHEME_BOUNDS) {
+            assert!(*s <= bound, "seed {seed}, thin grids, light {class}: scheme error {s:.3e} > {bound:e}");
+        }
+    }
+}
+
 #[test]
 fn refined_sweep_is_accurate_for_every_light_placement() {
     check_sweep(1.0, Some(DEFAULT_SWEEP_TOLERANCE), SWEEP_SCHEME_BOUNDS, &[SEED, 7, 99]);
@@ -282,7 +315,9 @@ fn analytic_worst_by_class(min_radius: f32, seed: u64) -> Vec<f64> {
     use fogsmith::measure::opv_error_against;
     use fogsmith::reference::clipped_optical_depth_cells;
     let mut gpu = pipeline();
-    let grids = [UVec3::splat(32), UVec3::new(40, 24, 16), UVec3::new(128, 16, 16), UVec3::new(12, 48, 10)];
+    // The thin grids last, so that the earlier grids' scenes stay those the bounds were
+    // measured on.
+    let grids: Vec<UVec3> = GRIDS.iter().chain(&THIN_GRIDS).copied().collect();
     let mut worst = vec![0.0f64; CLASSES.len()];
     let mut rng = Lcg(seed);
     for (g, &res) in grids.iter().enumerate() {
