@@ -183,12 +183,7 @@ const VEC3_ROW_WIDTH: f32 = 3.0 * 84.0;
 /// cut off at the panel's edge).
 fn drag_vec3(ui: &mut Ui, value: Vec3, speed: f64, unit: &str, tip: &str) -> Option<(Vec3, u64)> {
     let mut out = None;
-    let layout = if ui.available_width() >= VEC3_ROW_WIDTH {
-        egui::Layout::left_to_right(egui::Align::Center)
-    } else {
-        egui::Layout::top_down(egui::Align::Min)
-    };
-    ui.with_layout(layout, |ui| {
+    let mut fields = |ui: &mut Ui| {
         for (axis, label) in ["x", "y", "z"].iter().enumerate() {
             ui.horizontal(|ui| {
                 ui.label(*label);
@@ -201,7 +196,12 @@ fn drag_vec3(ui: &mut Ui, value: Vec3, speed: f64, unit: &str, tip: &str) -> Opt
                 }
             });
         }
-    });
+    };
+    if ui.available_width() >= VEC3_ROW_WIDTH {
+        ui.horizontal(|ui| fields(ui));
+    } else {
+        ui.vertical(|ui| fields(ui));
+    }
     out
 }
 
