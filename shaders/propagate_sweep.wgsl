@@ -26,10 +26,12 @@
 // that is not smooth across a cell, where a sharper estimate with the interpolation weights
 // missed errors of 3e-2) plus what the limiter clipped give the error of m at P; times the
 // rest's length and the whole path's transmittance, that is the interpolation's error in the
-// cell's transmittance. If it exceeds `step.tolerance`, X tries planes 2 and 4 times as far
-// (shorter rests; the segments already integrated are kept), and integrates its whole in-box
-// path directly only if those fail too: its value is then as exact as the `exact` scheme's,
-// and the cells behind it interpolate from exact values. The worst error along a ray stays
+// cell's transmittance. If it exceeds `step.tolerance`, X tries planes 2, 4, 8, … times as
+// far (shorter rests; the segments already integrated are kept), and integrates the rest of
+// its in-box path directly only once the next plane lies beyond the box: its value is then as
+// exact as the `exact` scheme's, and the cells behind it interpolate from exact values. A
+// rejected cell so integrates about as far as its first acceptable plane, not its whole path,
+// whose length grows with the grid's extent (wide, flat grids have long paths). The worst error along a ray stays
 // within a small multiple of the tolerance (tests/placements.rs). Whole in-box paths, and
 // segments X–P whose bound on the error of splitting at axis a's planes only exceeds
 // DETAIL_TOL, are split at every axis' cell-centre planes, which makes their integral exact
@@ -272,8 +274,9 @@ fn fold_ghosts(w: vec4f, f: i32, n: i32) -> vec4f {
 // clear air, it is the detail itself, where the plain integration of a segment measured errors beyond 1e-3 on the
 // placements test's scenes.
 const DETAIL_TOL: f32 = 2.5e-4;
-// With refine, the planes tried before the whole path: 1, 2 and 4 times the stride.
-const PLANES: u32 = 3u;
+// With refine, the planes tried, at 1, 2, 4, … times the stride: more than any path needs
+// (each stays below the box's exit, and i32 holds the last plane's offset).
+const PLANES: u32 = 24u;
 
 fn solve(c: vec3i, light: u32) {
     let s = lights[light].position;

@@ -357,7 +357,7 @@ fn seed_volume() -> Volume {
 
 /// `cargo test --test hostile -- --ignored write_corpus` rewrites the VDB seeds.
 #[test]
-#[ignore]
+#[ignore = "rewrites the committed VDB seeds under tests/corpus; run by hand after a writer change"]
 fn write_corpus() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
     let v = seed_volume();

@@ -28,13 +28,16 @@ pub struct Context {
 impl Context {
     pub fn new(opts: &BenchOptions) -> Result<Self, BenchError> {
         let large = LARGE_SCENE;
-        if let Some(bad) =
-            opts.scenes.iter().find(|s| *s != large && !crate::demos::DEMOS.iter().any(|(name, _)| name == s))
-        {
+        if let Some(bad) = opts.scenes.iter().find(|s| {
+            *s != large
+                && !crate::demos::DEMOS.iter().any(|(name, _)| name == s)
+                && !super::shapes::NAMES.contains(&s.as_str())
+        }) {
             let known: Vec<&str> = crate::demos::DEMOS.iter().map(|(name, _)| *name).chain([large]).collect();
             return Err(BenchError::Option(format!(
-                "--scene {bad}: not a bundled demo or `{large}` (10⁵ particles, interaction only); use one of {}",
-                known.join(", ")
+                "--scene {bad}: not a bundled demo, `{large}` (10⁵ particles, interaction only) or a case of the shapes suite; use one of {}, or of {}",
+                known.join(", "),
+                super::shapes::NAMES.join(", ")
             )));
         }
         if let Some(bad) = opts.schemes.iter().find(|s| !OPV_SCHEMES.iter().any(|&(_, label)| label == s.as_str())) {

@@ -18,6 +18,8 @@
 //!   to preview latency and time to convergence; run on request only.
 //! - `animation`: frame sequences of the cloud demo, one kind of motion each, baked in one
 //!   pipeline against cold bakes of every frame (see `animation`); run on request only.
+//! - `shapes`: propagation time per cell of wide, thin grids against a cube of the same cell
+//!   count, with three light placements and the transmittance error; run on request only.
 //! - `bake`: the light bake on each demo, its time, the error of its emission–absorption
 //!   render against the lit render per phase mode, output sizes and texture quantisation
 //!   (see `bake`); run on request only.
@@ -28,6 +30,7 @@ mod context;
 mod interaction;
 mod plot;
 mod scale;
+mod shapes;
 mod suites;
 
 use serde_json::Value;
@@ -147,6 +150,7 @@ fn run_suite(
         Suite::Animation => animation::run(ctx, out, log),
         Suite::Bake => bake::run(ctx, out, log),
         Suite::Scale => scale::run(ctx, out, log),
+        Suite::Shapes => shapes::run(ctx, out, log),
         Suite::Interaction => {
             use crate::editor::app::Quality;
             // Blocking (every frame renders to convergence) is the editor before the frame budget.

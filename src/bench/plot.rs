@@ -104,6 +104,8 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
         Suite::Interaction => frame_times(&dir.join("interaction_frames.png"), records),
         // A table of four rows: the text output says it all.
         Suite::Animation => Ok(()),
+        // A few rows per light placement: the text output says it all.
+        Suite::Shapes => Ok(()),
         Suite::Opv => {
             let by_scheme = |r: &Value| Some(format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy")));
             // The grid's medium is not the scene's: against the gaussians themselves every

@@ -30,6 +30,9 @@ pub enum Suite {
     /// Light kinds (point, spot, sun) and medium features (height fog, noise, surfaces) on one
     /// small scene: bake-and-render time against OPV and image error, per grid resolution.
     Kinds,
+    /// Propagation cost per cell by grid shape: a cube against wide, thin grids of the same
+    /// cell count (see `shapes`; run on request only: its full grids take minutes).
+    Shapes,
     /// Frame sequences of the cloud demo, one kind of motion each: the time per frame of one
     /// pipeline baking them in order against cold bakes (see `animation`).
     Animation,

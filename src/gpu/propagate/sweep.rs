@@ -402,6 +402,8 @@ mod tests {
             (UVec3::new(20, 9, 5), 8),
             (UVec3::new(40, 6, 6), 16),
             (UVec3::new(17, 17, 17), 5),
+            (UVec3::new(24, 24, 1), 8),
+            (UVec3::new(20, 2, 18), 5),
         ] {
             let grid = GridSpec { min: Vec3::new(-1.0, 0.0, -0.5), max: Vec3::new(1.5, 1.0, 0.5), resolution: res };
             for light in placements(&grid) {
