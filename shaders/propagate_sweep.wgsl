@@ -278,6 +278,53 @@ const DETAIL_TOL: f32 = 2.5e-4;
 // (each stays below the box's exit, and i32 holds the last plane's offset).
 const PLANES: u32 = 24u;
 
+struct FlatRest {
+    // The rest's optical depth and its error, as `layer_mean(…) · length`.
+    m: vec2f,
+    // P' in cell units, where the layer is read.
+    up: vec3f,
+    // False where the construction does not hold (the rest then is not interpolated).
+    ok: bool,
+}
+
+// The in-box optical depth from P = x + dir·at to the light S, for a grid one layer deep along
+// f, which X's ray (in-box length `inside`) leaves through. σ_t is constant along f, so any
+// segment's integral depends only on its projection across f. P' is P moved along f back to
+// the cell-centre plane: the ray from P' to S (direction d', in-box length L') projects onto
+// the same line from the same point as P's, and reaches further along it. Its optical depth,
+// m(P')·L' from the layer of a (the cells around P' lie as many shells closer to the light as
+// those around P), minus the part beyond the reach of P's projection (P' + d'·t for t from
+// t* to L', where t* = |P's rest|·|dir⊥| / |d'⊥|), times |d'⊥| / |dir⊥|, is P's rest.
+fn flat_rest(light: u32, x: vec3f, dir: vec3f, at: f32, inside: f32, f: u32, e: u32, plane: i32, s: vec3f) -> FlatRest {
+    var keep = vec3f(1.0);
+    keep[f] = 0.0;
+    var q = x + dir * at;
+    q[f] = x[f];
+    let to = s - q;
+    let lq = length(to);
+    var out = FlatRest(vec2f(0.0), (q - grid.min) / grid.cell - 0.5, false);
+    if lq <= 0.0 {
+        return out;
+    }
+    let dq = to / lq;
+    let eq = exit_box(q, dq, lq);
+    let across = length(dir * keep);
+    let across_q = length(dq * keep);
+    if eq.axis != f || across <= 0.0 || across_q <= 0.0 {
+        return out;
+    }
+    let t_star = (inside - at) * across / across_q;
+    if t_star > eq.t {
+        return out;
+    }
+    let beyond = integrate_pieces(q + dq * eq.t, q + dq * t_star, true);
+    let mean = layer_mean(light, e, plane, out.up);
+    let scale = across_q / across;
+    out.m = vec2f(mean.x * eq.t - beyond, mean.y * eq.t) * scale;
+    out.ok = true;
+    return out;
+}
+
 fn solve(c: vec3i, light: u32) {
     let s = lights[light].position;
     let x = grid.min + (vec3f(c) + 0.5) * grid.cell;
@@ -302,8 +349,12 @@ fn solve(c: vec3i, light: u32) {
     let centres = exit_from(x, dir, len, grid.min + half, grid.max - half);
     var e = a;
     var layers = stride;
-    if centres.axis < 3u && centres.axis != a {
-        e = centres.axis;
+    // A grid one layer deep along the axis f the ray leaves through: σ_t does not vary along
+    // f, so P takes its rest from the cell-centre plane (see `flat_rest`), on a layer of a.
+    let f = centres.axis;
+    let flat = f < 3u && f != a && grid.dims[min(f, 2u)] == 1u && exit.axis == f;
+    if f < 3u && f != a && !flat {
+        e = f;
         layers = max(ceil(stride * mag[e] / mag[a]), 1.0);
     }
     // Where the ray would reach the plane of another face's outermost cells less than two
@@ -343,8 +394,16 @@ fn solve(c: vec3i, light: u32) {
         let n = layers * f32(1u << r);
         let at = len * n / mag[e];
         let plane = c[e] + i32(n) * i32(sign(v[e]));
-        let interpolate = usable && r < tries && at < inside && plane >= 0 && plane < i32(grid.dims[e]);
-        if interpolate {
+        var interpolate = usable && r < tries && at < inside && plane >= 0 && plane < i32(grid.dims[e]);
+        if interpolate && flat {
+            let rest = flat_rest(light, x, dir, at, inside, f, e, plane, s);
+            interpolate = rest.ok;
+            if rest.ok {
+                far = at;
+                up = rest.up;
+                m = rest.m;
+            }
+        } else if interpolate {
             far = at;
             up = (x + dir * at - grid.min) / grid.cell - 0.5;
             m = layer_mean(light, e, plane, up) * (inside - at);

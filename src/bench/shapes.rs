@@ -5,8 +5,9 @@
 //! filling the box), with cubic cells (a box shaped like the grid) or with the 4 m box of a
 //! new project (a user who lowers one axis' resolution gets long, flat cells), and one point
 //! light in three places: inside the slab, above it and beside it. Each record has the propagation time, its ratio per cell to the cube's
-//! with the same light placement, and the transmittance error against the exact line
-//! integral through the grid's own medium.
+//! with the same light placement, and the transmittance error (and the optical depth's
+//! relative error, which still tells where the fog is too thick to let light through)
+//! against the exact line integral through the grid's own medium.
 
 use super::context::{Context, OPV_SCHEMES};
 use super::BenchError;
@@ -139,19 +140,21 @@ pub(super) fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&
                     let exact = grid_light_depth_cells(&project, &medium, 0, &sample);
                     let e = opv_error_against(0, &ctx.gpu.read_opv(0)?, &sample, &exact);
                     log(&format!(
-                "shapes {placement:6} {scheme_label:8} {cells_kind:6} {label:6} {:>4}×{:>4}×{:>4} {ms:9.1} ms  {ns_per_cell:7.1} ns/cell  {:5.2}× the cube's  transmittance error max {:.2e} mean {:.2e}",
+                "shapes {placement:6} {scheme_label:8} {cells_kind:6} {label:6} {:>4}×{:>4}×{:>4} {ms:9.1} ms  {ns_per_cell:7.1} ns/cell  {:5.2}× the cube's  transmittance error max {:.2e} mean {:.2e}  optical depth rel error max {:.2e}",
                 res.x,
                 res.y,
                 res.z,
                 ns_per_cell / cube,
                 e.transmittance_max_abs_error,
                 e.transmittance_mean_abs_error,
+                e.depth_max_rel_error,
             ));
                     out.push(json!({
                 "suite": "shapes", "case": placement, "cells_kind": cells_kind, "shape": label, "scheme_or_policy": scheme_label, "grid": res.to_array(),
                 "cells": cells, "time_ms": ms, "runs": times.len(), "ns_per_cell": ns_per_cell,
                 "per_cell_vs_cube": ns_per_cell / cube,
                 "error_max": e.transmittance_max_abs_error, "error_mean": e.transmittance_mean_abs_error,
+                "depth_rel_error_max": e.depth_max_rel_error,
                 "cells_compared": sample.len(),
             }));
                 }
