@@ -235,6 +235,7 @@ pub(crate) fn sequence_plans(plan: &ExportPlan, frames: &[i32]) -> Vec<ExportPla
         .iter()
         .map(|&f| ExportPlan {
             vdb: at(&vdb, f),
+            nvdb: at(&plan.nvdb, f),
             usd: None,
             ktx2: at(&plan.ktx2, f),
             exr_render: at(&plan.exr_render, f),
