@@ -53,7 +53,7 @@ use super::{write_bytes_atomic, ExportError};
 
 /// "NanoVDB0" as a little-endian u64: the file and grid magic of NanoVDB 32.4.
 pub const NANOVDB_MAGIC: u64 = 0x3042_4456_6f6e_614e;
-/// The version written, NanoVDB's `Version` packing (major << 21 | minor << 10 | patch).
+/// The version written: (major, minor, patch).
 pub const NANOVDB_VERSION: (u32, u32, u32) = (32, 4, 2);
 /// Size of a grid's header (`GridData`).
 pub const GRID_DATA_SIZE: usize = 672;
