@@ -11,6 +11,7 @@ PACKAGES=(
   python3-openvdb       # OpenVDB itself, to check exported .vdb files
   python3-venv          # the validators' virtual environment below
   libopenvdb-tools      # vdb_tool: writes zip / uncompressed .vdb files for the import tests
+  libnanovdb-tools      # nanovdb_validate / _print / _convert, to check exported .nvdb files
   openexr               # exrheader / exrinfo, to check exported .exr files
   fonts-dejavu-core     # the font of the benchmark plots
   pkg-config

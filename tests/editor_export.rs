@@ -344,6 +344,29 @@ fn baking_the_lighting_adds_the_emission_grid() {
     assert!(!emission.importable, "a vector grid is not offered as a density");
 }
 
+/// NanoVDB through the window: the format's own extension, the grid options but not the
+/// VDB's half floats and compression, and a file NanoVDB validates.
+#[test]
+fn nanovdb_is_one_of_the_formats() {
+    let dir = common::temp_dir();
+    let project = project_file(dir.path(), "nano.ron", |_| {});
+    let mut h = editor(&project, &dir.path().join("state"));
+    open_with_ctrl_e(&mut h);
+    click(&mut h, "NanoVDB (.nvdb)");
+    assert_eq!(h.state().export_window().unwrap().format, ExportFormat::Nvdb);
+    assert!(h.query_by_label("half floats").is_none() && h.query_by_label("zip").is_none());
+    click(&mut h, "transmittance per light");
+    let summary = export_through_the_dialog(&mut h);
+    assert!(summary.contains("nano.nvdb") && summary.contains("5 grids"), "{summary}");
+    let out = std::process::Command::new("nanovdb_validate")
+        .arg("-v")
+        .arg(dir.path().join("nano.nvdb"))
+        .output()
+        .expect("nanovdb_validate runs: ./setup.sh installs libnanovdb-tools");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.matches(": passed").count() == 5 && !text.contains("failed"), "{text}");
+}
+
 /// An animated project exports a range of frames: "Frames" proposes `NAME.####.vdb`, and the
 /// three frames baked in the background equal, value for value in every grid, those of
 /// `fogsmith export --frames` on the same project.

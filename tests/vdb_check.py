@@ -3,13 +3,19 @@
 Usage: /usr/bin/python3 tests/vdb_check.py FILE.vdb NX NY NZ
 For every grid: name, value type, half flag, class, creator, light metadata, active voxel
 count (tiles included), leaf count, active bbox, voxel size, index->world of a few voxels,
-and the float32 bit pattern of the value OpenVDB's accessor returns at every voxel of [0,NX)x[0,NY)x[0,NZ), x fastest.
+and the float32 bit pattern of the value OpenVDB's accessor returns at every voxel of [0,NX)x[0,NY)x[0,NZ), x fastest
+(a list of three for a vec3s grid).
 """
 import json
 import struct
 import sys
 
 import pyopenvdb as vdb
+
+
+def bits(v):
+    return struct.unpack("<I", struct.pack("<f", v))[0]
+
 
 path = sys.argv[1]
 nx, ny, nz = (int(a) for a in sys.argv[2:5])
@@ -27,7 +33,8 @@ for g in grids:
     for k in range(nz):
         for j in range(ny):
             for i in range(nx):
-                values.append(struct.unpack("<I", struct.pack("<f", acc.getValue((i, j, k))))[0])
+                v = acc.getValue((i, j, k))
+                values.append([bits(c) for c in v] if isinstance(v, tuple) else bits(v))
                 active.append(acc.isValueOn((i, j, k)))
     out["grids"].append({
         "name": g.name,

@@ -26,6 +26,10 @@ pub struct ExportArgs {
     /// OpenVDB file with the density grid and per-light optical depth grids.
     #[arg(long)]
     pub vdb: Option<PathBuf>,
+    /// NanoVDB file (.nvdb, version 32.4, uncompressed 32-bit floats) with the same grids as
+    /// --vdb (--grids, --threshold and --bake-light apply; --half and --compression do not).
+    #[arg(long)]
+    pub nvdb: Option<PathBuf>,
     /// Store VDB values as half floats (as OpenVDB's saveFloatAsHalf).
     #[arg(long)]
     pub half: bool,
@@ -130,6 +134,7 @@ impl ExportArgs {
     pub fn plan(&self) -> ExportPlan {
         ExportPlan {
             vdb: self.vdb.clone(),
+            nvdb: self.nvdb.clone(),
             usd: self.usd.clone(),
             ktx2: self.ktx2.clone(),
             exr_render: self.exr_render.clone(),
@@ -192,6 +197,7 @@ fn frame_plans(plan: &ExportPlan, frames: &FrameSet) -> Result<Vec<ExportPlan>, 
         }
     };
     let vdbs = each("--vdb", &vdb)?;
+    let nvdbs = each("--nvdb", &plan.nvdb)?;
     let ktx2 = each("--ktx2", &plan.ktx2)?;
     let render = each("--exr-render", &plan.exr_render)?;
     let slices = each("--exr-slices", &plan.exr_slices)?;
@@ -200,6 +206,7 @@ fn frame_plans(plan: &ExportPlan, frames: &FrameSet) -> Result<Vec<ExportPlan>, 
     Ok((0..frames.len())
         .map(|k| ExportPlan {
             vdb: vdbs[k].clone(),
+            nvdb: nvdbs[k].clone(),
             usd: None,
             ktx2: ktx2[k].clone(),
             exr_render: render[k].clone(),
@@ -216,7 +223,7 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     let plan = args.plan();
     if plan.is_empty() {
         return Err(
-            "nothing to export: give --vdb, --usd, --ktx2, --exr-render, --exr-slices, --exr-atlas and/or --godot"
+            "nothing to export: give --vdb, --nvdb, --usd, --ktx2, --exr-render, --exr-slices, --exr-atlas and/or --godot"
                 .into(),
         );
     }
@@ -227,10 +234,10 @@ pub fn run(args: ExportArgs) -> Result<(), Box<dyn std::error::Error>> {
     if plan.godot.is_some() && plan.settings.bake_light.is_none() {
         return Err("--godot draws the light bake: add --bake-light".into());
     }
-    let bake_targets = [&plan.vdb_path(), &plan.ktx2, &plan.exr_atlas, &plan.godot];
+    let bake_targets = [&plan.vdb_path(), &plan.nvdb, &plan.ktx2, &plan.exr_atlas, &plan.godot];
     if plan.settings.bake_light.is_some() && bake_targets.iter().all(|t| t.is_none()) {
         return Err(
-            "--bake-light writes the emission into volume files: give --vdb, --usd, --ktx2, --exr-atlas or --godot"
+            "--bake-light writes the emission into volume files: give --vdb, --nvdb, --usd, --ktx2, --exr-atlas or --godot"
                 .into(),
         );
     }
@@ -433,6 +440,23 @@ fn summarize(
             serde_json::json!({"path": path, "bytes": stats.bytes, "grids": grids_json, "ms": ms}),
         );
         notes.push(format!("wrote {} ({} bytes, {} grids, {frame})", path.display(), stats.bytes, stats.grids.len()));
+    }
+    if let Some((path, stats, ms)) = &written.nvdb {
+        let grids_json: Vec<_> = stats
+            .grids
+            .iter()
+            .map(|g| serde_json::json!({"name": g.name, "active_voxels": g.active_voxels, "leaves": g.leaves, "tiles": g.tiles, "bytes": g.bytes}))
+            .collect();
+        summary.insert(
+            "nvdb".into(),
+            serde_json::json!({"path": path, "bytes": stats.bytes, "grids": grids_json, "ms": ms}),
+        );
+        notes.push(format!(
+            "wrote {} (NanoVDB, {} bytes, {} grids, {frame})",
+            path.display(),
+            stats.bytes,
+            stats.grids.len()
+        ));
     }
     if let Some(usd) = &written.usd {
         summary.insert(

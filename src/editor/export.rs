@@ -190,7 +190,7 @@ fn options(ui: &mut egui::Ui, c: &mut ExportChoices, size: [u32; 2], lights: usi
                 c.preset = None;
             }
         }
-        if c.format.writes_vdb() {
+        if c.format.writes_grids() {
             ui.label("grids");
             ui.horizontal(|ui| {
                 ui.checkbox(&mut s.grids.density, "density grid")
@@ -203,18 +203,23 @@ fn options(ui: &mut egui::Ui, c: &mut ExportChoices, size: [u32; 2], lights: usi
             ui.end_row();
             ui.label("values");
             ui.horizontal(|ui| {
-                ui.checkbox(&mut s.half, "half floats").on_hover_text("16-bit values (as OpenVDB's saveFloatAsHalf)");
+                if c.format.writes_vdb() {
+                    ui.checkbox(&mut s.half, "half floats")
+                        .on_hover_text("16-bit values (as OpenVDB's saveFloatAsHalf)");
+                }
                 ui.label("threshold");
                 ui.add(egui::DragValue::new(&mut s.threshold).speed(0.001).range(0.0..=f32::MAX))
                     .on_hover_text("Voxels within this of the background are inactive and read back as the background");
             });
             ui.end_row();
-            ui.label("compression");
-            ui.horizontal(|ui| {
-                ui.radio_value(&mut s.compression, VdbCompression::Zip, "zip");
-                ui.radio_value(&mut s.compression, VdbCompression::None, "none");
-            });
-            ui.end_row();
+            if c.format.writes_vdb() {
+                ui.label("compression");
+                ui.horizontal(|ui| {
+                    ui.radio_value(&mut s.compression, VdbCompression::Zip, "zip");
+                    ui.radio_value(&mut s.compression, VdbCompression::None, "none");
+                });
+                ui.end_row();
+            }
         }
         if c.format.can_bake_light() {
             ui.label("lighting");

@@ -16,6 +16,8 @@ pub enum ExportFormat {
     /// Density and per-light grids as OpenVDB.
     #[default]
     Vdb,
+    /// The same grids as NanoVDB.
+    Nvdb,
     /// A `.usda` stage referring to a VDB beside it.
     Usd,
     /// The extinction as a KTX2 3D texture plus a Bevy `FogVolume` snippet.
@@ -39,8 +41,9 @@ pub enum ImageFormat {
 }
 
 impl ExportFormat {
-    pub const ALL: [ExportFormat; 6] = [
+    pub const ALL: [ExportFormat; 7] = [
         ExportFormat::Vdb,
+        ExportFormat::Nvdb,
         ExportFormat::Usd,
         ExportFormat::Ktx2,
         ExportFormat::ExrAtlas,
@@ -51,6 +54,7 @@ impl ExportFormat {
     pub fn label(self) -> &'static str {
         match self {
             ExportFormat::Vdb => "OpenVDB (.vdb)",
+            ExportFormat::Nvdb => "NanoVDB (.nvdb)",
             ExportFormat::Usd => "USD stage (.usda + .vdb)",
             ExportFormat::Ktx2 => "KTX2 texture (.ktx2 + .fogvolume.ron)",
             ExportFormat::ExrAtlas => "EXR atlas (.exr)",
@@ -62,6 +66,7 @@ impl ExportFormat {
     pub fn description(self) -> &'static str {
         match self {
             ExportFormat::Vdb => "The extinction as a fog-volume grid and each light's optical depth, for Houdini, Blender and engines",
+            ExportFormat::Nvdb => "The same grids as NanoVDB (32-bit floats, uncompressed), for renderers and engines that load NanoVDB",
             ExportFormat::Usd => "The scene as an OpenUSD stage (fog volume, lights, camera, surfaces); its volume's fields are the grids of a VDB written beside it",
             ExportFormat::Ktx2 => "The extinction as a 3D texture for game engines, and a matching Bevy FogVolume (always Y-up, metres)",
             ExportFormat::ExrAtlas => "The extinction's z-slices tiled in one 2D image; the tile layout is in the header",
@@ -72,17 +77,25 @@ impl ExportFormat {
 
     /// The axes and units apply (the VDB transform, the USD stage, the atlas header).
     pub fn uses_frame(self) -> bool {
-        matches!(self, ExportFormat::Vdb | ExportFormat::Usd | ExportFormat::ExrAtlas)
+        matches!(self, ExportFormat::Vdb | ExportFormat::Nvdb | ExportFormat::Usd | ExportFormat::ExrAtlas)
+    }
+
+    /// Whether the format can hold the light bake (volume files).
+    pub fn can_bake_light(self) -> bool {
+        matches!(
+            self,
+            ExportFormat::Vdb | ExportFormat::Nvdb | ExportFormat::Usd | ExportFormat::Ktx2 | ExportFormat::ExrAtlas
+        )
     }
 
     /// A VDB is written, with its grid options.
-    /// Whether the format can hold the light bake (volume files).
-    pub fn can_bake_light(self) -> bool {
-        matches!(self, ExportFormat::Vdb | ExportFormat::Usd | ExportFormat::Ktx2 | ExportFormat::ExrAtlas)
-    }
-
     pub fn writes_vdb(self) -> bool {
         matches!(self, ExportFormat::Vdb | ExportFormat::Usd)
+    }
+
+    /// The VDB's grids are written (as OpenVDB or NanoVDB), with their selection and threshold.
+    pub fn writes_grids(self) -> bool {
+        self.writes_vdb() || self == ExportFormat::Nvdb
     }
 }
 
@@ -113,6 +126,7 @@ impl ExportChoices {
     pub fn extension(&self) -> (&'static str, &'static str) {
         match self.format {
             ExportFormat::Vdb => ("vdb", "OpenVDB"),
+            ExportFormat::Nvdb => ("nvdb", "NanoVDB"),
             ExportFormat::Usd => ("usda", "USD stage"),
             ExportFormat::Ktx2 => ("ktx2", "KTX2 texture"),
             ExportFormat::ExrAtlas | ExportFormat::ExrSlices => ("exr", "OpenEXR"),
@@ -142,6 +156,7 @@ impl ExportChoices {
         let target = Some(path.to_path_buf());
         match self.format {
             ExportFormat::Vdb => plan.vdb = target,
+            ExportFormat::Nvdb => plan.nvdb = target,
             ExportFormat::Usd => plan.usd = target,
             ExportFormat::Ktx2 => plan.ktx2 = target,
             ExportFormat::ExrAtlas => plan.exr_atlas = target,
@@ -178,7 +193,7 @@ impl ExportChoices {
             }
         }
         let g = self.settings.grids;
-        if self.format.writes_vdb() {
+        if self.format.writes_grids() {
             if !(g.density || g.optical_depth || g.transmittance) {
                 out.push("No grid is ticked: tick at least one under Grids.".into());
             } else if !g.density && project.lights.is_empty() {
@@ -235,6 +250,7 @@ pub(crate) fn sequence_plans(plan: &ExportPlan, frames: &[i32]) -> Vec<ExportPla
         .iter()
         .map(|&f| ExportPlan {
             vdb: at(&vdb, f),
+            nvdb: at(&plan.nvdb, f),
             usd: None,
             ktx2: at(&plan.ktx2, f),
             exr_render: at(&plan.exr_render, f),

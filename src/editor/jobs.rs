@@ -440,7 +440,7 @@ fn bake_sequence(
 /// What an export wrote, for the message that says it is done.
 fn summary(w: &Written) -> String {
     let mut parts = Vec::new();
-    if let Some((_, stats, _)) = &w.vdb {
+    for (_, stats, _) in w.vdb.iter().chain(&w.nvdb) {
         parts.push(format!("{} grids, {} bytes", stats.grids.len(), stats.bytes));
     }
     if let Some(usd) = &w.usd {

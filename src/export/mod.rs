@@ -7,6 +7,8 @@
 //! - [`vdb`]: a small OpenVDB writer (file format 224, as OpenVDB 10 writes it) for the
 //!   extinction grid (`density`) and one optical-depth grid per light (`optical_depth_<i>`,
 //!   optionally `transmittance_<i>`), sparse, float or half, uncompressed or zip.
+//! - [`nanovdb`]: the same grids as a NanoVDB file (version 32.4, uncompressed), for renderers
+//!   and engines that load NanoVDB without OpenVDB.
 //! - [`vdb_read`]: our own reader for the subset of OpenVDB files an artist imports as fog:
 //!   float/half `FloatGrid`s, uncompressed, zip or blosc (lz4), tiles, several grids per file;
 //!   it refuses everything else with a message, never panics and bounds every allocation.
@@ -31,6 +33,7 @@ pub mod frame;
 pub mod godot;
 pub mod image;
 pub mod ktx;
+pub mod nanovdb;
 pub mod plan;
 pub mod sequence;
 pub mod staged;

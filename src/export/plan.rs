@@ -9,6 +9,7 @@
 use super::exr::{write_atlas_exr_in_frame, write_baked_atlas_exr, write_render_exr, write_slices_exr, AtlasLayout};
 use super::frame::{Frame, Handedness};
 use super::ktx::{baked_texture_note, fog_volume_snippet, write_baked_ktx2, write_ktx2, Ktx2Format, Ktx2Info};
+use super::nanovdb::write_nanovdb_with_progress;
 use super::sequence::FrameTime;
 use super::usd::{asset_path, write_usd, UsdField, UsdOptions};
 use super::vdb::{
@@ -59,6 +60,8 @@ impl Default for ExportSettings {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ExportPlan {
     pub vdb: Option<PathBuf>,
+    /// The VDB's grids as a NanoVDB file (always 32-bit floats, uncompressed).
+    pub nvdb: Option<PathBuf>,
     pub usd: Option<PathBuf>,
     /// The KTX2 texture; its Bevy snippet goes beside it as `NAME.fogvolume.ron`.
     pub ktx2: Option<PathBuf>,
@@ -129,6 +132,8 @@ pub struct Written {
     pub vdb: Option<(PathBuf, VdbStats, f64)>,
     /// The VDB's grids as the fields of a USD volume.
     pub vdb_fields: Vec<UsdField>,
+    /// The NanoVDB file, its stats and milliseconds taken.
+    pub nvdb: Option<(PathBuf, VdbStats, f64)>,
     pub usd: Option<WrittenUsd>,
     /// The texture, what it holds, and its snippet's path.
     pub ktx2: Option<(PathBuf, Ktx2Info, PathBuf)>,
@@ -156,6 +161,7 @@ impl ExportPlan {
     /// No target given.
     pub fn is_empty(&self) -> bool {
         self.vdb.is_none()
+            && self.nvdb.is_none()
             && self.usd.is_none()
             && self.ktx2.is_none()
             && self.exr_render.is_none()
@@ -183,6 +189,7 @@ impl ExportPlan {
     /// Whether a target needs the baked volumes.
     pub fn needs_volumes(&self) -> bool {
         self.vdb.is_some()
+            || self.nvdb.is_some()
             || self.usd.is_some()
             || self.ktx2.is_some()
             || self.exr_slices.is_some()
@@ -201,7 +208,8 @@ impl ExportPlan {
 
     /// Every file the plan writes, in the order written.
     pub fn files(&self) -> Vec<PathBuf> {
-        let mut out: Vec<PathBuf> = self.vdb_path().into_iter().chain(self.usd.clone()).collect();
+        let mut out: Vec<PathBuf> =
+            self.vdb_path().into_iter().chain(self.nvdb.clone()).chain(self.usd.clone()).collect();
         if let Some(k) = &self.ktx2 {
             out.extend([k.clone(), Self::ktx2_snippet(k)]);
         }
@@ -271,9 +279,8 @@ pub fn write_plan(
     plan.create_folders().map_err(ExportRunError::Failed)?;
 
     let mut fields = Vec::new();
-    if let Some(path) = &vdb_path {
+    if vdb_path.is_some() || plan.nvdb.is_some() {
         let (ev, opvs) = volumes()?;
-        let t = Instant::now();
         let infos = light_infos(project);
         let lights: Vec<_> = opvs.iter().zip(&infos).map(|(v, l)| (v, l.in_frame(&frame))).collect();
         let mut grids = grids_from_volumes(ev, &lights, s.grids);
@@ -290,17 +297,31 @@ pub fn write_plan(
             medium: Some((project.medium.albedo, project.medium.anisotropy)),
             ..VdbOptions::default()
         };
-        check()?;
-        let stats = staged
-            .write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| steps.report("write VDB", f)))
-            .map_err(ExportRunError::Failed)?;
-        steps.finished(1.0);
-        fields = grids
-            .iter()
-            .map(|g| UsdField { name: g.name.clone(), density: g.name == "density", vector: g.components == 3 })
-            .collect();
-        written.vdb = Some((path.clone(), stats, t.elapsed().as_secs_f64() * 1e3));
-        written.vdb_fields = fields.clone();
+        if let Some(path) = &vdb_path {
+            let t = Instant::now();
+            check()?;
+            let stats = staged
+                .write(path, |p| write_vdb_with_progress(p, &grids, &opts, &mut |f| steps.report("write VDB", f)))
+                .map_err(ExportRunError::Failed)?;
+            steps.finished(1.0);
+            fields = grids
+                .iter()
+                .map(|g| UsdField { name: g.name.clone(), density: g.name == "density", vector: g.components == 3 })
+                .collect();
+            written.vdb = Some((path.clone(), stats, t.elapsed().as_secs_f64() * 1e3));
+            written.vdb_fields = fields.clone();
+        }
+        if let Some(path) = &plan.nvdb {
+            let t = Instant::now();
+            check()?;
+            let stats = staged
+                .write(path, |p| {
+                    write_nanovdb_with_progress(p, &grids, &opts, &mut |f| steps.report("write NanoVDB", f))
+                })
+                .map_err(ExportRunError::Failed)?;
+            steps.finished(1.0);
+            written.nvdb = Some((path.clone(), stats, t.elapsed().as_secs_f64() * 1e3));
+        }
     }
     if let (Some(path), Some(vdb)) = (&plan.usd, &vdb_path) {
         let opts = UsdOptions {

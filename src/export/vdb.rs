@@ -378,6 +378,54 @@ fn encode_vdb_with_progress(
     opts: &VdbOptions,
     progress: &mut dyn FnMut(f32),
 ) -> Result<(Vec<u8>, VdbStats), ExportError> {
+    check_grids(path, grids, opts)?;
+
+    let mut out = Vec::new();
+    out.extend_from_slice(&VDB_MAGIC.to_le_bytes());
+    put_u32(&mut out, VDB_FILE_VERSION);
+    put_u32(&mut out, 10);
+    put_u32(&mut out, 0);
+    out.push(1); // grid offsets follow each descriptor
+    let uuid_at = out.len();
+    // Filled in from the content once the file is encoded.
+    out.extend_from_slice(&[b'0'; 36]);
+    // File-level metadata, sorted by name.
+    let mut file_meta: BTreeMap<&str, MetaValue> = frame_metadata(opts).into_iter().collect();
+    file_meta.insert("creator", MetaValue::String("fogsmith".into()));
+    if let Some((albedo, anisotropy)) = opts.medium {
+        file_meta.insert("fogsmith_albedo", MetaValue::Float(albedo));
+        file_meta.insert("fogsmith_anisotropy", MetaValue::Float(anisotropy));
+    }
+    put_u32(&mut out, file_meta.len() as u32);
+    for (k, v) in &file_meta {
+        put_meta(&mut out, k, v);
+    }
+    put_u32(&mut out, grids.len() as u32);
+
+    let mut stats = VdbStats::default();
+    // Progress counts 8-cell slabs of z, over all grids.
+    let total: u64 = grids.iter().map(|g| g.spec.resolution.z.div_ceil(8) as u64).sum::<u64>().max(1);
+    let mut done = 0u64;
+    for g in grids {
+        let start = out.len();
+        let mut tick = || {
+            done += 1;
+            progress(done as f32 / total as f32 * 0.99);
+        };
+        let mut s = encode_grid(&mut out, g, opts, &mut tick);
+        s.bytes = (out.len() - start) as u64;
+        stats.grids.push(s);
+    }
+    stats.bytes = out.len() as u64;
+    let uuid = content_uuid(&out[uuid_at + 36..]);
+    out[uuid_at..uuid_at + 36].copy_from_slice(uuid.as_bytes());
+    Ok((out, stats))
+}
+
+/// Refuses what no grid file can hold: a negative threshold, unnamed or duplicate grids, values
+/// that do not match the grid, boxes without volume, indices beyond 2³⁰, and (for half
+/// floats) values beyond half precision.
+pub(super) fn check_grids(path: &Path, grids: &[VdbGrid], opts: &VdbOptions) -> Result<(), ExportError> {
     if opts.threshold.is_nan() || opts.threshold < 0.0 {
         return Err(ExportError::invalid(
             path,
@@ -440,84 +488,44 @@ fn encode_vdb_with_progress(
             ));
         }
     }
-
-    let mut out = Vec::new();
-    out.extend_from_slice(&VDB_MAGIC.to_le_bytes());
-    put_u32(&mut out, VDB_FILE_VERSION);
-    put_u32(&mut out, 10);
-    put_u32(&mut out, 0);
-    out.push(1); // grid offsets follow each descriptor
-    let uuid_at = out.len();
-    // Filled in from the content once the file is encoded.
-    out.extend_from_slice(&[b'0'; 36]);
-    // File-level metadata, sorted by name.
-    let mut file_meta: BTreeMap<&str, MetaValue> = frame_metadata(opts).into_iter().collect();
-    file_meta.insert("creator", MetaValue::String("fogsmith".into()));
-    if let Some((albedo, anisotropy)) = opts.medium {
-        file_meta.insert("fogsmith_albedo", MetaValue::Float(albedo));
-        file_meta.insert("fogsmith_anisotropy", MetaValue::Float(anisotropy));
-    }
-    put_u32(&mut out, file_meta.len() as u32);
-    for (k, v) in &file_meta {
-        put_meta(&mut out, k, v);
-    }
-    put_u32(&mut out, grids.len() as u32);
-
-    let mut stats = VdbStats::default();
-    // Progress counts 8-cell slabs of z, over all grids.
-    let total: u64 = grids.iter().map(|g| g.spec.resolution.z.div_ceil(8) as u64).sum::<u64>().max(1);
-    let mut done = 0u64;
-    for g in grids {
-        let start = out.len();
-        let mut tick = || {
-            done += 1;
-            progress(done as f32 / total as f32 * 0.99);
-        };
-        let mut s = encode_grid(&mut out, g, opts, &mut tick);
-        s.bytes = (out.len() - start) as u64;
-        stats.grids.push(s);
-    }
-    stats.bytes = out.len() as u64;
-    let uuid = content_uuid(&out[uuid_at + 36..]);
-    out[uuid_at..uuid_at + 36].copy_from_slice(uuid.as_bytes());
-    Ok((out, stats))
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------
 // Tree construction
 
-const LEAF_VOXELS: usize = 512;
+pub(super) const LEAF_VOXELS: usize = 512;
 
-struct Leaf {
-    mask: [u64; 8],
+pub(super) struct Leaf {
+    pub(super) mask: [u64; 8],
     /// `LEAF_VOXELS` voxels of the grid's components each.
-    values: Vec<f32>,
+    pub(super) values: Vec<f32>,
 }
 
 #[derive(Default)]
-struct Node4 {
+pub(super) struct Node4 {
     /// Child index (z fastest, 16³) → leaf.
-    leaves: BTreeMap<u32, Leaf>,
+    pub(super) leaves: BTreeMap<u32, Leaf>,
     /// Child index → active constant tile value (the grid's components).
-    tiles: BTreeMap<u32, Vec<f32>>,
+    pub(super) tiles: BTreeMap<u32, Vec<f32>>,
 }
 
 #[derive(Default)]
-struct Node5 {
+pub(super) struct Node5 {
     /// Child index (z fastest, 32³) → 16³ node.
-    children: BTreeMap<u32, Node4>,
+    pub(super) children: BTreeMap<u32, Node4>,
 }
 
-struct Tree {
+pub(super) struct Tree {
     /// Root children by origin (multiples of 4096), in OpenVDB's (x, y, z) order.
-    roots: BTreeMap<[i32; 3], Node5>,
-    active: u64,
-    leaves: u64,
-    tiles: u64,
-    bbox: Option<([i32; 3], [i32; 3])>,
+    pub(super) roots: BTreeMap<[i32; 3], Node5>,
+    pub(super) active: u64,
+    pub(super) leaves: u64,
+    pub(super) tiles: u64,
+    pub(super) bbox: Option<([i32; 3], [i32; 3])>,
 }
 
-fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
+pub(super) fn build_tree(g: &VdbGrid, opts: &VdbOptions, tick: &mut dyn FnMut()) -> Tree {
     let r = g.spec.resolution;
     let (nx, ny, nz) = (r.x as i32, r.y as i32, r.z as i32);
     let mut tree = Tree { roots: BTreeMap::new(), active: 0, leaves: 0, tiles: 0, bbox: None };

@@ -82,15 +82,16 @@ pub fn file_state(path: &Path) -> FileState {
     }
 }
 
-/// Parses the file by its extension: every grid of a VDB (float and vec3s, float or half),
-/// every layer of an EXR (its header's sizes checked against the file first), a KTX2's
-/// header and level index, a PNG's pixels, a USD stage's text.
+/// Parses the file by its extension: every grid of a VDB (float and vec3s, float or half), a
+/// NanoVDB file's segments and grid headers, every layer of an EXR (its header's sizes checked
+/// against the file first), a KTX2's header and level index, a PNG's pixels, a USD stage's text.
 fn read_back(path: &Path, bytes: &[u8]) -> Result<(), String> {
     if bytes.is_empty() {
         return Err("the file is empty".into());
     }
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("vdb") => crate::export::vdb_read::check_vdb_bytes(path, bytes).map_err(|e| e.to_string()),
+        Some("nvdb") => crate::export::nanovdb::check_nanovdb_bytes(bytes),
         Some("exr") => crate::export::exr_read::read_exr_back(bytes),
         Some("ktx2") => check_ktx2(bytes),
         Some("png") => image::load_from_memory(bytes).map(drop).map_err(|e| e.to_string()),
