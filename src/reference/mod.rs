@@ -609,9 +609,11 @@ mod timings {
     use super::*;
     use std::time::Instant;
 
-    /// `cargo test --lib reference::timings -- --ignored --nocapture`: rough costs on the demos.
+    /// `cargo test --release --lib demo_project_timings -- --ignored --nocapture`: the
+    /// reference's costs on the demos, and its fixed-step march against the adaptive
+    /// integral at a few pixels.
     #[test]
-    #[ignore]
+    #[ignore = "prints the reference's costs on the demos (minutes on two cores); run by hand"]
     fn demo_project_timings() {
         for name in ["cloud", "cornell", "street", "room"] {
             let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("projects/{name}.ron"));
@@ -638,6 +640,8 @@ mod timings {
             }
             println!("{name}: default step {:.2e} m, march vs adaptive max rel {worst:.2e}", default_step(&project));
             let mean_l = image.iter().map(|p| p[0]).sum::<f64>() / image.len() as f64;
+            assert!(max_t.is_finite() && mean_l.is_finite() && mean_l >= 0.0, "{name}: T {max_t}, mean R {mean_l}");
+            assert!(worst.is_finite(), "{name}: the march against the adaptive integral gave {worst}");
             println!(
                 "{name}: OPV {} cells in {opv_s:.2} s (max T {max_t:.2}); reference 32x18 in {render_s:.2} s (mean R {mean_l:.3e}); {} threads",
                 opv.len(),
