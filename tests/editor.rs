@@ -1395,18 +1395,36 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let plane = working_plane_point(&project, &vp, pos).unwrap();
     assert!((plane - expected).length() > 0.05, "the fog depth differs from the working plane here");
 
-    // A ray through no fog (outside the grid box) falls back to the working plane.
+    // A ray through the box that meets too little fog falls back to the working plane (moved
+    // along the ray into the box where the plane lies outside it).
+    let ev = read_ev(&h);
+    let thin = (0..40)
+        .flat_map(|i| (0..24).map(move |j| rect.lerp_inside(Vec2::new(i as f32 / 39.0, j as f32 / 23.0))))
+        .find(|&q| {
+            fogsmith::editor::tools::into_grid_along_ray(&g, vp.position, vp.ray(q), vp.position).is_some()
+                && fog_depth_point(&ev, vp.position, vp.ray(q), FOG_DEPTH_TAU).is_none()
+        })
+        .expect("a pixel whose ray crosses the box through thin fog");
+    let n = h.state().session().project().particles.len();
+    h.event(Event::PointerMoved(thin));
+    h.step();
+    h.press(thin, PointerButton::Primary, true);
+    h.press(thin, PointerButton::Primary, false);
+    h.run_steps(2);
+    let fallback = h.state().session().project().particles[n].center;
+    let plane_point = working_plane_point(&project, &vp, thin).unwrap();
+    let want = fogsmith::editor::tools::into_grid_along_ray(&g, vp.position, vp.ray(thin), plane_point).unwrap();
+    assert!((fallback - want).length() < 1e-3, "thin fog: the working plane ({fallback:?} vs {want:?})");
+    // A ray that misses the box paints nothing.
     let corner = rect.min + Vec2::new(6.0, 6.0);
-    assert!(fog_depth_point(&read_ev(&h), vp.position, vp.ray(corner), FOG_DEPTH_TAU).is_none());
+    assert!(fogsmith::editor::tools::into_grid_along_ray(&g, vp.position, vp.ray(corner), vp.position).is_none());
     let n = h.state().session().project().particles.len();
     h.event(Event::PointerMoved(corner));
     h.step();
     h.press(corner, PointerButton::Primary, true);
     h.press(corner, PointerButton::Primary, false);
     h.run_steps(2);
-    let fallback = h.state().session().project().particles[n].center;
-    let plane_corner = working_plane_point(&project, &vp, corner).unwrap();
-    assert!((fallback - plane_corner).length() < 1e-3, "no fog: the working plane ({fallback:?} vs {plane_corner:?})");
+    assert_eq!(h.state().session().project().particles.len(), n, "nothing painted outside the grid box");
 
     // The working plane as the artist's choice.
     h.state_mut().brush_mut().depth = PaintDepth::Plane;

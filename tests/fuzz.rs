@@ -212,6 +212,21 @@ fn vdb_target(dir: PathBuf) -> Target {
     }
 }
 
+/// The farm's structural check of a NanoVDB file (a resume's test for files without a
+/// checksum sidecar), on files the writer makes: a damaged file must be told damaged.
+fn nvdb_target(dir: PathBuf) -> Target {
+    let (d, e) = volumes();
+    let grids = [VdbGrid::from_volume("density", &d), VdbGrid::from_volume3("emission", &e)];
+    let (bytes, _) =
+        fogsmith::export::nanovdb::encode_nanovdb(Path::new("bake.nvdb"), &grids, &VdbOptions::default()).unwrap();
+    let (one, _) =
+        fogsmith::export::nanovdb::encode_nanovdb(Path::new("fog.nvdb"), &grids[..1], &VdbOptions::default()).unwrap();
+    Target {
+        seeds: vec![("bake.nvdb".into(), bytes), ("fog.nvdb".into(), one)],
+        ..file_state_target("nvdb", "nvdb", dir)
+    }
+}
+
 fn file_state_target(name: &'static str, ext: &'static str, dir: PathBuf) -> Target {
     let path = dir.join(format!("case.{ext}"));
     Target {
@@ -496,6 +511,7 @@ fn every_reader_survives_mutated_files() {
         sidecar_target(),
         file_state_target("exr", "exr", sub("exr")),
         file_state_target("ktx2", "ktx2", sub("ktx2")),
+        nvdb_target(sub("nvdb")),
         farm_json_target(),
     ];
     let failures_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/fuzz-failures");

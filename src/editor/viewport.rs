@@ -14,6 +14,7 @@ use glam::Vec3;
 
 pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     toolbar(state, ui);
+    grid_warning(state, ui);
     let rect = ui.available_rect_before_wrap();
     if rect.width() < 8.0 || rect.height() < 8.0 {
         return;
@@ -56,7 +57,6 @@ pub(crate) fn show(state: &mut EditorState, ui: &mut Ui) {
     overlays::overlays(state, &painter, rect, response.hover_pos());
     overlays::motion_paths(state, &painter, rect);
     overlays::gizmo_overlay(state, &painter, rect, response.hover_pos().or(ui.input(|i| i.pointer.latest_pos())));
-    grid_warning(state, ui, rect);
 }
 
 /// A message over the lower part of the viewport, wrapped to its width on a dark backing, so
@@ -70,10 +70,11 @@ fn viewport_message(painter: &egui::Painter, rect: Rect, text: &str, colour: Col
     painter.galley(at, galley, colour);
 }
 
-/// A warning while particles reach outside the grid box, with "Fit grid to particles": it
-/// floats over the top of the viewport, so its coming and going moves nothing under the
-/// pointer.
-fn grid_warning(state: &mut EditorState, ui: &mut Ui, rect: Rect) {
+/// The row above the viewport that warns while particles reach outside the grid box, with
+/// "Fit grid to particles". The row is always there (empty while nothing crosses), so the
+/// warning's coming and going moves nothing under the pointer, and it covers no part of the
+/// viewport.
+fn grid_warning(state: &mut EditorState, ui: &mut Ui) {
     thread_local! {
         /// The count for one state of the project and its particles then: counting visits
         /// every particle, so a stroke's dabs are counted on their own.
@@ -93,40 +94,41 @@ fn grid_warning(state: &mut EditorState, ui: &mut Ui, rect: Rect) {
             n
         }
     };
-    if crossing == 0 {
-        return;
-    }
-    let area = egui::Area::new(ui.id().with("grid-warning"))
-        .order(egui::Order::Middle)
-        .fixed_pos(rect.min + egui::vec2(8.0, 8.0))
-        .constrain_to(rect);
-    area.show(ui.ctx(), |ui| {
-        egui::Frame::popup(ui.style()).show(ui, |ui| {
-            ui.set_max_width((rect.width() - 40.0).max(120.0));
+    let height = ui.spacing().interact_size.y;
+    let size = egui::vec2(ui.available_width(), height);
+    ui.allocate_ui_with_layout(size, egui::Layout::left_to_right(egui::Align::Center), |ui| {
+        ui.set_min_size(size);
+        if crossing > 0 {
             grid_warning_row(state, ui, crossing);
-        })
+        }
     });
 }
 
 fn grid_warning_row(state: &mut EditorState, ui: &mut Ui, crossing: usize) {
-    ui.horizontal_wrapped(|ui| {
-        let text = format!(
-            "⚠ {crossing} particle{} reach{} outside the grid box: their fog is cut off at its faces",
-            if crossing == 1 { "" } else { "s" },
-            if crossing == 1 { "es" } else { "" }
-        );
-        ui.colored_label(ui.visuals().warn_fg_color, text).on_hover_text(format!(
-            "A particle crosses the box when the ball where its extinction exceeds {} % of its peak (radius ≈ {:.2} r) is not inside the box",
-            crate::scene::SUPPORT_FRACTION * 100.0,
-            (1.0 / crate::scene::SUPPORT_FRACTION).ln().sqrt()
-        ));
-        let keep = &mut state.view.fit_keep;
-        ui.selectable_value(keep, FitKeep::CellSize, "keep cell size").on_hover_text("The resolution follows the new box");
-        ui.selectable_value(keep, FitKeep::Resolution, "keep resolution").on_hover_text("The cells stretch with the new box");
-        if ui.button("Fit grid to particles").on_hover_text("Resize the grid box to hold every visible particle (one undo step)").clicked() {
-            fit_grid(state);
-        }
-    });
+    // The buttons first, so that a narrow viewport cuts the text short, not them.
+    if ui
+        .button("Fit grid to particles")
+        .on_hover_text("Resize the grid box to hold every visible particle (one undo step)")
+        .clicked()
+    {
+        fit_grid(state);
+    }
+    let keep = &mut state.view.fit_keep;
+    ui.selectable_value(keep, FitKeep::CellSize, "keep cell size").on_hover_text("The resolution follows the new box");
+    ui.selectable_value(keep, FitKeep::Resolution, "keep resolution")
+        .on_hover_text("The cells stretch with the new box");
+    let text = format!(
+        "⚠ {crossing} particle{} reach{} outside the grid box: their fog is cut off at its faces",
+        if crossing == 1 { "" } else { "s" },
+        if crossing == 1 { "es" } else { "" }
+    );
+    let tip = format!(
+        "A particle crosses the box when the ball where its extinction exceeds {} % of its peak (radius ≈ {:.2} r) is not inside the box",
+        crate::scene::SUPPORT_FRACTION * 100.0,
+        (1.0 / crate::scene::SUPPORT_FRACTION).ln().sqrt()
+    );
+    let label = egui::Label::new(egui::RichText::new(text).color(ui.visuals().warn_fg_color)).truncate();
+    ui.add(label).on_hover_text(tip);
 }
 
 /// Resizes the grid box to the visible particles, as one undo step.
