@@ -75,6 +75,16 @@ struct MarchParams {
     // their code inside the point lights' loop slows every sample.
     sun_count: u32,
     col_offset: u32,
+    // Image-space sampling (main_list): rays [list_offset, list_end) of the lattice of this
+    // stride (stride 0: of the list in `work`), into the padded image.
+    list_offset: u32,
+    list_end: u32,
+    lattice_stride: u32,
+    padded_width: u32,
+    padded_height: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // kind SURFACE_BOX: an axis-aligned box [min, max]; SURFACE_GROUND: the plane y = min.y, facing +y.
@@ -558,6 +568,8 @@ fn march_grid(o: vec3f, dir: vec3f, t0: f32, t1: f32) {
 
 struct Hit {
     t: f32,
+    // Index of the surface hit (NO_SURFACE for none).
+    surface: u32,
     normal: vec3f,
     albedo: vec3f,
     specular: f32,
@@ -567,6 +579,7 @@ struct Hit {
 fn first_surface(o: vec3f, dir: vec3f) -> Hit {
     var hit: Hit;
     hit.t = 3.4e38;
+    hit.surface = NO_SURFACE;
     for (var i = 0u; i < params.surface_count; i++) {
         let s = surfaces[i];
         if s.kind == SURFACE_GROUND {
@@ -574,6 +587,7 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
                 let t = (s.min.y - o.y) / dir.y;
                 if t < hit.t {
                     hit.t = t;
+                    hit.surface = i;
                     hit.normal = vec3f(0.0, 1.0, 0.0);
                     hit.albedo = s.albedo;
                     hit.specular = s.specular;
@@ -588,6 +602,7 @@ fn first_surface(o: vec3f, dir: vec3f) -> Hit {
             let t_out = min(tf.x, min(tf.y, tf.z));
             if t_in > 0.0 && t_in <= t_out && t_in < hit.t {
                 hit.t = t_in;
+                hit.surface = i;
                 hit.albedo = s.albedo;
                 hit.specular = s.specular;
                 hit.phong_exponent = s.phong_exponent;
@@ -836,13 +851,11 @@ fn camera_ray(px: vec2u) -> vec3f {
     return normalize(params.forward + params.right * sx + params.up * sy);
 }
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
-fn main(@builtin(global_invocation_id) gid: vec3u) {
-    let id = gid + vec3u(params.col_offset, params.row_offset, 0u);
-    if any(id.xy >= params.size) {
-        return;
-    }
-    let dir = camera_ray(id.xy);
+// The radiance (rgb) and opacity 1 − Tr (a) of the camera ray through pixel `px`, the first
+// surface's shading included where `surface`; adds its samples, skipped bricks, termination
+// and the ray itself to the counters.
+fn march_ray(px: vec2u, surface: bool) -> vec4f {
+    let dir = camera_ray(px);
     let o = params.origin;
 
     radiance = vec3f(0.0);
@@ -869,7 +882,7 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     } else if fog {
         fog_segment(o, dir, 0.0, min(params.far_distance, hit.t));
     }
-    if hit.t < 3.4e38 && transmittance >= params.tr_cutoff {
+    if surface && hit.t < 3.4e38 && transmittance >= params.tr_cutoff {
         let x = o + dir * hit.t;
         radiance += transmittance * shade_surface(x, hit, dir);
     }
@@ -878,6 +891,97 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     atomicAdd(&counters[0], samples);
     atomicAdd(&counters[1], skipped);
     atomicAdd(&counters[2], terminated);
-    textureStore(out_hdr, id.xy, vec4f(radiance, 1.0 - transmittance));
-    textureStore(out_ldr, id.xy, vec4f(tonemap(radiance), 1.0));
+    atomicAdd(&counters[3], 1u);
+    return vec4f(radiance, 1.0 - transmittance);
+}
+
+// Per-pixel sampling: one ray per pixel of the band, straight into the image.
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
+fn main(@builtin(global_invocation_id) gid: vec3u) {
+    let id = gid + vec3u(params.col_offset, params.row_offset, 0u);
+    if any(id.xy >= params.size) {
+        return;
+    }
+    let v = march_ray(id.xy, true);
+    textureStore(out_hdr, id.xy, v);
+    textureStore(out_ldr, id.xy, vec4f(tonemap(v.rgb), 1.0));
+}
+
+// Image-space sampling (src/gpu/image_sampling.rs, shaders/image_refine.wgsl): rays of a
+// lattice and of the lists refinement gathers go into `image_samples`, over an image padded right and
+// below to a whole number of lattice cells (padding pixels are real rays, just off screen);
+// refinement interpolates the rest, and `resolve` writes the image.
+@group(0) @binding(12) var<storage, read_write> image_samples: array<vec4f>;
+// work[0, padded pixels): each pixel's geometry class (classify); from there on, the ray list
+// (x | y << 16) and refinement's cell flags.
+@group(0) @binding(13) var<storage, read_write> work: array<u32>;
+
+fn padded_index(px: vec2u) -> u32 {
+    return px.y * params.padded_width + px.x;
+}
+
+// What the ray through `px` meets, as a number: neighbours with equal classes see the same
+// face of the same surface (or none) and the same side of the grid box's silhouette, so the
+// fog in front of them can jump only where classes differ.
+fn geometry_class(px: vec2u) -> u32 {
+    let o = params.origin;
+    let dir = camera_ray(px);
+    let hit = first_surface(o, dir);
+    let slabs = ray_slabs(o, safe_inverse(dir), grid.min, grid.max);
+    let t_enter = max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0));
+    let t_exit = min(min(slabs.far.x, slabs.far.y), slabs.far.z);
+    var seen = select(0u, 1u, t_exit > t_enter);
+    if hit.surface != NO_SURFACE {
+        let n = hit.normal;
+        let face = select(select(4u, 2u, n.y != 0.0), 0u, n.x != 0.0) + select(0u, 1u, n.x + n.y + n.z > 0.0);
+        seen |= (1u + hit.surface * 6u + face) << 1u;
+    }
+    return seen;
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
+fn classify(@builtin(global_invocation_id) gid: vec3u) {
+    if gid.x >= params.padded_width || gid.y >= params.padded_height {
+        return;
+    }
+    work[padded_index(gid.xy)] = geometry_class(gid.xy);
+}
+
+// Rays [list_offset, list_end) of a lattice or of the list, each into `samples`.
+@compute @workgroup_size(64, 1, 1)
+fn main_list(@builtin(global_invocation_id) gid: vec3u, @builtin(num_workgroups) groups: vec3u) {
+    let i = params.list_offset + gid.x + gid.y * groups.x * 64u;
+    if i >= params.list_end {
+        return;
+    }
+    var px: vec2u;
+    if params.lattice_stride > 0u {
+        let columns = (params.padded_width - 1u) / params.lattice_stride + 1u;
+        px = vec2u(i % columns, i / columns) * params.lattice_stride;
+    } else {
+        let e = work[params.padded_width * params.padded_height + i];
+        px = vec2u(e & 0xffffu, e >> 16u);
+    }
+    image_samples[padded_index(px)] = march_ray(px, false);
+}
+
+// The image from the samples of the fog, marched or interpolated, and the first surface's
+// shading, every pixel its own: detail on surfaces (shadow edges, highlights, the fog's
+// shadows) stays sharp however coarsely the fog in front of them is sampled.
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D, 1)
+fn resolve(@builtin(global_invocation_id) gid: vec3u) {
+    if any(gid.xy >= params.size) {
+        return;
+    }
+    var v = image_samples[padded_index(gid.xy)];
+    let tr = 1.0 - v.a;
+    if params.surface_count > 0u && tr >= params.tr_cutoff {
+        let dir = camera_ray(gid.xy);
+        let hit = first_surface(params.origin, dir);
+        if hit.t < 3.4e38 {
+            v = vec4f(v.rgb + tr * shade_surface(params.origin + dir * hit.t, hit, dir), v.a);
+        }
+    }
+    textureStore(out_hdr, gid.xy, v);
+    textureStore(out_ldr, gid.xy, vec4f(tonemap(v.rgb), 1.0));
 }

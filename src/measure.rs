@@ -176,3 +176,47 @@ pub fn image_error(image: &Image, reference: &[[f64; 3]]) -> ImageError {
     let rel_rmse = if mean > 0.0 { (sq / n).sqrt() / mean } else { (sq / n).sqrt() };
     ImageError { rel_rmse, max_abs_error: max, nan_or_inf: bad }
 }
+
+/// How far an image is from another of the same size (adaptive sampling against the
+/// per-pixel march): RMS error over the mean radiance, and the 99.9th percentile and the
+/// largest of each pixel's largest channel error, over the reference's largest channel value.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ImageDifference {
+    pub rel_rmse: f64,
+    pub p999_of_max: f64,
+    pub max_of_max: f64,
+    pub nan_or_inf: bool,
+}
+
+pub fn image_difference(image: &Image, reference: &Image) -> ImageDifference {
+    let (mut sq, mut sum, mut peak, mut bad) = (0.0f64, 0.0f64, 0.0f64, false);
+    let mut errors: Vec<f64> = Vec::with_capacity(reference.rgba.len());
+    for (p, r) in image.rgba.iter().zip(&reference.rgba) {
+        let mut worst = 0.0f64;
+        for c in 0..3 {
+            let (v, r) = (p[c] as f64, r[c] as f64);
+            if !v.is_finite() {
+                bad = true;
+                worst = f64::INFINITY;
+                continue;
+            }
+            sq += (v - r) * (v - r);
+            sum += r;
+            peak = peak.max(r);
+            worst = worst.max((v - r).abs());
+        }
+        errors.push(worst);
+    }
+    let n = (reference.rgba.len() * 3).max(1) as f64;
+    let mean = sum / n;
+    let rmse = (sq / n).sqrt();
+    errors.sort_by(f64::total_cmp);
+    let p999 = errors.get(((errors.len() as f64 * 0.999) as usize).min(errors.len().saturating_sub(1))).copied();
+    let of_peak = |e: f64| if peak > 0.0 { e / peak } else { e };
+    ImageDifference {
+        rel_rmse: if mean > 0.0 { rmse / mean } else { rmse },
+        p999_of_max: of_peak(p999.unwrap_or(0.0)),
+        max_of_max: of_peak(errors.last().copied().unwrap_or(0.0)),
+        nan_or_inf: bad,
+    }
+}

@@ -29,6 +29,7 @@ mod bake;
 mod context;
 mod interaction;
 mod plot;
+mod sampling;
 mod scale;
 mod shapes;
 mod suites;
@@ -140,7 +141,11 @@ fn run_suite(
 ) -> Result<(), BenchError> {
     match suite {
         Suite::Opv => suites::opv(ctx, out, log),
-        Suite::March => suites::march(ctx, out, log),
+        Suite::March => {
+            sampling::run(ctx, out, log)?;
+            suites::march(ctx, out, log)
+        }
+        Suite::Sampling => sampling::run(ctx, out, log),
         Suite::Sun => {
             suites::sun(ctx.quick, out, log);
             Ok(())

@@ -106,6 +106,8 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
         Suite::Animation => Ok(()),
         // A few rows per light placement: the text output says it all.
         Suite::Shapes => Ok(()),
+        // Two rows per demo: the text output says it all.
+        Suite::Sampling => Ok(()),
         Suite::Opv => {
             let by_scheme = |r: &Value| Some(format!("{} / {}", text(r, "scene"), text(r, "scheme_or_policy")));
             // The grid's medium is not the scene's: against the gaussians themselves every

@@ -18,7 +18,11 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Suite {
     Opv,
+    /// Image sampling (adaptive against per-pixel, every demo at 842×427 and 1920×1080; see
+    /// `sampling`), then step policies against the reference.
     March,
+    /// The image-sampling part of `march` alone.
+    Sampling,
     Sun,
     Scaling,
     /// Time and memory growth up to a million particles, 256³–384³ grids and 16 lights

@@ -164,6 +164,16 @@ pub struct BakeArgs {
     /// accepts per interpolation (1e-6..=0.1, default 5e-4).
     #[arg(long, value_name = "TOLERANCE")]
     pub sweep_tolerance: Option<f32>,
+    /// How the march chooses its camera rays: `adaptive` (default) marches a lattice of rays
+    /// 8 pixels apart, refines it where neighbouring rays disagree or the geometry changes,
+    /// and interpolates the rest; `per-pixel` marches every pixel, for comparison.
+    #[arg(long, value_name = "SAMPLING")]
+    pub image_sampling: Option<SamplingArg>,
+    /// The adaptive sampling's tolerance: a cell is interpolated where its corner rays differ
+    /// by at most this fraction of their mean radiance plus the image's (0 < t ≤ 1, default
+    /// 0.02).
+    #[arg(long, value_name = "TOLERANCE")]
+    pub image_tolerance: Option<f32>,
     /// Frames of an animated project to bake: 7, 1-120, 1-120x4 (every 4th) or a list such
     /// as 1,5,9-12. With more than one, every output path needs a frame number: ####
     /// (padded to as many digits), %04d or $F4. Without it, an animated project bakes its
@@ -173,6 +183,46 @@ pub struct BakeArgs {
     /// No progress bar on stderr (bars appear only when stderr is a terminal).
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// `--image-sampling`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SamplingArg {
+    /// One ray per pixel.
+    PerPixel,
+    /// A refined lattice of rays, the rest interpolated.
+    Adaptive,
+}
+
+impl BakeArgs {
+    /// The image sampling these arguments ask for.
+    pub fn image_sampling(&self) -> Result<crate::gpu::ImageSampling, String> {
+        sampling_of(self.image_sampling, self.image_tolerance)
+    }
+}
+
+/// The image sampling of `--image-sampling` and `--image-tolerance`.
+pub fn sampling_of(
+    sampling: Option<SamplingArg>,
+    tolerance: Option<f32>,
+) -> Result<crate::gpu::ImageSampling, String> {
+    use crate::gpu::ImageSampling;
+    if let Some(t) = tolerance {
+        if !(t > 0.0 && t <= 1.0) {
+            return Err(format!(
+                "--image-tolerance must be within 0 < t <= 1 (default {}), got {t}",
+                crate::gpu::DEFAULT_SAMPLING_TOLERANCE
+            ));
+        }
+    }
+    match (sampling, tolerance) {
+        (Some(SamplingArg::PerPixel), Some(_)) => {
+            Err("--image-tolerance applies to --image-sampling adaptive, not per-pixel: drop one of them".into())
+        }
+        (Some(SamplingArg::PerPixel), None) => Ok(ImageSampling::PerPixel),
+        (_, Some(tolerance)) => Ok(ImageSampling::Adaptive { tolerance }),
+        (_, None) => Ok(ImageSampling::default()),
+    }
 }
 
 /// A project baked and rendered on the GPU.
@@ -227,9 +277,11 @@ pub fn open(args: &BakeArgs) -> Result<Session, Box<dyn std::error::Error>> {
     if let Some(note) = project.medium.noise.and_then(|n| n.nyquist_note(&project.grid)) {
         eprintln!("warning: medium.noise: {note}");
     }
+    let sampling = args.image_sampling()?;
     let ctx = GpuContext::new_headless()?;
     let adapter = ctx.adapter_summary();
     let mut pipeline = FogPipeline::new(ctx);
+    pipeline.set_image_sampling(sampling);
     // Before the base layer is resampled and uploaded: it is as large as one light's OPV.
     pipeline.check_limits(&project, request.width, request.height)?;
     let layer = crate::export::load_base_layer(&project, Some(&args.project))?;
@@ -411,6 +463,8 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
                 scheme: None,
                 sweep_refine: None,
                 sweep_tolerance: None,
+                image_sampling: None,
+                image_tolerance: None,
                 frames: None,
                 quiet: true,
             };
@@ -571,6 +625,8 @@ fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std:
             "scheme": request.scheme.to_string(),
             "sweep_refine": project.propagation.sweep_refine,
             "sweep_tolerance": project.propagation.sweep_tolerance,
+            "image_sampling": pipeline.image_sampling().name(),
+            "rays_marched": report.counters.rays_marched,
             "timings_ms": report.timings_ms,
             "timing_source": if report.gpu_timestamps { "gpu_timestamps" } else { "wall_clock" },
             "counters": report.counters,

@@ -389,6 +389,12 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
         row_offset: 0,
         sun_count: project.lights.iter().filter(|l| matches!(l.kind, LightKind::Directional { .. })).count() as u32,
         col_offset: 0,
+        list_offset: 0,
+        list_end: 0,
+        lattice_stride: 0,
+        padded_width: 0,
+        padded_height: 0,
+        _pad: [0; 3],
     }
 }
 

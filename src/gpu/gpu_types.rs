@@ -85,6 +85,15 @@ pub struct MarchParams {
     pub sun_count: u32,
     /// First image column of this dispatch (a band narrower than the image).
     pub col_offset: u32,
+    /// Adaptive image sampling (`image_sampling`): the rays [list_offset, list_end) of the
+    /// lattice of stride `lattice_stride`, or of the list where that is 0, into the padded
+    /// `padded_width`×`padded_height` image.
+    pub list_offset: u32,
+    pub list_end: u32,
+    pub lattice_stride: u32,
+    pub padded_width: u32,
+    pub padded_height: u32,
+    pub _pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -216,6 +225,11 @@ mod tests {
             (march, "Surface", std::mem::size_of::<SurfaceGpu>()),
             (sweep, "SweepStep", std::mem::size_of::<SweepStep>()),
             (shaders::propagate_exact(&opv), "ExactParams", std::mem::size_of::<ExactParams>()),
+            (
+                shaders::image_refine(),
+                "RefineParams",
+                std::mem::size_of::<crate::gpu::image_sampling::RefineParams>(),
+            ),
         ];
         for (code, name, rust) in cases {
             assert_eq!(wgsl_size(&code, name) as usize, rust, "{name}: WGSL and Rust sizes differ");

@@ -8,9 +8,24 @@
 //! The march is compiled once per [`MarchFeatures`] a scene needs, when first needed.
 
 use super::gpu_types::{GridParams, LightGpu, MarchParams, SurfaceGpu};
+use super::image_sampling::{ImageSampler, ImageSampling, SamplingBuffers, LATTICE, LEVELS};
 use super::layout::{
     bind_group_layout_with, bind_group_with, compute_pipeline_with, Slot, LIGHT_DIRECTIONAL, LIGHT_SPOT, WORKGROUP_2D,
 };
+
+/// A read-write storage buffer entry of the march's layout at `binding`.
+fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: false },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
@@ -27,6 +42,8 @@ pub struct ImageTarget {
     pub(super) hdr_view: wgpu::TextureView,
     pub ldr_view: wgpu::TextureView,
     params_buf: wgpu::Buffer,
+    /// Adaptive sampling's buffers, made by the first adaptive march into this target.
+    sampling: Option<SamplingBuffers>,
 }
 
 impl ImageTarget {
@@ -58,12 +75,22 @@ impl ImageTarget {
             ldr_view: ldr.create_view(&Default::default()),
             hdr,
             params_buf,
+            sampling: None,
         }
     }
 
     /// Bytes of GPU memory the target holds.
     pub fn bytes(&self) -> u64 {
-        self.width as u64 * self.height as u64 * 20 + self.params_buf.size()
+        self.width as u64 * self.height as u64 * 20
+            + self.params_buf.size()
+            + self.sampling.as_ref().map_or(0, |s| s.bytes())
+    }
+
+    /// Makes the buffers of adaptive sampling, unless there are some.
+    pub fn ensure_sampling(&mut self, device: &wgpu::Device, sampler: &ImageSampler) {
+        if self.sampling.is_none() {
+            self.sampling = Some(SamplingBuffers::new(device, sampler, self.width, self.height));
+        }
     }
 }
 
@@ -84,6 +111,9 @@ pub struct MarchInputs<'a> {
     /// Whether base fog tests every surface (`Tuning::exhaustive_fog_shadows`).
     pub exhaustive_fog_shadows: bool,
     pub params: MarchParams,
+    /// The lights, whose epipoles adaptive sampling refines to single pixels.
+    pub lights: &'a [LightGpu],
+    pub sampling: ImageSampling,
 }
 
 /// The parts of the march a scene uses (the `override` constants of `shaders/march.wgsl`). All
@@ -143,29 +173,93 @@ impl MarchFeatures {
 
 /// A march in progress: the rows above `next_row` are done, and in the band of
 /// [`BAND_ROWS`] rows from there, the columns left of `next_col`.
+/// With adaptive sampling, the rays [`Self::next`, [`Self::count`]) of the level of
+/// [`Self::level`] are left to march: level 0 is the first lattice, level l the list that
+/// refining the lattice of stride `LATTICE >> (l - 1)` gathered.
 pub struct MarchJob {
     bind_group: wgpu::BindGroup,
     features: MarchFeatures,
     params: MarchParams,
     pub next_row: u32,
     next_col: u32,
+    adaptive: Option<AdaptiveJob>,
+    /// A readback between refinement levels that failed; the march stops there.
+    error: Option<GpuError>,
+}
+
+struct AdaptiveJob {
+    level: u32,
+    next: u32,
+    count: u32,
+    classified: bool,
+    finished: bool,
 }
 
 impl MarchJob {
     pub fn done(&self) -> bool {
-        self.next_row >= self.params.size[1]
+        match &self.adaptive {
+            Some(a) => a.finished,
+            None => self.next_row >= self.params.size[1],
+        }
     }
     pub fn fraction(&self) -> f64 {
+        if let Some(a) = &self.adaptive {
+            if a.finished {
+                return 1.0;
+            }
+            let within = a.next as f64 / a.count.max(1) as f64;
+            return ((a.level as f64 + within) / (LEVELS + 1) as f64).min(1.0);
+        }
         let [w, h] = self.params.size;
         let rows = self.next_row as f64 + self.next_col as f64 / w.max(1) as f64 * BAND_ROWS as f64;
         (rows / h.max(1) as f64).min(1.0)
     }
+    /// Stops the march where it is (its target is gone).
+    pub fn abandon(&mut self) {
+        self.next_row = self.params.size[1];
+        if let Some(a) = self.adaptive.as_mut() {
+            a.finished = true;
+        }
+    }
+
+    /// The error that stopped the march, if any.
+    pub fn take_error(&mut self) -> Option<GpuError> {
+        self.error.take()
+    }
 }
+
+/// The march's entry points (`shaders/march.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Entry {
+    /// One ray per pixel.
+    PerPixel,
+    /// Adaptive sampling: geometry classes, rays of a lattice or list, the image.
+    Classify,
+    List,
+    Resolve,
+}
+
+impl Entry {
+    fn name(self) -> &'static str {
+        match self {
+            Self::PerPixel => "main",
+            Self::Classify => "classify",
+            Self::List => "main_list",
+            Self::Resolve => "resolve",
+        }
+    }
+}
+
+/// Workgroup of `main_list`.
+const LIST_WORKGROUP: u32 = 64;
 
 pub struct Marcher {
     layout: wgpu::BindGroupLayout,
-    /// The march per combination of features used so far.
-    pipelines: Vec<(MarchFeatures, wgpu::ComputePipeline)>,
+    /// The march per combination of features and entry point used so far.
+    pipelines: Vec<(MarchFeatures, Entry, wgpu::ComputePipeline)>,
+    sampler: ImageSampler,
+    /// Bound as adaptive sampling's buffers by per-pixel marches, which do not read them.
+    unused: wgpu::Buffer,
     /// The WGSL they are built from.
     code: String,
     /// Sun et al.'s F table (remapped layout) for the closed-form base fog, then the G table
@@ -193,7 +287,11 @@ impl Marcher {
                 Slot::StorageRead,
                 Slot::StorageRead,
             ],
-            opv.layout_entries(EXTRA_BINDING, true),
+            {
+                let mut extra = opv.layout_entries(EXTRA_BINDING, true);
+                extra.extend([12, 13].map(storage_entry));
+                extra
+            },
         );
         let code = super::shaders::march(&opv);
         let mut tables = FTable::remapped(GPU_TABLE_SIZE, GPU_TABLE_SIZE).data;
@@ -202,12 +300,47 @@ impl Marcher {
         let sun_table = super::buffers::storage_buffer(device, "sun F, G and S tables", bytemuck::cast_slice(&tables));
         let counters_buf = super::buffers::storage_buffer(device, "counters", &[0u8; 16]);
         let surfaces_buf = super::buffers::storage_buffer(device, "surfaces", &[]);
-        Self { layout, pipelines: Vec::new(), code, sun_table, counters_buf, surfaces_buf }
+        let sampler = ImageSampler::new(device);
+        let unused = super::buffers::storage_buffer(device, "unused image samples", &[0u8; 16]);
+        Self { layout, pipelines: Vec::new(), sampler, unused, code, sun_table, counters_buf, surfaces_buf }
+    }
+
+    /// The pipeline of `entry` for `features`, built on first use.
+    fn ensure_pipeline(&mut self, device: &wgpu::Device, features: MarchFeatures, entry: Entry) {
+        if !self.pipelines.iter().any(|(f, e, _)| *f == features && *e == entry) {
+            let code = self.code.clone();
+            let pipeline =
+                compute_pipeline_with(device, "march", code, &self.layout, entry.name(), &features.constants());
+            self.pipelines.push((features, entry, pipeline));
+        }
+    }
+
+    fn pipeline(&self, features: MarchFeatures, entry: Entry) -> &wgpu::ComputePipeline {
+        self.pipelines
+            .iter()
+            .find(|(f, e, _)| *f == features && *e == entry)
+            .map(|(_, _, p)| p)
+            .expect("begin builds the pipelines of every job's features")
     }
 
     /// Uploads the inputs of a march into `target` and returns the job; its counters start at 0.
-    pub fn begin(&mut self, ctx: &GpuContext, target: &ImageTarget, inputs: &MarchInputs) -> MarchJob {
+    pub fn begin(&mut self, ctx: &GpuContext, target: &mut ImageTarget, inputs: &MarchInputs) -> MarchJob {
         let device = &ctx.device;
+        let adaptive = match inputs.sampling {
+            ImageSampling::PerPixel => None,
+            ImageSampling::Adaptive { tolerance } => {
+                target.ensure_sampling(device, &self.sampler);
+                let sampling = target.sampling.as_ref().expect("made above");
+                let epipoles = super::image_sampling::epipoles(&inputs.params, inputs.lights, target.width, target.height);
+                sampling.write_params(&ctx.queue, tolerance, &epipoles);
+                let count = super::image_sampling::lattice_rays(sampling.padded);
+                Some(AdaptiveJob { level: 0, next: 0, count, classified: false, finished: false })
+            }
+        };
+        let (samples, work) = match &target.sampling {
+            Some(s) if adaptive.is_some() => (&s.samples, &s.work),
+            _ => (&self.unused, &self.unused),
+        };
         let bytes: &[u8] = bytemuck::cast_slice(inputs.surfaces);
         if bytes.len() as u64 > self.surfaces_buf.size() {
             self.surfaces_buf = super::buffers::storage_buffer(device, "surfaces", bytes);
@@ -232,18 +365,27 @@ impl Marcher {
                 self.surfaces_buf.as_entire_binding(),
                 self.sun_table.as_entire_binding(),
             ],
-            inputs.lookup.extra_entries(EXTRA_BINDING),
+            {
+                let mut extra = inputs.lookup.extra_entries(EXTRA_BINDING);
+                extra.push(wgpu::BindGroupEntry { binding: 12, resource: samples.as_entire_binding() });
+                extra.push(wgpu::BindGroupEntry { binding: 13, resource: work.as_entire_binding() });
+                extra
+            },
         );
         let features = MarchFeatures {
             cull_fog_surfaces: !inputs.exhaustive_fog_shadows,
             ..if inputs.general { MarchFeatures::ALL } else { inputs.features }
         };
-        if !self.pipelines.iter().any(|(f, _)| *f == features) {
-            let code = self.code.clone();
-            let pipeline = compute_pipeline_with(device, "march", code, &self.layout, "main", &features.constants());
-            self.pipelines.push((features, pipeline));
+        let entries: &[Entry] =
+            if adaptive.is_some() { &[Entry::Classify, Entry::List, Entry::Resolve] } else { &[Entry::PerPixel] };
+        for &entry in entries {
+            self.ensure_pipeline(device, features, entry);
         }
-        MarchJob { bind_group, features, params: inputs.params, next_row: 0, next_col: 0 }
+        let mut params = inputs.params;
+        if let Some(s) = target.sampling.as_ref().filter(|_| adaptive.is_some()) {
+            [params.padded_width, params.padded_height] = s.padded;
+        }
+        MarchJob { bind_group, features, params, next_row: 0, next_col: 0, adaptive, error: None }
     }
 
     /// Encodes the next band of `job`, about `pixels` pixels (at least one workgroup): whole
@@ -258,6 +400,9 @@ impl Marcher {
         pixels: u64,
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
     ) -> u64 {
+        if job.adaptive.is_some() {
+            return self.encode_adaptive(ctx, target, encoder, job, pixels, timestamps);
+        }
         let [width, height] = job.params.size;
         let left = height - job.next_row;
         let row_pixels = width as u64 * BAND_ROWS.min(left) as u64;
@@ -285,10 +430,71 @@ impl Marcher {
                 label: Some("march"),
                 timestamp_writes: timestamps,
             });
-            let pipeline = self.pipelines.iter().find(|(f, _)| *f == job.features).map(|(_, p)| p);
-            pass.set_pipeline(pipeline.expect("begin builds the pipeline of every job's features"));
+            pass.set_pipeline(self.pipeline(job.features, Entry::PerPixel));
             pass.set_bind_group(0, &job.bind_group, &[]);
             pass.dispatch_workgroups(groups.0, groups.1, 1);
+        }
+        covered
+    }
+
+    /// [`Self::encode_band`] with adaptive sampling: about `pixels` rays of the current level.
+    /// A level whose rays are all encoded is refined at the start of the next call (its rays
+    /// must have run first), with a submit and a readback of the new list's length; the last
+    /// level's band also writes the image.
+    fn encode_adaptive(
+        &self,
+        ctx: &GpuContext,
+        target: &ImageTarget,
+        encoder: &mut wgpu::CommandEncoder,
+        job: &mut MarchJob,
+        pixels: u64,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) -> u64 {
+        let (Some(a), Some(buffers)) = (job.adaptive.as_mut(), target.sampling.as_ref()) else { return 0 };
+        if a.finished {
+            return 0;
+        }
+        while a.next >= a.count && a.level < LEVELS {
+            match self.sampler.refine(ctx, buffers, a.level) {
+                Ok(count) => *a = AdaptiveJob { level: a.level + 1, next: 0, count, ..*a },
+                Err(e) => {
+                    job.error = Some(e);
+                    a.finished = true;
+                    return 0;
+                }
+            }
+        }
+        let end = (a.next as u64 + pixels.max(LIST_WORKGROUP as u64)).min(a.count as u64) as u32;
+        let params = MarchParams {
+            list_offset: a.next,
+            list_end: end,
+            lattice_stride: if a.level == 0 { LATTICE } else { 0 },
+            ..job.params
+        };
+        ctx.queue.write_buffer(&target.params_buf, 0, bytemuck::bytes_of(&params));
+        let covered = (end - a.next) as u64;
+        let resolve = end >= a.count && a.level == LEVELS;
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: timestamps });
+        pass.set_bind_group(0, &job.bind_group, &[]);
+        if !a.classified {
+            let [pw, ph] = buffers.padded;
+            pass.set_pipeline(self.pipeline(job.features, Entry::Classify));
+            pass.dispatch_workgroups(pw.div_ceil(WORKGROUP_2D), ph.div_ceil(WORKGROUP_2D), 1);
+            a.classified = true;
+        }
+        if covered > 0 {
+            let groups = (covered as u32).div_ceil(LIST_WORKGROUP);
+            let x = groups.min(ctx.limits.max_compute_workgroups_per_dimension);
+            pass.set_pipeline(self.pipeline(job.features, Entry::List));
+            pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+        }
+        a.next = end;
+        if resolve {
+            let [w, h] = job.params.size;
+            pass.set_pipeline(self.pipeline(job.features, Entry::Resolve));
+            pass.dispatch_workgroups(w.div_ceil(WORKGROUP_2D), h.div_ceil(WORKGROUP_2D), 1);
+            a.finished = true;
         }
         covered
     }
@@ -299,6 +505,7 @@ impl Marcher {
         counters.samples_marched += c[0] as u64;
         counters.bricks_skipped += c[1] as u64;
         counters.rays_terminated += c[2] as u64;
+        counters.rays_marched += c[3] as u64;
         Ok(())
     }
 

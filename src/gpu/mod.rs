@@ -9,7 +9,9 @@
 //!    depth volume (OPV) of T(cell, light), in slabs of r32float 3D textures, by
 //!    Giroud & Biri's iterated gather, an upwind wavefront sweep, or a brute-force march.
 //! 3. **Ray march** (`shaders/march.wgsl`): single scattering along camera rays with
-//!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy.
+//!    exact per-step integration, writing linear HDR radiance and a tone-mapped copy. By
+//!    default it marches a refined lattice of rays and interpolates the rest
+//!    (`image_sampling`, `shaders/image_refine.wgsl`).
 //!
 //! On request, the bake (`baking`, `shaders/bake.wgsl`) turns the EV and OPVs into each cell's
 //! emitted radiance through the march's own lookups, for engines without self-shadowing, and
@@ -41,6 +43,7 @@ mod error;
 mod frame_inputs;
 mod gpu_types;
 mod host_sums;
+mod image_sampling;
 mod inject;
 mod inject_options;
 mod keys;
@@ -67,6 +70,7 @@ pub use context::{adapter_rank, GpuContext, OPTIONAL_FEATURES};
 pub use error::GpuError;
 pub use frame_inputs::{light_has_opv, light_is_negligible, FrameRequest, CULL_RADIANCE};
 pub use gpu_types::{SweepBox, SweepStep};
+pub use image_sampling::{ImageSampling, DEFAULT_TOLERANCE as DEFAULT_SAMPLING_TOLERANCE, LATTICE as SAMPLING_LATTICE};
 pub use inject_options::HOST_MIN_ENTRIES_PER_BRICK;
 pub use layout::shared_constants;
 pub use limits::{analytic_unsupported, human_bytes};

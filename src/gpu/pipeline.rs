@@ -22,6 +22,7 @@ use super::inject::{InjectJob, Injector};
 use super::inject_options::{HostCounts, InjectOptions};
 use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region};
 use super::limits::Capacity;
+use super::image_sampling::ImageSampling;
 use super::march::{MarchJob, BAND_ROWS};
 use super::opv_store::OpvLayout;
 use super::outputs::Image;
@@ -59,6 +60,7 @@ pub struct FogPipeline {
     /// Bin edge of the last injection's particle lists (see `binning`).
     bin_size: u32,
     volumes_generation: u64,
+    image_sampling: ImageSampling,
 }
 
 impl FogPipeline {
@@ -86,6 +88,7 @@ impl FogPipeline {
             last_report: FrameReport::default(),
             bin_size: binning::BRICK,
             volumes_generation: 0,
+            image_sampling: ImageSampling::default(),
         }
     }
 
@@ -425,7 +428,7 @@ impl FogPipeline {
         if self.jobs.march.is_none() {
             let (width, height) = (inputs.request.width, inputs.request.height);
             self.stages.ensure_target(&self.ctx, Level::Full, width, height);
-            let job = self.stages.begin_march(&self.ctx, Level::Full, &key, &self.tuning)?;
+            let job = self.stages.begin_march(&self.ctx, Level::Full, &key, &self.tuning, self.image_sampling)?;
             self.jobs.march = Some((job, key));
         }
         while self.jobs.march.is_some() {
@@ -616,6 +619,10 @@ impl FogPipeline {
         });
         self.ctx.wait()?;
         counters.dispatches += 1;
+        if let Some(e) = self.jobs.march.as_mut().and_then(|(job, _)| job.take_error()) {
+            self.jobs.march = None;
+            return Err(e);
+        }
         Ok(covered.unwrap_or(0))
     }
 
@@ -623,14 +630,24 @@ impl FogPipeline {
     fn quick_march(&mut self, w: u32, h: u32, key: ImageKey, counters: &mut Counters) -> Result<(), GpuError> {
         self.stages.ensure_target(&self.ctx, Level::Quick, w, h);
         let t = Instant::now();
-        let mut job = self.stages.begin_march(&self.ctx, Level::Quick, &key, &self.tuning)?;
+        let mut job = self.stages.begin_march(&self.ctx, Level::Quick, &key, &self.tuning, self.image_sampling)?;
         let (ctx, stages) = (&self.ctx, &self.stages);
-        timer::submit(ctx, None, timer::MARCH, |encoder, _| {
-            stages.encode_march(ctx, Level::Quick, encoder, &mut job, u64::MAX, None)
-        });
-        self.ctx.wait()?;
-        self.rates[timer::MARCH as usize].observe(w as u64 * h as u64, ms(t));
-        counters.dispatches += 1;
+        let mut rays = 0;
+        while !job.done() {
+            rays += timer::submit(ctx, None, timer::MARCH, |encoder, _| {
+                stages.encode_march(ctx, Level::Quick, encoder, &mut job, u64::MAX, None)
+            })
+            .unwrap_or_else(|| {
+                job.abandon();
+                0
+            });
+            self.ctx.wait()?;
+            counters.dispatches += 1;
+            if let Some(e) = job.take_error() {
+                return Err(e);
+            }
+        }
+        self.rates[timer::MARCH as usize].observe(rays.max(1), ms(t));
         self.stages.read_march_counters(&self.ctx, counters)?;
         self.baked.shown = Some((key, Level::Quick));
         Ok(())
@@ -672,6 +689,19 @@ impl FogPipeline {
     /// The particle–bin list bytes one injection chunk may use.
     pub fn inject_chunk_bytes(&self) -> u64 {
         InjectOptions::of(&self.tuning).chunk_bytes(&self.ctx)
+    }
+
+    /// How the march chooses its rays (default: adaptive). A change marches the image again.
+    pub fn set_image_sampling(&mut self, sampling: ImageSampling) {
+        if sampling != self.image_sampling {
+            self.image_sampling = sampling;
+            self.jobs.march = None;
+            self.baked.shown = None;
+        }
+    }
+
+    pub fn image_sampling(&self) -> ImageSampling {
+        self.image_sampling
     }
 
     /// [`Tuning::general_march`]: the image is the same.

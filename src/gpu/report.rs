@@ -45,6 +45,9 @@ pub struct Counters {
     pub bricks_skipped: u64,
     /// Rays stopped early because their transmittance fell below the cutoff.
     pub rays_terminated: u64,
+    /// Camera rays marched: every pixel per-pixel; with adaptive sampling, the lattice and the
+    /// rays refinement listed (padding included).
+    pub rays_marched: u64,
 }
 
 /// Adds the counts of a later slice of the same update: work done adds up, the iteration
@@ -62,6 +65,7 @@ impl AddAssign for Counters {
         self.samples_marched += d.samples_marched;
         self.bricks_skipped += d.bricks_skipped;
         self.rays_terminated += d.rays_terminated;
+        self.rays_marched += d.rays_marched;
     }
 }
 

@@ -114,6 +114,11 @@ pub fn march(opv: &OpvLayout) -> String {
     ])
 }
 
+/// One refinement level of adaptive image-space sampling (`image_sampling`).
+pub fn image_refine() -> String {
+    assemble(&[include_str!("../../shaders/image_refine.wgsl")])
+}
+
 /// The march's per-light lookup volumes from the OPVs: reads `opv` (binding 3), writes
 /// `lookup` (binding 4).
 pub fn march_lookup(opv: &OpvLayout) -> String {
@@ -159,6 +164,7 @@ mod tests {
             ("bake", bake(&opv)),
             ("as_baked", as_baked(&opv)),
             ("slice", slice(&opv)),
+            ("image_refine", image_refine()),
         ];
         for (cells, filtered) in [(1, false), (8, true)] {
             all.push(("propagate_sweep", propagate_sweep(&opv, cells, filtered)));

@@ -15,6 +15,7 @@ use super::frame_inputs::FrameInputs;
 use super::gpu_types::{GridParams, LightGpu, MarchParams};
 use super::inject::{InjectInputs, InjectJob, Injector};
 use super::keys::{ImageKey, Level};
+use super::image_sampling::ImageSampling;
 use super::march::{ImageTarget, MarchFeatures, MarchInputs, MarchJob, Marcher};
 use super::march_lookup::{LookupBuilder, LookupInputs};
 use super::opv_store::OpvLayout;
@@ -351,11 +352,12 @@ impl Stages {
         level: Level,
         key: &ImageKey,
         tuning: &Tuning,
+        sampling: ImageSampling,
     ) -> Result<MarchJob, GpuError> {
         self.refresh_lookup(ctx);
         let target = match level {
-            Level::Quick => self.quick.as_ref(),
-            Level::Full => self.full.as_ref(),
+            Level::Quick => self.quick.as_mut(),
+            Level::Full => self.full.as_mut(),
         };
         let (Some(g), Some(target)) = (self.grid.as_ref(), target) else { return Err(nothing_baked()) };
         let inputs = MarchInputs {
@@ -369,6 +371,8 @@ impl Stages {
             general: tuning.general_march,
             exhaustive_fog_shadows: tuning.exhaustive_fog_shadows,
             params: MarchParams { size: [target.width, target.height], ..key.params },
+            lights: &key.lights,
+            sampling,
         };
         Ok(self.marcher.begin(ctx, target, &inputs))
     }
