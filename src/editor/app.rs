@@ -114,6 +114,7 @@ impl EditorApp {
                 rename: None,
                 outliner_anchor: None,
                 outline_all: persisted.outline_all.unwrap_or(true),
+                per_pixel_march: false,
                 fit_keep: crate::scene::FitKeep::default(),
                 show_slice_plane: false,
                 new_light: crate::scene::LightKindChoice::Point,

@@ -73,6 +73,8 @@ pub enum Command {
     AutoKey,
     LoopPlayback,
     PlayEveryFrame,
+    /// Preview: one ray per pixel instead of adaptive image sampling.
+    PerPixelMarch,
     Shortcuts,
 }
 
@@ -191,6 +193,7 @@ impl Command {
             Command::AutoKey => ("Auto-key", "Edits of animated values set a key at this frame; when off, such an edit on a frame without a key lasts only until the frame changes"),
             Command::LoopPlayback => ("Loop", "Play from the start again after the last frame"),
             Command::PlayEveryFrame => ("Play every frame", "Show every frame converged before the next, instead of keeping time by dropping frames"),
+            Command::PerPixelMarch => ("March every pixel", "March one camera ray through every pixel instead of adaptive image sampling (rays a few pixels apart, refined where the fog or the geometry changes, the rest interpolated): several times slower, for comparison"),
             Command::Shortcuts => ("Shortcuts", "All keyboard and mouse shortcuts"),
         }
     }
@@ -259,7 +262,8 @@ impl Command {
             | Command::DeleteKeys
             | Command::AutoKey
             | Command::LoopPlayback
-            | Command::PlayEveryFrame => vec![],
+            | Command::PlayEveryFrame
+            | Command::PerPixelMarch => vec![],
         }
     }
 

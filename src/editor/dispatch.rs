@@ -154,6 +154,7 @@ impl EditorState {
             }
             Command::AutoKey => self.session.auto_key = !self.session.auto_key,
             Command::LoopPlayback => self.timeline.looping = !self.timeline.looping,
+            Command::PerPixelMarch => self.view.per_pixel_march = !self.view.per_pixel_march,
             Command::PlayEveryFrame => {
                 use super::playback::PlayMode;
                 self.timeline.mode = match self.timeline.mode {

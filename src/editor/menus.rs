@@ -6,13 +6,18 @@ use super::state::{Action, EditorState};
 use egui_dock::DockState;
 
 impl EditorState {
-    /// File, Edit, View and Help. Panel commands need the dock, so the view menu reads it
+    /// File, Edit, View, Preview, Animation and Help. Panel commands need the dock, so the view menu reads it
     /// to show which panels are open.
     pub(super) fn menu_bar(&mut self, ui: &mut egui::Ui, dock: &DockState<Tab>) {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| self.file_menu(ui));
             ui.menu_button("Edit", |ui| self.edit_menu(ui));
             ui.menu_button("View", |ui| self.view_menu(ui, dock));
+            ui.menu_button("Preview", |ui| {
+                if Command::PerPixelMarch.menu_checkbox(ui, self.view.per_pixel_march) {
+                    self.run(Command::PerPixelMarch);
+                }
+            });
             ui.menu_button("Animation", |ui| self.animation_menu(ui));
             ui.menu_button("Help", |ui| self.command_button(ui, Command::Shortcuts, true));
         });

@@ -289,6 +289,15 @@ impl EditorState {
         // only to be replaced.
         let previews = !self.playing_every_frame();
         let Some(gpu) = &mut self.gpu else { return };
+        let sampling = if self.view.per_pixel_march {
+            crate::gpu::ImageSampling::PerPixel
+        } else {
+            crate::gpu::ImageSampling::default()
+        };
+        if gpu.pipeline.image_sampling() != sampling {
+            gpu.pipeline.set_image_sampling(sampling);
+            gpu.converged = None;
+        }
         let before = gpu.error.clone();
         gpu.render(project, frame, version, self.view.preview_size, (budget, previews), self.view.quality.as_baked());
         if gpu.refining() {

@@ -378,6 +378,8 @@ pub(crate) struct ViewState {
     pub outliner_anchor: Option<super::tools::Hit>,
     /// Outline every particle in the viewport; otherwise only the selection.
     pub outline_all: bool,
+    /// The preview marches every pixel instead of sampling the image adaptively.
+    pub per_pixel_march: bool,
     /// What "Fit grid to particles" keeps.
     pub fit_keep: crate::scene::FitKeep,
     /// Draw the Slices panel's plane in the viewport.
