@@ -1747,3 +1747,40 @@ fn a_frame_of_two_passes_advances_the_preview_once() {
     }
     assert!(two_passes, "no frame ran two passes: the test shows nothing");
 }
+
+/// Preview → March every pixel marches the preview again with one ray per pixel, and off,
+/// adaptively again: each converged image is the one `render` makes with that sampling.
+#[test]
+fn the_preview_menu_switches_the_image_sampling() {
+    use fogsmith::gpu::ImageSampling;
+    let mut h = build(demo(), EditorOptions::default(), Quality::Full, PreviewScale::Quarter);
+    converge(&mut h);
+    let image = |h: &EditorDriver| h.state().pipeline().unwrap().read_image().unwrap();
+    let adaptive = image(&h);
+    assert_eq!(h.state().pipeline().unwrap().image_sampling(), ImageSampling::default());
+    for (on, sampling) in [(true, ImageSampling::PerPixel), (false, ImageSampling::default())] {
+        h.get_by_label("Preview").click();
+        h.run_steps(2);
+        h.get_by_label("March every pixel").click();
+        h.run_steps(2);
+        converge(&mut h);
+        let pipeline = h.state().pipeline().unwrap();
+        assert_eq!(pipeline.image_sampling(), sampling, "after the click (on: {on})");
+        let shown = image(&h);
+        let mut fresh = fogsmith::gpu::FogPipeline::new(pipeline.context().clone());
+        fresh.set_image_sampling(sampling);
+        let project = h.state().session().project().clone();
+        let request = fogsmith::gpu::FrameRequest {
+            width: shown.width,
+            height: shown.height,
+            ..fogsmith::gpu::FrameRequest::for_project(&project)
+        };
+        fresh.update(&project, &request).unwrap();
+        assert!(shown.rgba == fresh.read_image().unwrap().rgba, "on: {on}: the preview is render's image bit for bit");
+        if on {
+            assert!(shown.rgba != adaptive.rgba, "the per-pixel image was marched again");
+        } else {
+            assert!(shown.rgba == adaptive.rgba, "adaptive again gives the first image");
+        }
+    }
+}

@@ -8,7 +8,7 @@ mod common;
 use common::{pipeline, Rng};
 use fogsmith::gpu::{FrameRequest, Image, ImageSampling};
 use fogsmith::measure::{image_difference, ImageDifference};
-use fogsmith::scene::{Camera, Ground, GridSpec, Light, LightKind, Particle, Project, SurfaceBox};
+use fogsmith::scene::{Camera, GridSpec, Ground, Light, LightKind, Particle, Project, SurfaceBox};
 use glam::{UVec3, Vec3};
 
 /// The targets of adaptive sampling against the per-pixel march.
@@ -43,11 +43,7 @@ fn scene(rng: &mut Rng, case: u32) -> (Project, &'static str) {
     } else {
         UVec3::splat(24 + rng.pick(3) as u32 * 8)
     };
-    let half = if thin {
-        resolution.as_vec3() / resolution.max_element() as f32 * 1.2
-    } else {
-        Vec3::splat(1.0)
-    };
+    let half = if thin { resolution.as_vec3() / resolution.max_element() as f32 * 1.2 } else { Vec3::splat(1.0) };
     let mut p = Project {
         grid: GridSpec { min: -half.max(Vec3::splat(0.05)), max: half.max(Vec3::splat(0.05)), resolution },
         ..Project::default()
@@ -99,7 +95,7 @@ fn scene(rng: &mut Rng, case: u32) -> (Project, &'static str) {
         p.medium.base_extinction = 0.0;
     }
     p.lights.push(light);
-    if case % 3 == 0 || case % 7 == 4 {
+    if case.is_multiple_of(3) || case % 7 == 4 {
         // A box between the camera and the fog: a sharp silhouette in front of bright fog.
         let c = eye * (0.45 + 0.1 * rng.f32());
         let size = 0.15 + 0.2 * rng.f32();

@@ -202,10 +202,7 @@ impl BakeArgs {
 }
 
 /// The image sampling of `--image-sampling` and `--image-tolerance`.
-pub fn sampling_of(
-    sampling: Option<SamplingArg>,
-    tolerance: Option<f32>,
-) -> Result<crate::gpu::ImageSampling, String> {
+pub fn sampling_of(sampling: Option<SamplingArg>, tolerance: Option<f32>) -> Result<crate::gpu::ImageSampling, String> {
     use crate::gpu::ImageSampling;
     if let Some(t) = tolerance {
         if !(t > 0.0 && t <= 1.0) {

@@ -225,11 +225,7 @@ mod tests {
             (march, "Surface", std::mem::size_of::<SurfaceGpu>()),
             (sweep, "SweepStep", std::mem::size_of::<SweepStep>()),
             (shaders::propagate_exact(&opv), "ExactParams", std::mem::size_of::<ExactParams>()),
-            (
-                shaders::image_refine(),
-                "RefineParams",
-                std::mem::size_of::<crate::gpu::image_sampling::RefineParams>(),
-            ),
+            (shaders::image_refine(), "RefineParams", std::mem::size_of::<crate::gpu::image_sampling::RefineParams>()),
         ];
         for (code, name, rust) in cases {
             assert_eq!(wgsl_size(&code, name) as usize, rust, "{name}: WGSL and Rust sizes differ");

@@ -248,7 +248,7 @@ pub fn epipoles(
             Vec3::from(l.position) - o
         };
         let a = d.dot(f) / f.length_squared();
-        if !(a > 0.0) || r.length_squared() == 0.0 || u.length_squared() == 0.0 {
+        if a.is_nan() || a <= 0.0 || r.length_squared() == 0.0 || u.length_squared() == 0.0 {
             continue;
         }
         let sx = d.dot(r) / (a * r.length_squared());

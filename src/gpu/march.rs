@@ -331,7 +331,8 @@ impl Marcher {
             ImageSampling::Adaptive { tolerance } => {
                 target.ensure_sampling(device, &self.sampler);
                 let sampling = target.sampling.as_ref().expect("made above");
-                let epipoles = super::image_sampling::epipoles(&inputs.params, inputs.lights, target.width, target.height);
+                let epipoles =
+                    super::image_sampling::epipoles(&inputs.params, inputs.lights, target.width, target.height);
                 sampling.write_params(&ctx.queue, tolerance, &epipoles);
                 let count = super::image_sampling::lattice_rays(sampling.padded);
                 Some(AdaptiveJob { level: 0, next: 0, count, classified: false, finished: false })
@@ -474,8 +475,8 @@ impl Marcher {
         ctx.queue.write_buffer(&target.params_buf, 0, bytemuck::bytes_of(&params));
         let covered = (end - a.next) as u64;
         let resolve = end >= a.count && a.level == LEVELS;
-        let mut pass =
-            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: timestamps });
+        let mut pass = encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: timestamps });
         pass.set_bind_group(0, &job.bind_group, &[]);
         if !a.classified {
             let [pw, ph] = buffers.padded;
