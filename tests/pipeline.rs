@@ -146,7 +146,9 @@ fn camera_change_reruns_only_the_march() {
     let cam = gpu.update(&p, &request(&p, Scheme::Sweep)).unwrap();
     assert_eq!(cam.counters.cells_injected, 0);
     assert_eq!(cam.counters.lights_propagated, 0);
-    assert_eq!(cam.counters.dispatches, 1, "only the march runs");
+    // The march alone: with adaptive sampling one submit for its lattice and one per
+    // refinement level that listed rays.
+    assert!((1..=4).contains(&cam.counters.dispatches), "only the march runs: {} dispatches", cam.counters.dispatches);
     assert!(cam.counters.samples_marched > 0);
 
     p.lights[2].position.y += 0.1;

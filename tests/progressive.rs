@@ -35,6 +35,7 @@ fn two_lights(width: u32, height: u32) -> Project {
 /// Asserts that `gpu` holds exactly what a fresh pipeline bakes for `p`, bit for bit.
 fn assert_same_as_fresh(gpu: &FogPipeline, p: &Project, request: &FrameRequest) {
     let mut fresh = pipeline();
+    fresh.set_image_sampling(gpu.image_sampling());
     fresh.update(p, request).unwrap();
     assert_eq!(gpu.read_ev().unwrap().data, fresh.read_ev().unwrap().data, "EV differs from a fresh bake");
     for l in 0..p.lights.len() {
@@ -300,12 +301,13 @@ fn every_edit_keeps_the_march_lookups_in_step() {
     settle(&mut gpu, &p, "the spot turned back into a point light");
 }
 
-/// A call with no time left marches one workgroup of the full image, not a whole row of
-/// workgroups (which on a software adapter can cost more than a frame), and bands of every
-/// width add up to exactly the fresh bake.
+/// With per-pixel sampling, a call with no time left marches one workgroup of the full image,
+/// not a whole row of workgroups (which on a software adapter can cost more than a frame), and
+/// bands of every width add up to exactly the fresh bake.
 #[test]
 fn a_call_without_time_marches_part_of_a_row_and_converges_to_the_fresh_bake() {
     let mut gpu = pipeline();
+    gpu.set_image_sampling(fogsmith::gpu::ImageSampling::PerPixel);
     let p = two_lights(200, 40);
     let request = FrameRequest::for_project(&p);
     let calls = converge(&mut gpu, &p, &request, Duration::ZERO);
@@ -319,13 +321,29 @@ fn a_call_without_time_marches_part_of_a_row_and_converges_to_the_fresh_bake() {
     assert_same_as_fresh(&gpu, &p, &request);
 }
 
-/// An update in slices (the command line's progress bar) may overrun a slice, so its march
-/// keeps to whole rows of workgroups, the most efficient bands: with zero slices every report
-/// during the march stands at a whole number of rows of workgroups, and the result is the
-/// fresh bake.
+/// With adaptive sampling, calls with no time left march the lattice and each refinement
+/// level's list in many small bands, the progress never goes back, and the result is the
+/// fresh bake's bit for bit.
+#[test]
+fn adaptive_sampling_marches_in_small_bands_and_converges_to_the_fresh_bake() {
+    let mut gpu = pipeline();
+    let p = two_lights(200, 40);
+    let request = FrameRequest::for_project(&p);
+    let calls = converge(&mut gpu, &p, &request, Duration::ZERO);
+    let marching: Vec<f64> = calls.iter().filter(|c| c.stage == Stage::March).map(|c| c.stage_fraction).collect();
+    assert!(marching.len() > 10, "the march took {} calls", marching.len());
+    assert!(marching.windows(2).all(|w| w[1] >= w[0]), "the march's progress never goes back: {marching:?}");
+    assert_same_as_fresh(&gpu, &p, &request);
+}
+
+/// An update in slices (the command line's progress bar) may overrun a slice, so its
+/// per-pixel march keeps to whole rows of workgroups, the most efficient bands: with zero
+/// slices every report during the march stands at a whole number of rows of workgroups, and
+/// the result is the fresh bake.
 #[test]
 fn an_update_in_slices_marches_whole_rows_of_workgroups() {
     let mut gpu = pipeline();
+    gpu.set_image_sampling(fogsmith::gpu::ImageSampling::PerPixel);
     let p = two_lights(200, 40);
     let request = FrameRequest::for_project(&p);
     let mut fractions = Vec::new();

@@ -50,6 +50,8 @@ struct Recorder {
     settle_pipeline: Vec<f64>,
     scene: String,
     converge_limit: Duration,
+    /// The session's generation when the current interaction began.
+    begun_at: u64,
 }
 
 impl Recorder {
@@ -69,7 +71,9 @@ impl Recorder {
             .preview_status()
             .ok_or_else(|| BenchError::Editor("the editor has no GPU preview".into()))?;
         let generation = self.h.state().session().generation();
-        if is_input && self.inputs.last().is_none_or(|&(_, g)| g != generation) {
+        // An input counts once it changes the project (a hover before a press does not).
+        let last = self.inputs.last().map_or(self.begun_at, |&(_, g)| g);
+        if is_input && generation != last {
             self.inputs.push((queued, generation));
         }
         self.shown.push((end, status.shown_generation));
@@ -99,6 +103,7 @@ impl Recorder {
     }
 
     fn begin(&mut self) {
+        self.begun_at = self.h.state().session().generation();
         self.frames.clear();
         self.inputs.clear();
         self.shown.clear();
@@ -130,6 +135,12 @@ impl Recorder {
 
     /// The figures of the interaction just run, after waiting for convergence.
     fn record(&mut self, name: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Value, BenchError> {
+        if name != "idle" && self.inputs.is_empty() {
+            return Err(BenchError::Editor(format!(
+                "{}: the {name} case changed nothing in the project (its input missed its target), so it has no figures",
+                self.scene
+            )));
+        }
         let frames = self.frames.clone();
         let pipeline = self.pipeline.clone();
         let converge_ms = self.settle()?;
@@ -248,6 +259,7 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         settle_pipeline: Vec::new(),
         scene: scene.to_owned(),
         converge_limit: if large { CONVERGE_LIMIT * 4 } else { CONVERGE_LIMIT },
+        begun_at: 0,
     };
     // The Timeline is driven by its commands here; closed, it leaves the viewport the size of
     // the earlier records.
@@ -262,8 +274,14 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         d.h.state().pipeline().map(|p| p.context().adapter_summary()).unwrap_or_default()
     ));
     let mut records = Vec::new();
-    let centre = rect.center();
-    let across = |t: f32| centre + Vec2::new((t - 0.5) * rect.width() * 0.5, (t - 0.5) * rect.height() * 0.15);
+    // A stroke across the upper middle of the viewport, `t` in [0, 1]. Each case reads the
+    // layout again: a warning row above the viewport (particles outside the grid after the
+    // paint stroke) moves it down.
+    let across = |rect: egui::Rect, t: f32| {
+        rect.center() + Vec2::new((t - 0.5) * rect.width() * 0.5, (t - 0.5) * rect.height() * 0.15)
+    };
+    let viewport =
+        |d: &Recorder| d.h.viewport_rect().ok_or_else(|| BenchError::Editor("the viewport is not shown".into()));
 
     // Idle: frames with nothing to do but show the converged image.
     d.begin();
@@ -276,13 +294,15 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
     // A paint stroke: 40 dabs over 2 s.
     d.h.state_mut().set_tool(Tool::Paint);
     d.begin();
-    d.frame(Some(Event::PointerMoved(across(0.0))))?;
-    d.press(across(0.0), true)?;
-    d.pointer_path(Duration::from_secs(2), 40, across)?;
-    d.press(across(1.0), false)?;
+    d.frame(Some(Event::PointerMoved(across(rect, 0.0))))?;
+    d.press(across(rect, 0.0), true)?;
+    d.pointer_path(Duration::from_secs(2), 40, |t| across(rect, t))?;
+    d.press(across(rect, 1.0), false)?;
     records.push(d.record("paint", quality, log)?);
 
     // Drag the light nearest the view's centre for 1 s.
+    let rect = viewport(&d)?;
+    let centre = rect.center();
     let project = d.h.state().session().project().clone();
     let view = ViewProjection::new(&project.camera, rect);
     let light = project
@@ -314,7 +334,7 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         state.set_tool(Tool::Scale);
     }
     d.begin();
-    d.frame(Some(Event::PointerMoved(centre)))?;
+    d.frame(Some(Event::PointerMoved(viewport(&d)?.center())))?;
     for _ in 0..5 {
         let t = Instant::now();
         d.frame(Some(EditorDriver::wheel_event(40.0, Modifiers::NONE)))?;
@@ -326,11 +346,12 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
 
     // An erase stroke across the painted one, over 1 s.
     d.h.state_mut().set_tool(Tool::Erase);
+    let rect = viewport(&d)?;
     d.begin();
-    d.frame(Some(Event::PointerMoved(across(0.0))))?;
-    d.press(across(0.0), true)?;
-    d.pointer_path(Duration::from_secs(1), 20, across)?;
-    d.press(across(1.0), false)?;
+    d.frame(Some(Event::PointerMoved(across(rect, 0.0))))?;
+    d.press(across(rect, 0.0), true)?;
+    d.pointer_path(Duration::from_secs(1), 20, |t| across(rect, t))?;
+    d.press(across(rect, 1.0), false)?;
     records.push(d.record("erase", quality, log)?);
 
     match playback(&mut d, quality, log)? {

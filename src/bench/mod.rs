@@ -143,9 +143,13 @@ fn run_suite(
         Suite::Opv => suites::opv(ctx, out, log),
         Suite::March => {
             sampling::run(ctx, out, log)?;
+            sampling::stability(ctx, out, log)?;
             suites::march(ctx, out, log)
         }
-        Suite::Sampling => sampling::run(ctx, out, log),
+        Suite::Sampling => {
+            sampling::run(ctx, out, log)?;
+            sampling::stability(ctx, out, log)
+        }
         Suite::Sun => {
             suites::sun(ctx.quick, out, log);
             Ok(())

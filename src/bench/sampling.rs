@@ -5,7 +5,8 @@
 //!
 //! The bake is done once per scene and size; each march is then run again alone (a change of
 //! sampling re-marches the image and nothing else), alternating the two samplings, and the
-//! faster of each one's runs is kept.
+//! faster of each one's runs is kept. [`stability`] measures the frame-to-frame change of each
+//! sampling over a camera orbit and an animated sequence.
 
 use super::context::Context;
 use super::BenchError;
@@ -70,6 +71,70 @@ pub(super) fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&
                 "nan_or_inf": d.nan_or_inf,
             }));
         }
+    }
+    ctx.gpu.set_image_sampling(ImageSampling::default());
+    Ok(())
+}
+
+/// Frames of each motion of the stability measure.
+const MOTION_FRAMES: usize = 8;
+
+/// Stability under motion: over a camera orbit (cloud, half a degree a frame) and over an
+/// animated sequence (street-wind's first frames), the mean change between consecutive
+/// frames of each sampling, and how far the adaptive change strays from the per-pixel one
+/// (mean |Δ adaptive − Δ per-pixel| over mean |Δ per-pixel|): a sample pattern that crawls or
+/// flickers adds change of its own.
+pub(super) fn stability(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&str)) -> Result<(), BenchError> {
+    let (w, h) = SIZES[0];
+    let orbit_base = ctx.demo("cloud")?;
+    let orbit: Vec<crate::scene::Project> = (0..MOTION_FRAMES)
+        .map(|i| {
+            let mut p = orbit_base.clone();
+            let c = p.camera;
+            let offset = c.position - c.target;
+            let turn = glam::Quat::from_rotation_y((i as f32 * 0.5).to_radians());
+            p.camera.position = c.target + turn * offset;
+            p
+        })
+        .collect();
+    let wind = crate::demos::demo("street-wind")?;
+    let start = wind.animation.map_or(1, |a| a.start);
+    let sequence: Vec<crate::scene::Project> = (0..MOTION_FRAMES as i32).map(|i| wind.at_frame(start + i)).collect();
+    for (motion, frames) in [("cloud orbit", orbit), ("street-wind sequence", sequence)] {
+        let mut images: [Vec<crate::gpu::Image>; 2] = [Vec::new(), Vec::new()];
+        for (k, sampling) in [ImageSampling::PerPixel, ImageSampling::default()].into_iter().enumerate() {
+            ctx.gpu.set_image_sampling(sampling);
+            for p in &frames {
+                ctx.incremental(p, w, h)?;
+                images[k].push(ctx.gpu.read_image()?);
+            }
+        }
+        let (mut change, mut stray, mut base) = ([0.0f64; 2], 0.0f64, 0.0f64);
+        for i in 1..frames.len() {
+            let (p0, p1, a0, a1) = (&images[0][i - 1], &images[0][i], &images[1][i - 1], &images[1][i]);
+            for j in 0..p0.rgba.len() {
+                for c in 0..3 {
+                    let dp = (p1.rgba[j][c] - p0.rgba[j][c]) as f64;
+                    let da = (a1.rgba[j][c] - a0.rgba[j][c]) as f64;
+                    change[0] += dp.abs();
+                    change[1] += da.abs();
+                    stray += (da - dp).abs();
+                    base += p1.rgba[j][c] as f64;
+                }
+            }
+        }
+        let relative = |x: f64| if base > 0.0 { x / base } else { x };
+        let extra = if change[0] > 0.0 { stray / change[0] } else { 0.0 };
+        log(&format!(
+            "stability {motion:21} {w}×{h}, {MOTION_FRAMES} frames: change per frame (of the mean) per-pixel {:.3} %, adaptive {:.3} %; adaptive strays from the per-pixel change by {:.1} % of it",
+            relative(change[0]) * 100.0,
+            relative(change[1]) * 100.0,
+            extra * 100.0
+        ));
+        out.push(json!({
+            "suite": "march", "case": "stability", "motion": motion, "image": [w, h], "frames": MOTION_FRAMES,
+            "change_per_pixel": relative(change[0]), "change_adaptive": relative(change[1]), "stray_of_change": extra,
+        }));
     }
     ctx.gpu.set_image_sampling(ImageSampling::default());
     Ok(())
