@@ -5,7 +5,7 @@ The viewer's PNG holds exposure x linear radiance, sRGB-encoded with no tone cur
 (engines/bevy); Fogsmith's EXR (`fogsmith render -o X.exr`) holds linear radiance. Both are
 brought to linear radiance before comparing. Two checks, as in scripts/engine-check.sh:
 
-    engine_compare.py bake   BEVY.png FOGSMITH.exr EXPOSURE   # mean, robust rel-RMSE
+    engine_compare.py bake   BEVY.png FOGSMITH.exr EXPOSURE [--label TEXT]   # mean, robust rel-RMSE
     engine_compare.py shape  BEVY.png FOGSMITH.exr            # IoU of the fog silhouettes
 
 `bake`: the mean radiance (all pixels, all channels) must agree within 3 %, and the robust
@@ -64,7 +64,7 @@ def same_size(bevy, fog, bevy_path, fog_path):
         )
 
 
-def compare_bake(bevy_path, fog_path, exposure):
+def compare_bake(bevy_path, fog_path, exposure, label="bake"):
     fog = linear_exr(fog_path)
     bevy = linear_png(bevy_path) / exposure
     same_size(bevy, fog, bevy_path, fog_path)
@@ -76,10 +76,10 @@ def compare_bake(bevy_path, fog_path, exposure):
     pixel_rmse = np.sqrt(np.mean((bevy - fog) ** 2)) / mf
     bf, bb = blocks(fog.mean(axis=-1)), blocks(bevy.mean(axis=-1))
     robust = np.sqrt(np.mean((bb - bf) ** 2)) / mf
-    print(f"bake: mean Bevy {mb:.5g}, Fogsmith {mf:.5g}: difference {100 * mean_diff:+.2f} % (bound ±{100 * MEAN_BOUND:.0f} %)")
-    print(f"bake: robust rel-RMSE (4x4 blocks) {100 * robust:.2f} % (bound {100 * RMSE_BOUND:.0f} %); per pixel {100 * pixel_rmse:.2f} %")
+    print(f"{label}: mean Bevy {mb:.5g}, Fogsmith {mf:.5g}: difference {100 * mean_diff:+.2f} % (bound ±{100 * MEAN_BOUND:.0f} %)")
+    print(f"{label}: robust rel-RMSE (4x4 blocks) {100 * robust:.2f} % (bound {100 * RMSE_BOUND:.0f} %); per pixel {100 * pixel_rmse:.2f} %")
     if clipped > 0:
-        print(f"bake: warning: {100 * clipped:.2f} % of Bevy's pixels are at 255 (clipped); lower the exposure")
+        print(f"{label}: warning: {100 * clipped:.2f} % of Bevy's pixels are at 255 (clipped); lower the exposure")
     return abs(mean_diff) <= MEAN_BOUND and robust <= RMSE_BOUND
 
 
@@ -99,8 +99,11 @@ def compare_shape(bevy_path, fog_path):
 
 
 def main(argv):
+    label = "bake"
+    if len(argv) == 7 and argv[5] == "--label":
+        label, argv = argv[6], argv[:5]
     if len(argv) == 5 and argv[1] == "bake":
-        ok = compare_bake(argv[2], argv[3], float(argv[4]))
+        ok = compare_bake(argv[2], argv[3], float(argv[4]), label)
     elif len(argv) == 4 and argv[1] == "shape":
         ok = compare_shape(argv[2], argv[3])
     else:

@@ -65,7 +65,9 @@ pub fn read_ktx2(path: &Path) -> Result<Ktx2Info, Error> {
         other => {
             return Err(error(
                 path,
-                format!("texel format {other:?} is not one Fogsmith writes (R16_SFLOAT, R8_UNORM, R16G16B16A16_SFLOAT)"),
+                format!(
+                    "texel format {other:?} is not one Fogsmith writes (R16_SFLOAT, R8_UNORM, R16G16B16A16_SFLOAT)"
+                ),
                 "export it again with `fogsmith export --ktx2`",
             ))
         }
@@ -149,8 +151,8 @@ pub fn sidecar_path(ktx2: &Path) -> PathBuf {
 }
 
 fn read_ron<T: for<'de> Deserialize<'de>>(path: &Path, what: &str, fix: &str) -> Result<T, Error> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| error(path, format!("cannot read {what} ({e})"), fix.to_string()))?;
+    let text =
+        std::fs::read_to_string(path).map_err(|e| error(path, format!("cannot read {what} ({e})"), fix.to_string()))?;
     ron::from_str(&text).map_err(|e| error(path, format!("is not {what} ({e})"), fix.to_string()))
 }
 

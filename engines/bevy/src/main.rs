@@ -18,6 +18,7 @@ use bevy::asset::{AssetPlugin, LoadState};
 use bevy::camera::{Exposure, Hdr};
 use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
 use bevy::light::{FogVolume, VolumetricFog, VolumetricLight};
+use bevy::log::{error, info};
 use bevy::prelude::*;
 use bevy::render::settings::{Backends, WgpuSettings};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
@@ -211,20 +212,27 @@ fn setup(
     let cam = &scene.project.camera;
     // Bevy's exposure is 2^−ev100 / 1.2; this ev100 gives the requested linear factor.
     let ev100 = -(1.2 * scene.exposure).log2();
-    let mut camera = commands.spawn((
-        Camera3d::default(),
-        Hdr,
-        Tonemapping::None,
-        DebandDither::Disabled,
-        Msaa::Off,
-        Exposure { ev100 },
-        Projection::Perspective(PerspectiveProjection { fov: cam.fov_y_deg.to_radians(), near: 0.01, ..default() }),
-        Transform::from_translation(vec3(cam.position)).looking_at(vec3(cam.target), vec3(cam.up)),
-    ));
+    let camera = commands
+        .spawn((
+            Camera3d::default(),
+            Hdr,
+            Tonemapping::None,
+            DebandDither::Disabled,
+            Msaa::Off,
+            Exposure { ev100 },
+            Projection::Perspective(PerspectiveProjection { fov: cam.fov_y_deg.to_radians(), near: 0.01, ..default() }),
+            Transform::from_translation(vec3(cam.position)).looking_at(vec3(cam.target), vec3(cam.up)),
+        ))
+        .id();
 
     match (&scene.fog_volume, &scene.bake) {
         (Some(fog), _) => {
-            camera.insert(VolumetricFog { ambient_intensity: 0.0, jitter: 0.0, step_count: scene.args.fog_steps, ..default() });
+            commands.entity(camera).insert(VolumetricFog {
+                ambient_intensity: 0.0,
+                jitter: 0.0,
+                step_count: scene.args.fog_steps,
+                ..default()
+            });
             let t = &fog.transform;
             let p = &fog.fog_volume;
             commands.spawn((
