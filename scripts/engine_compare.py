@@ -6,14 +6,19 @@ The viewer's PNG holds exposure x linear radiance, sRGB-encoded with no tone cur
 brought to linear radiance before comparing. Two checks, as in scripts/engine-check.sh:
 
     engine_compare.py bake   BEVY.png FOGSMITH.exr EXPOSURE [--label TEXT]   # mean, robust rel-RMSE
-    engine_compare.py shape  BEVY.png FOGSMITH.exr            # IoU of the fog silhouettes
+    engine_compare.py shape  BEVY.png FOGSMITH.exr            # IoU of the lit silhouettes
+    engine_compare.py opacity BEVY.png BACKGROUND FOGSMITH.exr  # IoU of the opacity silhouettes
+    engine_compare.py peak   IMAGE.png|IMAGE.exr              # the largest linear value
 
 `bake`: the mean radiance (all pixels, all channels) must agree within 3 %, and the robust
 relative RMSE, over 4x4-pixel blocks of the channel mean divided by Fogsmith's mean (the
 measure tests/blender_bake.rs uses; blocks keep the fog's shape and forgive one-pixel edge
 differences), must be at most 5 %. `shape`: each image's silhouette is the pixels whose
 luminance is above 5 % of that image's maximum; their intersection over union must be at
-least 0.9. Prints one line per figure and exits 1 when a bound is missed.
+least 0.9. `opacity`: the same IoU, of the pixels whose opacity is above 5 %: Bevy's
+opacity is 1 - image / BACKGROUND for a shot of the fog in front of a grey BACKGROUND with
+its own light exposed away (the viewer's --background), Fogsmith's is its EXR's alpha
+(1 - transmittance). Prints one line per figure and exits 1 when a bound is missed.
 
 Needs numpy and OpenEXR's Python bindings (the project's .venv from ./setup.sh).
 """
@@ -98,6 +103,29 @@ def compare_shape(bevy_path, fog_path):
     return iou >= IOU_BOUND
 
 
+def compare_opacity(bevy_path, background, fog_path):
+    with OpenEXR.File(fog_path, separate_channels=True) as f:
+        ch = f.channels()
+        if "A" not in ch:
+            sys.exit(f"{fog_path}: no alpha channel; pass `fogsmith render`'s EXR")
+        fog = ch["A"].pixels.astype(np.float64)
+    bevy = 1.0 - linear_png(bevy_path).mean(axis=-1) / background
+    same_size(bevy, fog, bevy_path, fog_path)
+    a, b = bevy > SILHOUETTE, fog > SILHOUETTE
+    iou = np.sum(a & b) / np.sum(a | b)
+    print(
+        f"opacity: IoU of the silhouettes (opacity > {100 * SILHOUETTE:.0f} %) {iou:.4f} (bound {IOU_BOUND}); "
+        f"Bevy {int(a.sum())} px, Fogsmith {int(b.sum())} px, both {int((a & b).sum())}"
+    )
+    return iou >= IOU_BOUND
+
+
+def peak(path):
+    img = linear_exr(path) if path.lower().endswith(".exr") else linear_png(path)
+    print(float(img.max()))
+    return True
+
+
 def main(argv):
     label = "bake"
     if len(argv) == 7 and argv[5] == "--label":
@@ -106,6 +134,10 @@ def main(argv):
         ok = compare_bake(argv[2], argv[3], float(argv[4]), label)
     elif len(argv) == 4 and argv[1] == "shape":
         ok = compare_shape(argv[2], argv[3])
+    elif len(argv) == 5 and argv[1] == "opacity":
+        ok = compare_opacity(argv[2], float(argv[3]), argv[4])
+    elif len(argv) == 3 and argv[1] == "peak":
+        ok = peak(argv[2])
     else:
         sys.exit(__doc__)
     return 0 if ok else 1

@@ -29,7 +29,8 @@ use std::process::ExitCode;
 
 const USAGE: &str = "\
 usage: fogsmith-bevy-viewer (--density NAME.ktx2 | --baked NAME.ktx2) --project PROJECT.ron --out SHOT.png
-                            [--width W] [--height H] [--exposure E] [--fog-steps N] [--steps-per-cell N]
+                            [--width W] [--height H] [--exposure E] [--background L]
+                            [--fog-steps N] [--steps-per-cell N]
 
   --density FILE      a density texture (`fogsmith export --ktx2`), shown in Bevy's FogVolume
   --baked FILE        a light bake (`fogsmith export --bake-light --ktx2`), shown as emission
@@ -38,6 +39,8 @@ usage: fogsmith-bevy-viewer (--density NAME.ktx2 | --baked NAME.ktx2) --project 
   --out FILE          the PNG to write; the viewer exits once it is written
   --width, --height   image size (default: the project's render size)
   --exposure E        factor on linear radiance before sRGB encoding (default: the project's)
+  --background L      linear grey behind the fog (default 0): with the fog's own light
+                      exposed away, the image is L times the fog's transmittance
   --fog-steps N       ray-march steps of Bevy's volumetric fog (default 256)
   --steps-per-cell N  steps per smallest cell of the bake's march (default 8, as Fogsmith)";
 
@@ -51,6 +54,7 @@ struct Args {
     width: Option<u32>,
     height: Option<u32>,
     exposure: Option<f32>,
+    background: f32,
     fog_steps: u32,
     steps_per_cell: f32,
 }
@@ -65,7 +69,7 @@ fn parse_args(mut it: impl Iterator<Item = String>) -> Result<Args, String> {
     let mut mode = None;
     let (mut project, mut out) = (None, None);
     let (mut width, mut height, mut exposure) = (None, None, None);
-    let (mut fog_steps, mut steps_per_cell) = (256, 8.0);
+    let (mut fog_steps, mut steps_per_cell, mut background) = (256, 8.0, 0.0);
     while let Some(flag) = it.next() {
         if flag == "--help" || flag == "-h" {
             return Err(String::new());
@@ -82,6 +86,7 @@ fn parse_args(mut it: impl Iterator<Item = String>) -> Result<Args, String> {
             "--width" => width = Some(number(&flag, value()?)?),
             "--height" => height = Some(number(&flag, value()?)?),
             "--exposure" => exposure = Some(number(&flag, value()?)?),
+            "--background" => background = number(&flag, value()?)?,
             "--fog-steps" => fog_steps = number(&flag, value()?)?,
             "--steps-per-cell" => steps_per_cell = number(&flag, value()?)?,
             _ => return Err(format!("unknown argument {flag:?}")),
@@ -96,7 +101,10 @@ fn parse_args(mut it: impl Iterator<Item = String>) -> Result<Args, String> {
     if exposure.is_some_and(|e: f32| !(e > 0.0 && e.is_finite())) {
         return Err("--exposure must be positive".into());
     }
-    Ok(Args { mode, texture, project, out, width, height, exposure, fog_steps, steps_per_cell })
+    if !(0.0..=1.0).contains(&background) {
+        return Err("--background must be within 0..=1".into());
+    }
+    Ok(Args { mode, texture, project, out, width, height, exposure, background, fog_steps, steps_per_cell })
 }
 
 /// Everything read from the files, checked before the window opens.
@@ -156,6 +164,7 @@ fn main() -> ExitCode {
     let folder = scene.args.texture.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let folder = std::path::absolute(folder).unwrap_or_else(|_| folder.to_path_buf());
     let (width, height) = scene.size;
+    let background = scene.args.background;
     let wgpu = WgpuSettings { backends: Some(Backends::from_env().unwrap_or(Backends::VULKAN)), ..default() };
     let exit = App::new()
         .add_plugins(
@@ -178,7 +187,7 @@ fn main() -> ExitCode {
                 }),
         )
         .add_plugins(baked::BakedFogPlugin)
-        .insert_resource(ClearColor(Color::BLACK))
+        .insert_resource(ClearColor(Color::linear_rgb(background, background, background)))
         .insert_resource(scene)
         .init_resource::<Capture>()
         .add_systems(Startup, setup)
@@ -277,7 +286,8 @@ fn setup(
 
 /// Fogsmith's lights in Bevy's units: a sun's irradiance (W/m²) as illuminance, a point or
 /// spot light's intensity I (W/sr) as 4π·I "lumens" (Bevy divides by 4π), so one watt reads
-/// as one lumen throughout and the exposure is the same as Fogsmith's.
+/// as one lumen throughout and the exposure is the same as Fogsmith's. Bevy's fog takes only
+/// lights with shadow maps enabled (the fog casts none, so they change nothing else).
 fn spawn_lights(commands: &mut Commands, lights: &[export::Light]) {
     for light in lights.iter().filter(|l| !l.hidden) {
         let color = Color::linear_rgb(light.color.0, light.color.1, light.color.2);
@@ -295,7 +305,7 @@ fn spawn_lights(commands: &mut Commands, lights: &[export::Light]) {
             }
             export::LightKind::Point => {
                 commands.spawn((
-                    PointLight { color, intensity: lumens, range: 1000.0, shadow_maps_enabled: false, ..default() },
+                    PointLight { color, intensity: lumens, range: 1000.0, shadow_maps_enabled: true, ..default() },
                     at,
                     VolumetricLight,
                 ));
@@ -311,7 +321,7 @@ fn spawn_lights(commands: &mut Commands, lights: &[export::Light]) {
                         range: 1000.0,
                         outer_angle: outer,
                         inner_angle: outer * (1.0 - blend.clamp(0.0, 1.0)),
-                        shadow_maps_enabled: false,
+                        shadow_maps_enabled: true,
                         ..default()
                     },
                     at.looking_to(d, up),
