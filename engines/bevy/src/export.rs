@@ -97,7 +97,8 @@ pub fn read_ktx2(path: &Path) -> Result<Ktx2Info, Error> {
             "export it again with a current `fogsmith export --ktx2`",
         ));
     };
-    if (0..3).any(|i| !(grid_max[i] > grid_min[i])) {
+    // Both corners are finite (parse_vec3), so `<=` also catches an empty box.
+    if (0..3).any(|i| grid_max[i] <= grid_min[i]) {
         return Err(error(path, "its grid box is empty", "export a project whose grid has a positive size"));
     }
     Ok(Ktx2Info {
@@ -271,4 +272,36 @@ fn one() -> f32 {
 /// Reads the camera, lights and render size of a project file.
 pub fn read_project(path: &Path) -> Result<Project, Error> {
     read_ron(path, "a Fogsmith project", "pass the project (.ron) the texture was exported from")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn demo(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../projects").join(name)
+    }
+
+    #[test]
+    fn every_demo_project_gives_its_camera_and_lights() {
+        let cloud = read_project(&demo("cloud.ron")).unwrap();
+        assert_eq!(cloud.camera.position, (0.0, 1.0, 7.5));
+        assert_eq!(cloud.camera.fov_y_deg, 45.0);
+        assert_eq!((cloud.render.width, cloud.render.height, cloud.render.exposure), (640, 360, 1.0));
+        assert!(matches!(cloud.lights[0].kind, LightKind::Directional { .. }));
+        assert!(matches!(cloud.lights[1].kind, LightKind::Point));
+        for name in ["cornell.ron", "room.ron", "street.ron", "street-wind.ron"] {
+            read_project(&demo(name)).unwrap_or_else(|e| panic!("{e}"));
+        }
+    }
+
+    #[test]
+    fn bad_files_name_themselves_and_the_fix() {
+        let e = read_ktx2(&demo("cloud.ron")).unwrap_err();
+        assert!(e.path.ends_with("cloud.ron") && e.problem.contains("not a KTX2 file"), "{e}");
+        let e = read_fog_volume(Path::new("/nonexistent/fog.ktx2")).unwrap_err();
+        assert!(e.path.ends_with("fog.fogvolume.ron") && e.fix.contains("fogsmith export --ktx2"), "{e}");
+        assert!(parse_vec3(Path::new("x"), "k", "1 2").is_err());
+        assert_eq!(parse_vec3(Path::new("x"), "k", "1 -2.5 3e1").unwrap(), [1.0, -2.5, 30.0]);
+    }
 }

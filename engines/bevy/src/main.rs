@@ -69,7 +69,7 @@ fn parse_args(mut it: impl Iterator<Item = String>) -> Result<Args, String> {
     let mut mode = None;
     let (mut project, mut out) = (None, None);
     let (mut width, mut height, mut exposure) = (None, None, None);
-    let (mut fog_steps, mut steps_per_cell, mut background) = (256, 8.0, 0.0);
+    let (mut fog_steps, mut steps_per_cell, mut background): (u32, f32, f32) = (256, 8.0, 0.0);
     while let Some(flag) = it.next() {
         if flag == "--help" || flag == "-h" {
             return Err(String::new());
@@ -95,7 +95,7 @@ fn parse_args(mut it: impl Iterator<Item = String>) -> Result<Args, String> {
     let (mode, texture) = mode.ok_or("give --density or --baked")?;
     let project = project.ok_or("give --project: the project whose camera and lights to use")?;
     let out = out.ok_or("give --out: the PNG to write")?;
-    if width == Some(0) || height == Some(0) || fog_steps == 0 || !(steps_per_cell >= 1.0) {
+    if width == Some(0) || height == Some(0) || fog_steps == 0 || steps_per_cell.is_nan() || steps_per_cell < 1.0 {
         return Err("sizes and step counts must be positive".into());
     }
     if exposure.is_some_and(|e: f32| !(e > 0.0 && e.is_finite())) {
@@ -397,4 +397,26 @@ fn capture(
             }
         },
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(line: &str) -> Result<Args, String> {
+        parse_args(line.split_whitespace().map(String::from))
+    }
+
+    #[test]
+    fn the_command_line_names_what_is_missing_or_wrong() {
+        let a = parse("--baked b.ktx2 --project p.ron --out s.png --width 320 --exposure 2").unwrap();
+        assert_eq!((a.mode, a.width, a.height, a.exposure), (Mode::Baked, Some(320), None, Some(2.0)));
+        assert!(parse("--project p.ron --out s.png").unwrap_err().contains("--density or --baked"));
+        assert!(parse("--density d.ktx2 --out s.png").unwrap_err().contains("--project"));
+        assert!(parse("--density d.ktx2 --project p.ron").unwrap_err().contains("--out"));
+        assert!(parse("--density d.ktx2 --project p.ron --out s.png --width x").unwrap_err().contains("--width"));
+        assert!(parse("--density d.ktx2 --project p.ron --out s.png --steps-per-cell NaN").is_err());
+        assert!(parse("--density d.ktx2 --project p.ron --out s.png --exposure 0").is_err());
+        assert!(parse("--density d.ktx2 --bogus").unwrap_err().contains("--bogus"));
+    }
 }
