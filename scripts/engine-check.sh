@@ -54,8 +54,11 @@ echo "exporting $project ..."
 "$bin" export "$project" --quiet --ktx2 "$out/$name.ktx2"
 "$bin" export "$project" --quiet --bake-light --bake-phase camera --ktx2 "$out/$name-baked.ktx2"
 echo "rendering with Fogsmith ..."
-"$bin" render "$project" --quiet --image-sampling per-pixel -o "$out/fogsmith-lit.exr"
-"$bin" render "$project" --quiet --image-sampling per-pixel -o "$out/fogsmith-lit.png"
+# One ray per pixel, as Bevy's, where fogsmith has the choice.
+sampling=()
+"$bin" render --help | grep -- --image-sampling >/dev/null && sampling=(--image-sampling per-pixel)
+"$bin" render "$project" --quiet "${sampling[@]}" -o "$out/fogsmith-lit.exr"
+"$bin" render "$project" --quiet "${sampling[@]}" -o "$out/fogsmith-lit.png"
 # `fogsmith render` cannot render the bake itself; as_baked.py renders the exported texture
 # as shaders/as_baked.wgsl does.
 "$py" scripts/as_baked.py "$out/$name-baked.ktx2" "$project" "$out/fogsmith-baked.exr"
