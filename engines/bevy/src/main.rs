@@ -17,6 +17,7 @@ mod export;
 use bevy::asset::{AssetPlugin, LoadState};
 use bevy::camera::{Exposure, Hdr};
 use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
+use bevy::image::ImageLoaderSettings;
 use bevy::light::{FogVolume, VolumetricFog, VolumetricLight};
 use bevy::log::{error, info};
 use bevy::prelude::*;
@@ -215,7 +216,10 @@ fn setup(
     mut materials: ResMut<Assets<baked::BakedFogMaterial>>,
 ) {
     let name = scene.args.texture.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let texture: Handle<Image> = asset_server.load(name);
+    // The texels are linear (the DFD says so), but Bevy's image loader decodes 8-bit KTX2
+    // formats as sRGB unless told otherwise, which would bend an R8 density texture.
+    let texture: Handle<Image> =
+        asset_server.load_builder().with_settings(|s: &mut ImageLoaderSettings| s.is_srgb = false).load(name);
     commands.insert_resource(Texture(texture.clone()));
 
     let cam = &scene.project.camera;
