@@ -40,7 +40,7 @@ if [ -z "$bin" ]; then
 fi
 viewer_target=${CARGO_TARGET_DIR:-$root/engines/bevy/target}
 echo "building the Bevy viewer (engines/bevy) ..."
-cargo build --quiet --manifest-path engines/bevy/Cargo.toml --target-dir "$viewer_target"
+cargo build --quiet --locked --manifest-path engines/bevy/Cargo.toml --target-dir "$viewer_target"
 viewer=$viewer_target/debug/fogsmith-bevy-viewer
 
 if [ -z "${XDG_RUNTIME_DIR:-}" ] || [ ! -w "${XDG_RUNTIME_DIR:-/nonexistent}" ]; then
