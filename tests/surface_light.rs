@@ -14,6 +14,9 @@ use std::f64::consts::PI;
 
 fn gpu_image(p: &Project) -> Vec<[f32; 4]> {
     let mut gpu = pipeline();
+    // Pixel by pixel against exact values: one ray per pixel, so that no pixel's fog is an
+    // interpolation (tests/image_sampling.rs checks that).
+    gpu.set_image_sampling(fogsmith::gpu::ImageSampling::PerPixel);
     gpu.update(p, &FrameRequest::for_project(p)).unwrap();
     let image = gpu.read_image().unwrap().rgba;
     assert!(image.iter().flatten().all(|v| v.is_finite()), "the GPU image holds NaN or infinity");
