@@ -23,6 +23,8 @@ pub struct Context {
     pub(super) schemes: Vec<String>,
     /// The frame of an animated demo the suites bake (`--frame`).
     frame: Option<i32>,
+    /// What the suites' marches use (`--image-sampling`).
+    pub(super) image_sampling: crate::gpu::ImageSampling,
 }
 
 impl Context {
@@ -50,8 +52,11 @@ impl Context {
         if let Some(f) = opts.frame {
             check_frame(f, &opts.scenes)?;
         }
+        let mut gpu = FogPipeline::new(GpuContext::new_headless()?);
+        gpu.set_image_sampling(opts.image_sampling);
         Ok(Self {
-            gpu: FogPipeline::new(GpuContext::new_headless()?),
+            gpu,
+            image_sampling: opts.image_sampling,
             quick: opts.quick,
             resolutions: opts.resolutions.clone(),
             scenes: opts.scenes.clone(),

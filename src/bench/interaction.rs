@@ -237,7 +237,12 @@ fn percentiles(v: &[f64]) -> [f64; 4] {
 }
 
 /// Runs the script on demo `scene` (or [`LARGE_SCENE`]) with the preview in `quality`.
-pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<Vec<Value>, BenchError> {
+pub fn run(
+    scene: &str,
+    quality: Quality,
+    sampling: crate::gpu::ImageSampling,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<Value>, BenchError> {
     let large = scene == LARGE_SCENE;
     let project = if large { small_particle_scene(100_000, 2, 64) } else { crate::demos::demo(scene)? };
     let start = StartProject { project, path: None, name: format!("{scene}.ron"), error: None };
@@ -248,7 +253,8 @@ pub fn run(scene: &str, quality: Quality, log: &mut dyn FnMut(&str)) -> Result<V
         preview_scale: large.then_some(crate::editor::app::PreviewScale::Quarter),
         options: EditorOptions::default(),
     };
-    let h = EditorDriver::new(start, setup);
+    let mut h = EditorDriver::new(start, setup);
+    h.state_mut().set_per_pixel_march(sampling == crate::gpu::ImageSampling::PerPixel);
     let mut d = Recorder {
         h,
         frames: Vec::new(),
@@ -464,6 +470,7 @@ fn playback_work(d: &Recorder) -> Result<PlaybackWork, BenchError> {
     let size = app.preview_size();
     let project = app.session().project().clone();
     let mut fresh = crate::gpu::FogPipeline::new(pipeline.context().clone());
+    fresh.set_image_sampling(pipeline.image_sampling());
     let layer = crate::export::load_base_layer(&project, app.session().path())
         .map_err(|e| BenchError::Editor(format!("the base volume: {e}")))?;
     fresh.set_base_layer(layer);

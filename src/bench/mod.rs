@@ -52,6 +52,8 @@ pub struct BenchOptions {
     pub schemes: Vec<String>,
     /// The frame at which animated demos are baked (`--frame`); their first without it.
     pub frame: Option<i32>,
+    /// The image sampling of the suites' marches (`--image-sampling`).
+    pub image_sampling: crate::gpu::ImageSampling,
 }
 
 /// Why a benchmark could not run.
@@ -177,7 +179,7 @@ fn run_suite(
                 // The large scene in the budgeted preview only: blocking frames there take seconds.
                 let large = scene == context::LARGE_SCENE;
                 for &quality in modes.iter().filter(|&&q| !large || q == Quality::Balanced) {
-                    out.extend(interaction::run(scene, quality, log)?);
+                    out.extend(interaction::run(scene, quality, ctx.image_sampling, log)?);
                 }
             }
             Ok(())

@@ -72,7 +72,7 @@ pub(super) fn run(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn FnMut(&
             }));
         }
     }
-    ctx.gpu.set_image_sampling(ImageSampling::default());
+    ctx.gpu.set_image_sampling(ctx.image_sampling);
     Ok(())
 }
 
@@ -136,6 +136,6 @@ pub(super) fn stability(ctx: &mut Context, out: &mut Vec<Value>, log: &mut dyn F
             "change_per_pixel": relative(change[0]), "change_adaptive": relative(change[1]), "stray_of_change": extra,
         }));
     }
-    ctx.gpu.set_image_sampling(ImageSampling::default());
+    ctx.gpu.set_image_sampling(ctx.image_sampling);
     Ok(())
 }

@@ -118,6 +118,10 @@ enum Command {
         /// take --scene (default: each one's first frame).
         #[arg(long, allow_hyphen_values = true)]
         frame: Option<i32>,
+        /// The image sampling of every suite's marches and of the editor in `interaction`
+        /// (default: adaptive); `march` and `sampling` compare both whatever this says.
+        #[arg(long, value_name = "SAMPLING")]
+        image_sampling: Option<SamplingArg>,
         /// Print the records as JSON on stdout (progress lines go to stderr).
         #[arg(long)]
         json: bool,
@@ -400,7 +404,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
         Some(Command::Export(args)) => export::run(args),
         Some(Command::Farm { command }) => farm::run(command),
         Some(Command::Stress { quick, json, quiet }) => stress::run(quick, json, quiet),
-        Some(Command::Bench { quick, out, suite, resolution, scene, scheme, frame, json, quiet }) => {
+        Some(Command::Bench { quick, out, suite, resolution, scene, scheme, frame, image_sampling, json, quiet }) => {
             if let Some(bad) = resolution.iter().find(|&&r| r == 0 || r > 1024) {
                 return Err(format!("--resolution must be within 1..=1024, got {bad}").into());
             }
@@ -421,6 +425,7 @@ pub fn run(args: Vec<OsString>) -> Result<(), Box<dyn std::error::Error>> {
                 scenes: scene,
                 schemes: scheme,
                 frame,
+                image_sampling: sampling_of(image_sampling, None)?,
             };
             let records = crate::bench::run(&options, &mut |line| {
                 // The suites do not know their length ahead: the bar counts measurements.

@@ -197,6 +197,10 @@ impl EditorApp {
     pub fn set_quality(&mut self, quality: Quality) {
         self.state.view.quality = quality;
     }
+    /// Preview → March every pixel.
+    pub fn set_per_pixel_march(&mut self, on: bool) {
+        self.state.view.per_pixel_march = on;
+    }
     pub fn set_preview_scale(&mut self, scale: PreviewScale) {
         self.state.view.preview_scale = scale;
     }
