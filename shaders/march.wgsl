@@ -851,6 +851,14 @@ fn camera_ray(px: vec2u) -> vec3f {
     return normalize(params.forward + params.right * sx + params.up * sy);
 }
 
+// Where the camera ray from o along dir enters the grid box (not before o) and leaves it: it
+// crosses the box where y > x.
+fn grid_span(o: vec3f, dir: vec3f) -> vec2f {
+    let slabs = ray_slabs(o, safe_inverse(dir), grid.min, grid.max);
+    let t_enter = max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0));
+    return vec2f(t_enter, min(min(slabs.far.x, slabs.far.y), slabs.far.z));
+}
+
 // The radiance (rgb) and opacity 1 − Tr (a) of the camera ray through pixel `px`, the first
 // surface's shading included where `surface`; adds its samples, skipped bricks, termination
 // and the ray itself to the counters.
@@ -864,9 +872,9 @@ fn march_ray(px: vec2u, surface: bool) -> vec4f {
     skipped = 0u;
 
     let hit = first_surface(o, dir);
-    let slabs = ray_slabs(o, safe_inverse(dir), grid.min, grid.max);
-    let t_enter = max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0));
-    let t_exit = min(min(slabs.far.x, slabs.far.y), slabs.far.z);
+    let span = grid_span(o, dir);
+    let t_enter = span.x;
+    let t_exit = span.y;
     let in_box = t_exit > t_enter;
     let fog = base_fog && grid.base_extinction > 0.0;
 
@@ -927,10 +935,8 @@ fn geometry_class(px: vec2u) -> u32 {
     let o = params.origin;
     let dir = camera_ray(px);
     let hit = first_surface(o, dir);
-    let slabs = ray_slabs(o, safe_inverse(dir), grid.min, grid.max);
-    let t_enter = max(max(slabs.near.x, slabs.near.y), max(slabs.near.z, 0.0));
-    let t_exit = min(min(slabs.far.x, slabs.far.y), slabs.far.z);
-    var seen = select(0u, 1u, t_exit > t_enter);
+    let span = grid_span(o, dir);
+    var seen = select(0u, 1u, span.y > span.x);
     if hit.surface != NO_SURFACE {
         let n = hit.normal;
         let face = select(select(4u, 2u, n.y != 0.0), 0u, n.x != 0.0) + select(0u, 1u, n.x + n.y + n.z > 0.0);

@@ -1407,11 +1407,8 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
         })
         .expect("a pixel whose ray crosses the box through thin fog");
     let n = h.state().session().project().particles.len();
-    h.event(Event::PointerMoved(thin));
+    h.click(thin, PointerButton::Primary);
     h.step();
-    h.press(thin, PointerButton::Primary, true);
-    h.press(thin, PointerButton::Primary, false);
-    h.run_steps(2);
     let fallback = h.state().session().project().particles[n].center;
     let plane_point = working_plane_point(&project, &vp, thin).unwrap();
     let want = fogsmith::editor::tools::into_grid_along_ray(&g, vp.position, vp.ray(thin), plane_point).unwrap();
@@ -1420,11 +1417,8 @@ fn paint_lands_at_the_fog_depth_under_the_cursor() {
     let corner = rect.min + Vec2::new(6.0, 6.0);
     assert!(fogsmith::editor::tools::into_grid_along_ray(&g, vp.position, vp.ray(corner), vp.position).is_none());
     let n = h.state().session().project().particles.len();
-    h.event(Event::PointerMoved(corner));
+    h.click(corner, PointerButton::Primary);
     h.step();
-    h.press(corner, PointerButton::Primary, true);
-    h.press(corner, PointerButton::Primary, false);
-    h.run_steps(2);
     assert_eq!(h.state().session().project().particles.len(), n, "nothing painted outside the grid box");
 
     // The working plane as the artist's choice.

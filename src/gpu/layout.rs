@@ -34,6 +34,68 @@ pub fn bind_group_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> 
     bind_group_layout_with(device, label, slots, Vec::new())
 }
 
+/// The layout entry of `slot` at `binding`, visible to compute shaders.
+pub fn entry(binding: u32, slot: Slot) -> BindGroupLayoutEntry {
+    BindGroupLayoutEntry {
+        binding,
+        visibility: ShaderStages::COMPUTE,
+        ty: match slot {
+            Slot::Uniform => BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            Slot::UniformDynamic => BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: true,
+                min_binding_size: None,
+            },
+            Slot::StorageRead => BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            Slot::StorageWrite => BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            Slot::Texture3d => BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D3,
+                multisampled: false,
+            },
+            Slot::Texture3dFiltered => BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: wgpu::TextureViewDimension::D3,
+                multisampled: false,
+            },
+            Slot::Sampler { filtering } => BindingType::Sampler(if filtering {
+                wgpu::SamplerBindingType::Filtering
+            } else {
+                wgpu::SamplerBindingType::NonFiltering
+            }),
+            Slot::Opv { read_only } => super::opv_store::OpvLayout::binding_type(read_only),
+            Slot::StorageTexture3d(format) => BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format,
+                view_dimension: wgpu::TextureViewDimension::D3,
+            },
+            Slot::StorageTexture3dRead(format) => BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::ReadOnly,
+                format,
+                view_dimension: wgpu::TextureViewDimension::D3,
+            },
+            Slot::StorageTexture2d(format) => BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+        },
+        count: None,
+    }
+}
+
 /// [`bind_group_layout`] plus `extra` entries at their own binding numbers.
 pub fn bind_group_layout_with(
     device: &wgpu::Device,
@@ -41,68 +103,8 @@ pub fn bind_group_layout_with(
     slots: &[Slot],
     extra: Vec<BindGroupLayoutEntry>,
 ) -> wgpu::BindGroupLayout {
-    let mut entries: Vec<BindGroupLayoutEntry> = slots
-        .iter()
-        .enumerate()
-        .map(|(i, slot)| BindGroupLayoutEntry {
-            binding: i as u32,
-            visibility: ShaderStages::COMPUTE,
-            ty: match *slot {
-                Slot::Uniform => BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                Slot::UniformDynamic => BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
-                    min_binding_size: None,
-                },
-                Slot::StorageRead => BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: true },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                Slot::StorageWrite => BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: false },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                Slot::Texture3d => BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D3,
-                    multisampled: false,
-                },
-                Slot::Texture3dFiltered => BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                    view_dimension: wgpu::TextureViewDimension::D3,
-                    multisampled: false,
-                },
-                Slot::Sampler { filtering } => BindingType::Sampler(if filtering {
-                    wgpu::SamplerBindingType::Filtering
-                } else {
-                    wgpu::SamplerBindingType::NonFiltering
-                }),
-                Slot::Opv { read_only } => super::opv_store::OpvLayout::binding_type(read_only),
-                Slot::StorageTexture3d(format) => BindingType::StorageTexture {
-                    access: wgpu::StorageTextureAccess::WriteOnly,
-                    format,
-                    view_dimension: wgpu::TextureViewDimension::D3,
-                },
-                Slot::StorageTexture3dRead(format) => BindingType::StorageTexture {
-                    access: wgpu::StorageTextureAccess::ReadOnly,
-                    format,
-                    view_dimension: wgpu::TextureViewDimension::D3,
-                },
-                Slot::StorageTexture2d(format) => BindingType::StorageTexture {
-                    access: wgpu::StorageTextureAccess::WriteOnly,
-                    format,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                },
-            },
-            count: None,
-        })
-        .collect();
+    let mut entries: Vec<BindGroupLayoutEntry> =
+        slots.iter().enumerate().map(|(i, &slot)| entry(i as u32, slot)).collect();
     entries.extend(extra);
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
 }

@@ -10,22 +10,10 @@
 use super::gpu_types::{GridParams, LightGpu, MarchParams, SurfaceGpu};
 use super::image_sampling::{ImageSampler, ImageSampling, SamplingBuffers, LATTICE, LEVELS};
 use super::layout::{
-    bind_group_layout_with, bind_group_with, compute_pipeline_with, Slot, LIGHT_DIRECTIONAL, LIGHT_SPOT, WORKGROUP_2D,
+    bind_group_layout_with, bind_group_with, compute_pipeline_with, entry, Slot, LIGHT_DIRECTIONAL, LIGHT_SPOT,
+    WORKGROUP_2D,
 };
 
-/// A read-write storage buffer entry of the march's layout at `binding`.
-fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: false },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
 use super::opv_store::{OpvLayout, OpvVolumes, EXTRA_BINDING};
 use super::readback::read_buffer;
 use super::{Counters, GpuContext, GpuError};
@@ -171,11 +159,9 @@ impl MarchFeatures {
     }
 }
 
-/// A march in progress: the rows above `next_row` are done, and in the band of
-/// [`BAND_ROWS`] rows from there, the columns left of `next_col`.
-/// With adaptive sampling, the rays [`Self::next`, [`Self::count`]) of the level of
-/// [`Self::level`] are left to march: level 0 is the first lattice, level l the list that
-/// refining the lattice of stride `LATTICE >> (l - 1)` gathered.
+/// A march in progress: per pixel, the rows above `next_row` are done, and in the band of
+/// [`BAND_ROWS`] rows from there, the columns left of `next_col`; with adaptive sampling, as
+/// its [`AdaptiveJob`] says.
 pub struct MarchJob {
     bind_group: wgpu::BindGroup,
     features: MarchFeatures,
@@ -187,6 +173,9 @@ pub struct MarchJob {
     error: Option<GpuError>,
 }
 
+/// The rays [`Self::next`, `Self::count`) of level [`Self::level`] are left to march:
+/// level 0 is the first lattice, level l the list that refining the lattice of stride
+/// `LATTICE >> (l - 1)` gathered.
 struct AdaptiveJob {
     level: u32,
     next: u32,
@@ -289,7 +278,7 @@ impl Marcher {
             ],
             {
                 let mut extra = opv.layout_entries(EXTRA_BINDING, true);
-                extra.extend([12, 13].map(storage_entry));
+                extra.extend([12, 13].map(|binding| entry(binding, Slot::StorageWrite)));
                 extra
             },
         );
