@@ -19,6 +19,7 @@ PACKAGES=(
   libx11-xcb1
   slurm-wlm             # for the tests only: slurmctld, slurmd and sbatch for a single-node cluster
   munge                 # Slurm's authentication daemon, started by the same test
+  libllvm19             # the LLVM that Mitsuba 3's CPU variants load (LLVM 15 aborts)
 )
 
 missing=()
@@ -58,6 +59,8 @@ need=()
 "$VENV/bin/python" -c "import OpenEXR; OpenEXR.File" 2>/dev/null || need+=("openexr==3.5.3")
 "$VENV/bin/python" -c "import openjd.cli" 2>/dev/null || need+=("openjd-cli==0.8.0")
 "$VENV/bin/python" -c "import bpy, sys; sys.exit(0 if bpy.app.version[:2] == (4, 5) else 1)" 2>/dev/null || need+=("bpy==4.5.*")
+# Mitsuba 3, the path tracer that scripts/mitsuba_reference.py renders reference images with.
+"$VENV/bin/python" -c "import mitsuba, sys; sys.exit(0 if mitsuba.__version__ == '3.9.1' else 1)" 2>/dev/null || need+=("mitsuba==3.9.1")
 if [ ${#need[@]} -gt 0 ]; then
   echo "setup.sh: installing ${need[*]} into $VENV (bpy is a ~370 MB download)"
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "${need[@]}"
