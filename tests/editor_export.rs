@@ -252,7 +252,7 @@ fn reopening_the_window_shows_the_last_choices_for_the_project() {
         assert_eq!(data[n], r8_texel(*v, scale), "texel {n}");
     }
     let snippet = std::fs::read_to_string(dir.path().join("a.fogvolume.ron")).expect("the snippet");
-    assert!(snippet.contains("density_texture: Some(asset_server.load(\"a.ktx2\"))"), "{snippet}");
+    assert!(snippet.contains("s.is_srgb = false).load(\"a.ktx2\"))"), "{snippet}");
 
     open_with_ctrl_e(&mut h);
     let again = h.state().export_window().unwrap();

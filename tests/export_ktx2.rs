@@ -130,7 +130,7 @@ fn bevy_snippet_matches_the_grid() {
     assert!((f(&fv["scattering"]) - 0.7).abs() < 1e-6 && (f(&fv["absorption"]) - 0.3).abs() < 1e-6, "{text}");
     assert!((f(&fv["scattering_asymmetry"]) - 0.3).abs() < 1e-6);
     assert_eq!(json["density_texture"], "fog/d.ktx2");
-    assert!(text.contains("asset_server.load(\"fog/d.ktx2\")"), "{text}");
+    assert!(text.contains("s.is_srgb = false).load(\"fog/d.ktx2\")"), "{text}");
 }
 
 #[test]

@@ -301,7 +301,9 @@ pub fn fog_volume_snippet(volume: &Volume, medium: &Medium, info: &Ktx2Info, tex
          //   commands.spawn((\n\
          //       Transform {{ translation: Vec3::new({cx}, {cy}, {cz}), scale: Vec3::new({sx}, {sy}, {sz}), ..default() }},\n\
          //       FogVolume {{\n\
-         //           density_texture: Some(asset_server.load({texture:?})),\n\
+         //           // Linear texels: Bevy decodes 8-bit KTX2 as sRGB unless told otherwise.\n\
+         //           density_texture: Some(asset_server.load_builder()\n\
+         //               .with_settings(|s: &mut ImageLoaderSettings| s.is_srgb = false).load({texture:?})),\n\
          //           density_factor: {df},\n\
          //           absorption: {ab},\n\
          //           scattering: {sc},\n\
