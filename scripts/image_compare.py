@@ -12,15 +12,13 @@ whose noise dominates the plain RMSE near a light inside the fog:
 
 import argparse
 import json
+import os
+import sys
 
 import numpy as np
 
-
-def load(path):
-    import mitsuba as mi
-    mi.set_variant("scalar_rgb")
-    bitmap = mi.Bitmap(path).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32)
-    return np.array(bitmap, dtype=np.float64)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from engine_compare import linear_exr  # noqa: E402
 
 
 def box3(x):
@@ -53,7 +51,7 @@ def main():
     ap.add_argument("reference")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    r = compare(load(args.render), load(args.reference))
+    r = compare(linear_exr(args.render), linear_exr(args.reference))
     if args.json:
         print(json.dumps(r))
     else:

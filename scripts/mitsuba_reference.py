@@ -75,13 +75,7 @@ class Ron:
             return self.group()
         if tok == "[":
             self.take("[")
-            items = []
-            while self.peek() != "]":
-                items.append(self.value())
-                if self.peek() == ",":
-                    self.take(",")
-            self.take("]")
-            return items
+            return self.items("]")
         if tok.startswith('"'):
             self.take()
             return json.loads(tok)
@@ -120,12 +114,16 @@ class Ron:
                     self.take(",")
             self.take(")")
             return fields
+        return self.items(")")
+
+    def items(self, close):
+        """Comma-separated values up to and including `close`."""
         items = []
-        while self.peek() != ")":
+        while self.peek() != close:
             items.append(self.value())
             if self.peek() == ",":
                 self.take(",")
-        self.take(")")
+        self.take(close)
         return items
 
 

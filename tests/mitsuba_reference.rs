@@ -29,7 +29,7 @@ fn random_scene(rng: &mut Rng, light: usize) -> Project {
     }
     let color = Vec3::new(1.0, rng.range(0.6, 1.0), rng.range(0.4, 1.0));
     let outside = rng.direction() * 1.9;
-    let mut l = match light {
+    let l = match light {
         0 => Light::new(outside, 4.0, color),
         1 => Light::new(rng.vec3(-0.5, 0.5), 0.5, color),
         2 => Light { kind: LightKind::Directional { direction: -outside }, ..Light::new(outside, 2.0, color) },
@@ -38,7 +38,6 @@ fn random_scene(rng: &mut Rng, light: usize) -> Project {
             ..Light::new(outside, 6.0, color)
         },
     };
-    l.id = 0;
     p.lights.push(l);
     for (i, q) in p.particles.iter_mut().enumerate() {
         q.id = i as u32;
