@@ -4,6 +4,9 @@
 // over the cell, E_l the light's irradiance per unit of rgb (cone/d² for points and spots, 1
 // for suns) and p the phase towards the camera (params.anisotropy is 0 for the isotropic bake).
 // A surface between the point and the light (box or ground) shadows it, for every light kind.
+// With multiple scattering on (params.scatter_factor > 0), each cell adds the multiply scattered
+// light at its centre, ms_inscatter (smooth on the coarse grid, so the centre stands for the
+// mean), with the same phase rule.
 //
 // Why the mean: trilinear interpolation between cell centres integrates to the sum of the cell
 // values, so storing each cell's mean keeps every ray's integral of the emission, where a
@@ -215,6 +218,7 @@ fn bake(@builtin(global_invocation_id) gid: vec3u) {
             }
             j += lights[l].rgb * cell_mean(c, l);
         }
+        j += ms_inscatter(c, normalize(params.origin - c));
         j *= params.albedo * sigma;
     }
     emission_out[gid.x + grid.dims.x * (gid.y + grid.dims.y * gid.z)] = vec4f(j, 0.0);

@@ -48,6 +48,8 @@ override base_fog: bool = true;
 override fog_shadows: bool = true;
 // Point and spot lights in base fog test only the surfaces that can hide them (fog_candidates).
 override fog_culling: bool = true;
+// Multiple scattering inside the grid (ms_inscatter), where params.scatter_factor > 0.
+override multiple_scattering: bool = true;
 
 struct MarchParams {
     origin: vec3f,
@@ -82,7 +84,8 @@ struct MarchParams {
     lattice_stride: u32,
     padded_width: u32,
     padded_height: u32,
-    _pad0: u32,
+    // Fine cells per coarse cell edge of the multiple-scattering grid (ms_moments); 0: none.
+    scatter_factor: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -109,6 +112,9 @@ struct Surface {
 @group(0) @binding(8) var<storage, read> brick_max: array<f32>;
 @group(0) @binding(9) var<storage, read> surfaces: array<Surface>;
 @group(0) @binding(10) var<storage, read> sun_table: array<f32>;
+// Multiple scattering's moments on its coarse grid (shaders/scatter_sweep.wgsl `finish`): per
+// coarse cell (φ rgb, 0), (E, φ of the channel mean).
+@group(0) @binding(14) var<storage, read> ms_moments: array<vec4f>;
 
 var<private> radiance: vec3f;
 var<private> transmittance: f32;
@@ -257,6 +263,39 @@ fn mean_inverse_square(x: vec3f, dir: vec3f, dt: f32, s: vec3f) -> f32 {
     return (atan2(b, hh) - atan2(a, hh)) / (hh * dt);
 }
 
+// The multiply scattered light at x in the grid scattered into direction w, per unit of σ_s:
+// the coarse fluence φ (trilinear between coarse cell centres) times an HG lobe about its flux
+// E whose mean cosine is g·|E|/φ, the first moment of HG(g) applied to light of that spread.
+fn ms_inscatter(x: vec3f, w: vec3f) -> vec3f {
+    let f = params.scatter_factor;
+    if f == 0u {
+        return vec3f(0.0);
+    }
+    let dims = (grid.dims + f - 1u) / f;
+    let u = clamp((x - grid.min) / (grid.cell * f32(f)) - 0.5, vec3f(0.0), vec3f(dims - 1u));
+    let i0 = min(vec3u(floor(u)), dims - 1u);
+    let i1 = min(i0 + 1u, dims - 1u);
+    let t = u - vec3f(i0);
+    var phi = vec3f(0.0);
+    var flux = vec4f(0.0);
+    for (var n = 0u; n < 8u; n++) {
+        let bit = vec3<bool>((n & 1u) != 0u, (n & 2u) != 0u, (n & 4u) != 0u);
+        let c = select(i0, i1, bit);
+        let wt = select(1.0 - t, t, bit);
+        let k = 2u * (c.x + dims.x * (c.y + dims.y * c.z));
+        let weight = wt.x * wt.y * wt.z;
+        phi += weight * ms_moments[k].rgb;
+        flux += weight * ms_moments[k + 1u];
+    }
+    let e = length(flux.xyz);
+    if flux.w <= 0.0 || e <= 0.0 {
+        return phi / (4.0 * PI);
+    }
+    let g = params.anisotropy * min(e / flux.w, 1.0);
+    let denom = max(1.0 + g * g - 2.0 * g * dot(flux.xyz / e, w), 1e-6);
+    return phi * ((1.0 - g * g) / (4.0 * PI * denom * sqrt(denom)));
+}
+
 // One step of length `dt` centred at `x`.
 fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
     // The step's optical thickness: trilinear σ_t inside the grid, the base (height) fog's
@@ -323,6 +362,9 @@ fn integrate(x: vec3f, dir: vec3f, dt: f32, inside: bool) {
             }
             inscatter += light.rgb * (phase(dot(light.direction, -dir)) * exp(-sun));
         }
+    }
+    if multiple_scattering && inside {
+        inscatter += ms_inscatter(x, -dir);
     }
     radiance += transmittance * params.albedo * inscatter * one_minus_exp_neg(tau);
     transmittance *= exp(-tau);

@@ -178,6 +178,11 @@ pub struct BakeArgs {
     /// 0.02).
     #[arg(long, value_name = "TOLERANCE")]
     pub image_tolerance: Option<f32>,
+    /// Override medium.multiple_scattering: `on` uses the file's settings, or the defaults
+    /// (8 orders and the tail, strength 1, 32 coarse cells) where it has none; `off` renders
+    /// single scattering only.
+    #[arg(long, value_name = "ON|OFF")]
+    pub multiple_scattering: Option<Switch>,
     /// Frames of an animated project to bake: 7, 1-120, 1-120x4 (every 4th) or a list such
     /// as 1,5,9-12. With more than one, every output path needs a frame number: ####
     /// (padded to as many digits), %04d or $F4. Without it, an animated project bakes its
@@ -187,6 +192,13 @@ pub struct BakeArgs {
     /// No progress bar on stderr (bars appear only when stderr is a terminal).
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// An on/off override.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    On,
+    Off,
 }
 
 /// `--image-sampling`.
@@ -265,6 +277,13 @@ pub fn open(args: &BakeArgs) -> Result<Session, Box<dyn std::error::Error>> {
             .into());
         }
         project.propagation.sweep_tolerance = tolerance;
+    }
+    match args.multiple_scattering {
+        Some(Switch::On) => {
+            project.medium.multiple_scattering.get_or_insert_with(Default::default);
+        }
+        Some(Switch::Off) => project.medium.multiple_scattering = None,
+        None => {}
     }
     let mut request = FrameRequest::for_project(&project);
     request.width = args.width.unwrap_or(request.width);
@@ -467,6 +486,7 @@ fn info(project: Option<&Path>, json: bool) -> Result<(), Box<dyn std::error::Er
                 sweep_tolerance: None,
                 image_sampling: None,
                 image_tolerance: None,
+                multiple_scattering: None,
                 frames: None,
                 quiet: true,
             };

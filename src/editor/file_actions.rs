@@ -79,7 +79,7 @@ impl EditorState {
 
     pub(super) fn perform(&mut self, action: Action) {
         match action {
-            Action::New => self.replace_project(Project::default(), None, "untitled.ron"),
+            Action::New => self.replace_project(Project::new_empty(), None, "untitled.ron"),
             Action::OpenDialog => {
                 let spec = DialogSpec {
                     title: "Open project",

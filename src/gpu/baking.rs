@@ -53,9 +53,9 @@ impl BakePhase {
 }
 
 /// One compute pipeline and its bind group layout.
-struct Program {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+pub(super) struct Program {
+    pub layout: wgpu::BindGroupLayout,
+    pub pipeline: wgpu::ComputePipeline,
 }
 
 /// The bake and the "as baked" view: their pipelines, built on first use (most pipelines
@@ -67,23 +67,24 @@ pub(super) struct Baking {
     image: Option<ImageTarget>,
 }
 
-/// What the bake and its view read from the scene, uploaded once.
-struct Bindings<'a> {
-    grid: &'a GridResources,
+/// What the bake, its view and the multiple-scattering source read from the scene, uploaded
+/// once.
+pub(super) struct Bindings<'a> {
+    pub grid: &'a GridResources,
     surfaces: wgpu::Buffer,
-    surface_count: u32,
+    pub surface_count: u32,
     /// The march's parameters: camera, exposure, albedo, anisotropy.
-    params: MarchParams,
+    pub params: MarchParams,
 }
 
 impl<'a> Bindings<'a> {
-    fn new(device: &wgpu::Device, grid: &'a GridResources, frame: &FrameInputs) -> Self {
+    pub fn new(device: &wgpu::Device, grid: &'a GridResources, frame: &FrameInputs) -> Self {
         let surfaces = storage_buffer(device, "bake surfaces", bytemuck::cast_slice(frame.surfaces.as_slice()));
         Self { grid, surfaces, surface_count: frame.surfaces.len() as u32, params: frame.march }
     }
 
     /// A bind group of the bindings both read, with `params` at 1, plus `own`.
-    fn bind_group(
+    pub fn bind_group(
         &self,
         device: &wgpu::Device,
         label: &str,
@@ -107,11 +108,11 @@ impl<'a> Bindings<'a> {
 }
 
 /// A compute layout entry at `binding`.
-fn entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
+pub(super) fn entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::COMPUTE, ty, count: None }
 }
 
-fn storage(read_only: bool) -> wgpu::BindingType {
+pub(super) fn storage(read_only: bool) -> wgpu::BindingType {
     wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only },
         has_dynamic_offset: false,
@@ -121,7 +122,7 @@ fn storage(read_only: bool) -> wgpu::BindingType {
 
 /// The pipeline of `code`'s `entry_point` over the bindings both read (0–2, 9), `slots` after
 /// them from 3, and `own`.
-fn program(
+pub(super) fn program(
     device: &wgpu::Device,
     (label, entry_point): (&str, &str),
     slots: &[Slot],
@@ -136,7 +137,7 @@ fn program(
     Program { layout, pipeline }
 }
 
-fn uniform(device: &wgpu::Device, label: &str, params: &MarchParams) -> wgpu::Buffer {
+pub(super) fn uniform(device: &wgpu::Device, label: &str, params: &MarchParams) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
@@ -161,9 +162,10 @@ impl Baking {
         grid: &GridResources,
         frame: &FrameInputs,
         phase: BakePhase,
+        scatter: &wgpu::Buffer,
     ) -> Result<Volume3, GpuError> {
         let bindings = Bindings::new(&ctx.device, grid, frame);
-        self.bake_with(ctx, layout, &bindings, phase)
+        self.bake_with(ctx, layout, &bindings, phase, scatter)
     }
 
     /// [`bake`](Self::bake), then its emission–absorption render at the request's size with
@@ -175,10 +177,11 @@ impl Baking {
         grid: &GridResources,
         frame: &FrameInputs,
         phase: BakePhase,
+        scatter: &wgpu::Buffer,
     ) -> Result<(), GpuError> {
         let (width, height) = (frame.request.width, frame.request.height);
         let bindings = Bindings::new(&ctx.device, grid, frame);
-        let emission = self.bake_with(ctx, layout, &bindings, phase)?;
+        let emission = self.bake_with(ctx, layout, &bindings, phase, scatter)?;
         let device = &ctx.device;
         let view = self.view.get_or_insert_with(|| {
             let image = |format| wgpu::BindingType::StorageTexture {
@@ -213,16 +216,18 @@ impl Baking {
         layout: OpvLayout,
         bindings: &Bindings,
         phase: BakePhase,
+        scatter: &wgpu::Buffer,
     ) -> Result<Volume3, GpuError> {
         let program = self.bake.get_or_insert_with(|| {
-            // The march's lights (3) and lookup volumes (4 and beyond), plus the output at 11.
-            let mut own = vec![entry(11, storage(false))];
+            // The march's lights (3) and lookup volumes (4 and beyond), the output at 11 and the
+            // multiple-scattering moments at 14.
+            let mut own = vec![entry(11, storage(false)), entry(14, storage(true))];
             own.extend(layout.layout_entries(EXTRA_BINDING, true));
             let slots = [Slot::StorageRead, Slot::Opv { read_only: true }];
             program(&ctx.device, ("bake", "bake"), &slots, own, super::shaders::bake(&layout))
         });
         let scope = ErrorScope::push(&ctx.device);
-        let result = bake(ctx, program, bindings, phase);
+        let result = bake(ctx, program, bindings, phase, scatter);
         scope.pop("bake")?;
         let emission = result?;
         let bad = emission.data.iter().flatten().filter(|v| !v.is_finite()).count();
@@ -256,7 +261,13 @@ impl Baking {
 }
 
 /// Bakes the emission of every cell, in slabs of z layers that fit one storage binding.
-fn bake(ctx: &GpuContext, program: &Program, bindings: &Bindings, phase: BakePhase) -> Result<Volume3, GpuError> {
+fn bake(
+    ctx: &GpuContext,
+    program: &Program,
+    bindings: &Bindings,
+    phase: BakePhase,
+    scatter: &wgpu::Buffer,
+) -> Result<Volume3, GpuError> {
     let device = &ctx.device;
     let spec = bindings.grid.spec;
     let r = spec.resolution;
@@ -296,6 +307,7 @@ fn bake(ctx: &GpuContext, program: &Program, bindings: &Bindings, phase: BakePha
         wgpu::BindGroupEntry { binding: 3, resource: grid.lights_buf.as_entire_binding() },
         wgpu::BindGroupEntry { binding: 4, resource: grid.lookup.first() },
         wgpu::BindGroupEntry { binding: 11, resource: out.as_entire_binding() },
+        wgpu::BindGroupEntry { binding: 14, resource: scatter.as_entire_binding() },
     ];
     own.extend(grid.lookup.extra_entries(EXTRA_BINDING));
     let bind_group = bindings.bind_group(device, "bake", program, &params_buf, own);

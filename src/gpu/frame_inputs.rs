@@ -4,12 +4,12 @@
 //! nothing translates the project a second time.
 
 use super::gpu_types::{GridParams, LightGpu, MarchParams, SurfaceGpu};
-use super::keys::{EvKey, ImageKey, OpvKey};
+use super::keys::{EvKey, ImageKey, OpvKey, ScatterKey};
 use super::layout::{
     LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT, POLICY_ADAPTIVE, POLICY_FIXED, POLICY_TWO_LEVEL, SURFACE_BOX,
     SURFACE_GROUND,
 };
-use crate::scene::{Light, LightKind, Noise, Project, Scheme, StepPolicy};
+use crate::scene::{Light, LightKind, MultipleScattering, Noise, Project, Scheme, StepPolicy};
 
 /// What to render this frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,6 +61,8 @@ pub(super) struct FrameInputs {
     pub directions: Vec<Option<glam::Vec3>>,
     pub sweep_stride: u32,
     pub sweep_refine: Option<f32>,
+    /// The multiple-scattering solve this frame needs (see [`multiple_scattering_of`]).
+    pub multiple_scattering: Option<MultipleScattering>,
 }
 
 impl FrameInputs {
@@ -100,6 +102,7 @@ impl FrameInputs {
             directions: project.lights.iter().map(sun_direction).collect(),
             sweep_stride: project.propagation.sweep_stride,
             sweep_refine: project.propagation.refine_tolerance(),
+            multiple_scattering: multiple_scattering_of(project),
         }
     }
 
@@ -122,7 +125,25 @@ impl FrameInputs {
             surfaces: self.surfaces.clone(),
             ev_generation,
             opvs: opvs.to_vec(),
+            scatter: 0,
         }
+    }
+
+    /// What the multiple-scattering solve reads, given the EV generation and OPVs on the GPU;
+    /// None when the frame needs none.
+    pub fn scatter_key(&self, ev_generation: u64, opvs: &[Option<OpvKey>]) -> Option<ScatterKey> {
+        let settings = self.multiple_scattering?;
+        Some(ScatterKey {
+            settings,
+            factor: self.march.scatter_factor,
+            albedo: self.march.albedo,
+            anisotropy: self.march.anisotropy,
+            grid: self.grid,
+            lights: self.lights.clone(),
+            surfaces: self.surfaces.clone(),
+            ev_generation,
+            opvs: opvs.to_vec(),
+        })
     }
 }
 
@@ -394,8 +415,21 @@ fn march_params(project: &Project, width: u32, height: u32, surface_count: u32) 
         lattice_stride: 0,
         padded_width: 0,
         padded_height: 0,
-        _pad: [0; 3],
+        scatter_factor: scatter_factor(project),
+        _pad: [0; 2],
     }
+}
+
+/// The multiple-scattering settings that add light: none without them, without albedo or at
+/// strength 0, so that those render exactly as single scattering.
+pub fn multiple_scattering_of(project: &Project) -> Option<MultipleScattering> {
+    project.medium.multiple_scattering.filter(|m| m.strength > 0.0 && project.medium.albedo > 0.0)
+}
+
+/// Fine cells per coarse cell edge of the multiple-scattering grid: at most `resolution` coarse
+/// cells on the longest axis. 0 without multiple scattering.
+fn scatter_factor(project: &Project) -> u32 {
+    multiple_scattering_of(project).map_or(0, |m| project.grid.resolution.max_element().div_ceil(m.resolution).max(1))
 }
 
 #[cfg(test)]

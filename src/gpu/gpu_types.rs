@@ -93,7 +93,10 @@ pub struct MarchParams {
     pub lattice_stride: u32,
     pub padded_width: u32,
     pub padded_height: u32,
-    pub _pad: [u32; 3],
+    /// Fine cells per coarse cell edge of the multiple-scattering grid the march reads; 0:
+    /// single scattering only.
+    pub scatter_factor: u32,
+    pub _pad: [u32; 2],
 }
 
 #[repr(C)]
@@ -189,6 +192,24 @@ pub struct PlaneParams {
     pub _pad: [u32; 2],
 }
 
+/// Uniform of `shaders/scatter_sweep.wgsl`: the coarse grid, the medium and the order.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ScatterParams {
+    pub dims: [u32; 3],
+    pub count: u32,
+    pub cell: [f32; 3],
+    pub albedo: f32,
+    pub min: [f32; 3],
+    pub anisotropy: f32,
+    /// The order whose source `power` sums (0: the first scattering).
+    pub order: u32,
+    /// Orders swept.
+    pub orders: u32,
+    pub strength: f32,
+    pub _pad: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,6 +246,7 @@ mod tests {
             (march, "Surface", std::mem::size_of::<SurfaceGpu>()),
             (sweep, "SweepStep", std::mem::size_of::<SweepStep>()),
             (shaders::propagate_exact(&opv), "ExactParams", std::mem::size_of::<ExactParams>()),
+            (shaders::scatter_sweep(), "ScatterParams", std::mem::size_of::<ScatterParams>()),
             (shaders::image_refine(), "RefineParams", std::mem::size_of::<crate::gpu::image_sampling::RefineParams>()),
         ];
         for (code, name, rust) in cases {

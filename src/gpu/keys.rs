@@ -40,6 +40,24 @@ pub(super) struct ImageKey {
     pub surfaces: Vec<SurfaceGpu>,
     pub ev_generation: u64,
     pub opvs: Vec<Option<OpvKey>>,
+    /// The multiple-scattering solve the march reads ([`Baked::scatter`]'s generation); 0:
+    /// none.
+    pub scatter: u64,
+}
+
+/// What a multiple-scattering solve read: the march's medium and the inputs of the first
+/// scattering (EV, OPVs, lights, surfaces), plus the solver's settings.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct ScatterKey {
+    pub settings: crate::scene::MultipleScattering,
+    pub factor: u32,
+    pub albedo: f32,
+    pub anisotropy: f32,
+    pub grid: GridParams,
+    pub lights: Vec<LightGpu>,
+    pub surfaces: Vec<SurfaceGpu>,
+    pub ev_generation: u64,
+    pub opvs: Vec<Option<OpvKey>>,
 }
 
 impl ImageKey {
@@ -80,6 +98,9 @@ pub(super) struct Baked {
     pub opvs: Vec<Option<OpvKey>>,
     /// The image on show.
     pub shown: Option<(ImageKey, Level)>,
+    /// The multiple-scattering solve on the GPU and its generation (counting from 1).
+    pub scatter: Option<(ScatterKey, u64)>,
+    pub scatter_generation: u64,
     /// The cells each recent injection changed, by the EV generation it produced.
     ev_changes: Vec<(u64, Region)>,
 }

@@ -101,6 +101,8 @@ pub struct MarchInputs<'a> {
     pub params: MarchParams,
     /// The lights, whose epipoles adaptive sampling refines to single pixels.
     pub lights: &'a [LightGpu],
+    /// The multiple-scattering moments (`scattering`), read where `params.scatter_factor` > 0.
+    pub scatter: &'a wgpu::Buffer,
     pub sampling: ImageSampling,
 }
 
@@ -121,6 +123,8 @@ pub struct MarchFeatures {
     /// In base fog outside the grid, point and spot lights test only the surfaces that can hide
     /// them from the segment marched; off, every surface (the same image, for tests).
     pub cull_fog_surfaces: bool,
+    /// Multiple scattering inside the grid.
+    pub multiple_scattering: bool,
 }
 
 impl MarchFeatures {
@@ -132,10 +136,11 @@ impl MarchFeatures {
         height_fog: true,
         surfaces: true,
         cull_fog_surfaces: true,
+        multiple_scattering: true,
     };
 
     /// What a scene of these lights, surfaces and grid uses.
-    pub fn of(lights: &[LightGpu], surfaces: &[SurfaceGpu], grid: &GridParams) -> Self {
+    pub fn of(lights: &[LightGpu], surfaces: &[SurfaceGpu], grid: &GridParams, params: &MarchParams) -> Self {
         Self {
             spot_lights: lights.iter().any(|l| l.kind == LIGHT_SPOT),
             sun_lights: lights.iter().any(|l| l.kind == LIGHT_DIRECTIONAL),
@@ -143,10 +148,11 @@ impl MarchFeatures {
             height_fog: grid.height_falloff != 0.0,
             surfaces: !surfaces.is_empty(),
             cull_fog_surfaces: true,
+            multiple_scattering: params.scatter_factor > 0,
         }
     }
 
-    fn constants(&self) -> [(&'static str, f64); 6] {
+    fn constants(&self) -> [(&'static str, f64); 7] {
         let on = |b: bool| if b { 1.0 } else { 0.0 };
         [
             ("spot_lights", on(self.spot_lights)),
@@ -155,6 +161,7 @@ impl MarchFeatures {
             ("height_fog", on(self.height_fog)),
             ("fog_shadows", on(self.surfaces)),
             ("fog_culling", on(self.cull_fog_surfaces)),
+            ("multiple_scattering", on(self.multiple_scattering)),
         ]
     }
 }
@@ -279,6 +286,7 @@ impl Marcher {
             {
                 let mut extra = opv.layout_entries(EXTRA_BINDING, true);
                 extra.extend([12, 13].map(|binding| entry(binding, Slot::StorageWrite)));
+                extra.push(entry(14, Slot::StorageRead));
                 extra
             },
         );
@@ -359,6 +367,7 @@ impl Marcher {
                 let mut extra = inputs.lookup.extra_entries(EXTRA_BINDING);
                 extra.push(wgpu::BindGroupEntry { binding: 12, resource: samples.as_entire_binding() });
                 extra.push(wgpu::BindGroupEntry { binding: 13, resource: work.as_entire_binding() });
+                extra.push(wgpu::BindGroupEntry { binding: 14, resource: inputs.scatter.as_entire_binding() });
                 extra
             },
         );

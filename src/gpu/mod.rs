@@ -58,6 +58,7 @@ mod propagate;
 mod readback;
 mod report;
 mod resources;
+mod scattering;
 mod shaders;
 mod slice;
 mod stages;

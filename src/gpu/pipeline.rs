@@ -298,7 +298,37 @@ impl FogPipeline {
         if let Some(unfinished) = self.propagate_stage(project, inputs, targets, clock, progress)? {
             return Ok(Some(unfinished));
         }
+        self.scatter_stage(inputs, progress)?;
         self.march_stage(inputs, clock, progress)
+    }
+
+    /// What a march now would read: the EV, OPVs and multiple-scattering solve on the GPU.
+    fn image_key(&self, inputs: &FrameInputs) -> ImageKey {
+        let mut key = inputs.image_key(self.baked.ev_generation, &self.baked.opvs);
+        if inputs.multiple_scattering.is_some() {
+            key.scatter = self.baked.scatter.as_ref().map_or(0, |(_, generation)| *generation);
+        }
+        key
+    }
+
+    /// The multiple-scattering solve, once the OPVs it reads are up to date, when its inputs
+    /// changed. It runs whole: on the demos it costs a fraction of one march band.
+    fn scatter_stage(&mut self, inputs: &FrameInputs, progress: &mut Progress) -> Result<(), GpuError> {
+        let (Some(settings), Some(key)) =
+            (inputs.multiple_scattering, inputs.scatter_key(self.baked.ev_generation, &self.baked.opvs))
+        else {
+            return Ok(());
+        };
+        if self.baked.scatter.as_ref().is_some_and(|(k, _)| *k == key) {
+            return Ok(());
+        }
+        let t = Instant::now();
+        self.stages.scatter(&self.ctx, inputs, settings)?;
+        progress.report.timings_ms.scatter += ms(t);
+        progress.report.counters.dispatches += 3 + 3 * settings.orders;
+        self.baked.scatter_generation += 1;
+        self.baked.scatter = Some((key, self.baked.scatter_generation));
+        Ok(())
     }
 
     /// Injection, by chunks of dirty bricks: every preview frame shows the current extinction
@@ -340,7 +370,7 @@ impl FogPipeline {
         propagating: bool,
         progress: &mut Progress,
     ) -> Result<(), GpuError> {
-        let key = inputs.image_key(self.baked.ev_generation, &self.baked.opvs);
+        let key = self.image_key(inputs);
         let (width, height) = (inputs.request.width, inputs.request.height);
         let shown_quick = match &self.baked.shown {
             Some((k, Level::Quick)) if k.same_scene(&key) => {
@@ -418,7 +448,7 @@ impl FogPipeline {
         clock: Clock,
         progress: &mut Progress,
     ) -> Result<Unfinished, GpuError> {
-        let key = inputs.image_key(self.baked.ev_generation, &self.baked.opvs);
+        let key = self.image_key(inputs);
         if self.baked.shown.as_ref().is_some_and(|(k, level)| *level == Level::Full && *k == key) {
             return Ok(None);
         }
@@ -451,8 +481,7 @@ impl FogPipeline {
         self.stages.note_memory();
         if let Some((key, level)) = &self.baked.shown {
             progress.shown_size = self.stages.target(*level).map_or([0, 0], |t| [t.width, t.height]);
-            progress.shows_scene = progress.stage != Stage::Inject
-                && key.same_scene(&inputs.image_key(self.baked.ev_generation, &self.baked.opvs));
+            progress.shows_scene = progress.stage != Stage::Inject && key.same_scene(&self.image_key(inputs));
             // A propagated light whose OPV on show differs from what the scene needs now.
             progress.shadows_stale = (0..inputs.light_count()).any(|i| {
                 inputs
@@ -818,6 +847,13 @@ impl FogPipeline {
     }
 
     /// The extinction volume σ_t at cell centres.
+    /// The scattered power of each order of the last multiple-scattering solve (the first
+    /// scattering first, then `orders` swept orders), W per channel mean, for tests of the
+    /// solver's convergence.
+    pub fn scatter_powers(&self, orders: u32) -> Result<Vec<f32>, GpuError> {
+        self.stages.scatter_powers(&self.ctx, orders)
+    }
+
     pub fn read_ev(&self) -> Result<Volume, GpuError> {
         self.stages.read_ev(&self.ctx)
     }

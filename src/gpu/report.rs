@@ -11,6 +11,8 @@ use std::ops::AddAssign;
 pub struct StageTimings {
     pub inject: f64,
     pub propagate: f64,
+    /// The multiple-scattering solve (`scattering`); 0 when none ran.
+    pub scatter: f64,
     pub march: f64,
 }
 
@@ -18,6 +20,7 @@ impl AddAssign for StageTimings {
     fn add_assign(&mut self, other: Self) {
         self.inject += other.inject;
         self.propagate += other.propagate;
+        self.scatter += other.scatter;
         self.march += other.march;
     }
 }

@@ -136,6 +136,17 @@ pub fn as_baked(opv: &OpvLayout) -> String {
     march(opv) + "\n" + include_str!("../../shaders/as_baked.wgsl")
 }
 
+/// Multiple scattering's first-scattering source: the bake's sources, entry point
+/// `scatter_source`.
+pub fn scatter_source(opv: &OpvLayout) -> String {
+    bake(opv) + "\n" + include_str!("../../shaders/scatter_source.wgsl")
+}
+
+/// Multiple scattering's sweeps and reductions on the coarse grid.
+pub fn scatter_sweep() -> String {
+    assemble(&[include_str!("../../shaders/scatter_sweep.wgsl")])
+}
+
 /// One plane of the EV or of a light's OPV.
 pub fn slice(opv: &OpvLayout) -> String {
     assemble(&[&opv.wgsl("opv", 2, EXTRA_BINDING, false), include_str!("../../shaders/slice.wgsl")])
@@ -165,6 +176,8 @@ mod tests {
             ("as_baked", as_baked(&opv)),
             ("slice", slice(&opv)),
             ("image_refine", image_refine()),
+            ("scatter_source", scatter_source(&opv)),
+            ("scatter_sweep", scatter_sweep()),
         ];
         for (cells, filtered) in [(1, false), (8, true)] {
             all.push(("propagate_sweep", propagate_sweep(&opv, cells, filtered)));

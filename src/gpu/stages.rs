@@ -23,6 +23,7 @@ use super::outputs::{self, Image};
 use super::propagate::{PropagationInputs, PropagationJob, Propagator};
 use super::report::Counters;
 use super::resources::GridResources;
+use super::scattering::Scatterer;
 use super::slice::{Plane, SliceSource, Slicer};
 use super::tuning::Tuning;
 use super::{GpuContext, GpuError};
@@ -74,6 +75,7 @@ pub(super) struct Stages {
     uploaded: (Vec<LightGpu>, Option<GridParams>),
     slicer: Slicer,
     baking: Baking,
+    scatterer: Scatterer,
     grid: Option<GridResources>,
     quick: Option<ImageTarget>,
     full: Option<ImageTarget>,
@@ -103,6 +105,7 @@ impl Stages {
             uploaded: (Vec::new(), None),
             slicer: Slicer::new(device, layout),
             baking: Baking::default(),
+            scatterer: Scatterer::new(device),
             grid: None,
             quick: None,
             full: None,
@@ -196,6 +199,7 @@ impl Stages {
         self.lookup = LookupBuilder::new(device, self.layout);
         self.slicer = Slicer::new(device, self.layout);
         self.baking.rebuild();
+        self.scatterer.rebuild();
         (self.layout, true)
     }
 
@@ -367,11 +371,12 @@ impl Stages {
             lookup: &g.lookup,
             brick_max: &g.brick_max,
             surfaces: &key.surfaces,
-            features: MarchFeatures::of(&key.lights, &key.surfaces, &key.grid),
+            features: MarchFeatures::of(&key.lights, &key.surfaces, &key.grid, &key.params),
             general: tuning.general_march,
             exhaustive_fog_shadows: tuning.exhaustive_fog_shadows,
             params: MarchParams { size: [target.width, target.height], ..key.params },
             lights: &key.lights,
+            scatter: self.scatterer.moments(),
             sampling,
         };
         Ok(self.marcher.begin(ctx, target, &inputs))
@@ -402,14 +407,31 @@ impl Stages {
     pub fn bake(&mut self, ctx: &GpuContext, frame: &FrameInputs, phase: BakePhase) -> Result<Volume3, GpuError> {
         self.refresh_lookup(ctx);
         let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
-        self.baking.bake(ctx, self.layout, g, frame, phase)
+        self.baking.bake(ctx, self.layout, g, frame, phase, self.scatterer.moments())
     }
 
     /// [`bake`](Self::bake) and its "as baked" render at the request's size.
     pub fn render_as_baked(&mut self, ctx: &GpuContext, frame: &FrameInputs, phase: BakePhase) -> Result<(), GpuError> {
         self.refresh_lookup(ctx);
         let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
-        self.baking.bake_and_render(ctx, self.layout, g, frame, phase)
+        self.baking.bake_and_render(ctx, self.layout, g, frame, phase, self.scatterer.moments())
+    }
+
+    /// Solves multiple scattering for `frame` with `settings` (see [`Scatterer::solve`]).
+    pub fn scatter(
+        &mut self,
+        ctx: &GpuContext,
+        frame: &FrameInputs,
+        settings: crate::scene::MultipleScattering,
+    ) -> Result<(), GpuError> {
+        self.refresh_lookup(ctx);
+        let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
+        self.scatterer.solve(ctx, self.layout, g, frame, settings)
+    }
+
+    /// The scattered power per order of the last multiple-scattering solve.
+    pub fn scatter_powers(&self, ctx: &GpuContext, orders: u32) -> Result<Vec<f32>, GpuError> {
+        self.scatterer.read_powers(ctx, orders)
     }
 
     pub fn baking(&self) -> &Baking {
@@ -468,6 +490,7 @@ impl Stages {
             + self.quick.as_ref().map_or(0, ImageTarget::bytes)
             + self.full.as_ref().map_or(0, ImageTarget::bytes)
             + self.baking.bytes()
+            + self.scatterer.bytes()
             + self.injector.bytes()
             + self.marcher.bytes()
             + self.slicer.bytes()

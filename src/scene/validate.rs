@@ -214,6 +214,9 @@ impl Project {
         if m.anisotropy.abs() >= 1.0 {
             return Err(err("medium.anisotropy", format!("must be within (−1, 1), got {}", m.anisotropy)));
         }
+        if let Some(ms) = &m.multiple_scattering {
+            ms.validate()?;
+        }
         at_least("medium.height_falloff", m.height_falloff, 0.0)?;
         if m.height_falloff > MAX_HEIGHT_FALLOFF {
             return Err(err(
@@ -548,5 +551,25 @@ fn key_value(field: &str, prop: Prop, value: &KeyValue) -> Result<(), Validation
             };
             Err(err(field, format!("{prop:?} takes a {kind:?} value, e.g. {example}, got {value:?}")))
         }
+    }
+}
+
+impl super::MultipleScattering {
+    fn validate(&self) -> Result<(), ValidationError> {
+        let field = "medium.multiple_scattering";
+        if !(1..=64).contains(&self.orders) {
+            return Err(err(format!("{field}.orders"), format!("must be within 1..=64, got {}", self.orders)));
+        }
+        finite(&format!("{field}.strength"), self.strength)?;
+        if !(0.0..=10.0).contains(&self.strength) {
+            return Err(err(format!("{field}.strength"), format!("must be within [0, 10], got {}", self.strength)));
+        }
+        if !(4..=128).contains(&self.resolution) {
+            return Err(err(
+                format!("{field}.resolution"),
+                format!("must be within 4..=128 coarse cells, got {}", self.resolution),
+            ));
+        }
+        Ok(())
     }
 }

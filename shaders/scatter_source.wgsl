@@ -1,0 +1,90 @@
+// The first-scattering source of multiple scattering (src/gpu/scattering.rs), appended to the
+// bake's sources so that it reads the EV, the OPVs and the surfaces through the same lookups
+// and light rules (bake.wgsl light_at and pyramid_mean, params.anisotropy 0 so that the phase
+// is 1/(4π)).
+//
+// One thread per coarse cell of params.scatter_factor³ fine cells: the means over it of
+// σ_s·φ₀ per channel, σ_s·φ₀ of the mean channel, the flux σ_s·Σ_l φ₀,l·ω_l of the mean channel
+// (ω_l the direction light l travels) and σ_t, where φ₀ is the unscattered fluence
+// Σ_l rgb_l·E_l·exp(−T_l). Fine cells beyond the grid count as empty.
+
+// The mean of light_at over the fine cell centred at c, cheaper than the bake's cell_mean,
+// since the coarse cell sums many fine ones: in cones from a point or spot light in the cell
+// (pyramid_mean, the 1/d² singularity removed), by 4³ Gauss–Legendre points within 2 cells of
+// it, and by the centre value elsewhere (cone and shadow edges average out over the coarse
+// cell).
+fn source_mean(c: vec3f, l: u32) -> f32 {
+    let light = lights[l];
+    if light.kind != LIGHT_DIRECTIONAL {
+        let v = c - light.position;
+        if all(abs(v) <= 0.5 * grid.cell) {
+            return pyramid_mean(c, l);
+        }
+        if length(v) < 2.0 * max(grid.cell.x, max(grid.cell.y, grid.cell.z)) {
+            var sum = 0.0;
+            for (var k = 0u; k < 4u; k++) {
+                for (var j = 0u; j < 4u; j++) {
+                    for (var i = 0u; i < 4u; i++) {
+                        let y = c + vec3f(GL4_X[i], GL4_X[j], GL4_X[k]) * grid.cell;
+                        sum += GL4_W[i] * GL4_W[j] * GL4_W[k] * light_at(y, l);
+                    }
+                }
+            }
+            return sum;
+        }
+    }
+    return light_at(c, l);
+}
+
+// Per coarse cell, 2 entries: (σ_s·φ₀ rgb, its channel mean), (flux, mean σ_t).
+@group(0) @binding(15) var<storage, read_write> first_source: array<vec4f>;
+
+@compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
+fn scatter_source(@builtin(global_invocation_id) gid: vec3u) {
+    let f = params.scatter_factor;
+    let dims = (grid.dims + f - 1u) / f;
+    if any(gid >= dims) {
+        return;
+    }
+    var rgb = vec3f(0.0);
+    var flux = vec3f(0.0);
+    var sigma_sum = 0.0;
+    for (var k = 0u; k < f; k++) {
+        for (var j = 0u; j < f; j++) {
+            for (var i = 0u; i < f; i++) {
+                let id = gid * f + vec3u(i, j, k);
+                if any(id >= grid.dims) {
+                    continue;
+                }
+                let sigma = textureLoad(ev, id).r;
+                if sigma <= 0.0 {
+                    continue;
+                }
+                sigma_sum += sigma;
+                let c = cell_center(id);
+                for (var l = 0u; l < grid.light_count; l++) {
+                    let light = lights[l];
+                    if all(light.rgb == vec3f(0.0)) {
+                        continue;
+                    }
+                    let e = 4.0 * PI * sigma * source_mean(c, l);
+                    if e <= 0.0 {
+                        continue;
+                    }
+                    var w = light.direction;
+                    if light.kind != LIGHT_DIRECTIONAL {
+                        let v = c - light.position;
+                        w = v / max(length(v), 1e-12);
+                    }
+                    rgb += light.rgb * e;
+                    flux += ((light.rgb.r + light.rgb.g + light.rgb.b) / 3.0 * e) * w;
+                }
+            }
+        }
+    }
+    let n = f32(f * f * f);
+    let ss = params.albedo / n;
+    let out = gid.x + dims.x * (gid.y + dims.y * gid.z);
+    first_source[2u * out] = vec4f(ss * rgb, ss * (rgb.r + rgb.g + rgb.b) / 3.0);
+    first_source[2u * out + 1u] = vec4f(ss * flux, sigma_sum / n);
+}
