@@ -6,7 +6,9 @@
 // One thread per coarse cell of params.scatter_factor³ fine cells: the means over it of
 // σ_s·φ₀ per channel, σ_s·φ₀ of the mean channel, the flux σ_s·Σ_l φ₀,l·ω_l of the mean channel
 // (ω_l the direction light l travels) and σ_t, where φ₀ is the unscattered fluence
-// Σ_l rgb_l·E_l·exp(−T_l). Fine cells beyond the grid count as empty.
+// Σ_l rgb_l·E_l·exp(−T_l). Fine cells beyond the grid count as empty. Over every fine cell
+// where a coarse cell holds at most 2³ of them or a point or spot light is near; elsewhere
+// from 2³ points, which makes the pass's cost follow the coarse grid, not the fine one.
 
 // The mean of light_at over the fine cell centred at c, cheaper than the bake's cell_mean,
 // since the coarse cell sums many fine ones: in cones from a point or spot light in the cell
@@ -39,6 +41,23 @@ fn source_mean(c: vec3f, l: u32) -> f32 {
 // Per coarse cell, 2 entries: (σ_s·φ₀ rgb, its channel mean), (flux, mean σ_t).
 @group(0) @binding(15) var<storage, read_write> first_source: array<vec4f>;
 
+// σ_t·φ₀ of light l at y, per unit of its rgb, and the direction its light travels there.
+fn first_collision(y: vec3f, sigma: f32, l: u32, e: f32) -> vec4f {
+    let light = lights[l];
+    var w = light.direction;
+    if light.kind != LIGHT_DIRECTIONAL {
+        let v = y - light.position;
+        w = v / max(length(v), 1e-12);
+    }
+    return vec4f(w, 4.0 * PI * sigma * e);
+}
+
+// Whether a point or spot light lies within the coarse cell [lo, hi] grown by one fine cell.
+fn light_near(l: u32, lo: vec3f, hi: vec3f) -> bool {
+    let light = lights[l];
+    return light.kind != LIGHT_DIRECTIONAL && all(light.position >= lo - grid.cell) && all(light.position <= hi + grid.cell);
+}
+
 @compute @workgroup_size(WORKGROUP_3D, WORKGROUP_3D, WORKGROUP_3D)
 fn scatter_source(@builtin(global_invocation_id) gid: vec3u) {
     let f = params.scatter_factor;
@@ -49,42 +68,69 @@ fn scatter_source(@builtin(global_invocation_id) gid: vec3u) {
     var rgb = vec3f(0.0);
     var flux = vec3f(0.0);
     var sigma_sum = 0.0;
-    for (var k = 0u; k < f; k++) {
-        for (var j = 0u; j < f; j++) {
-            for (var i = 0u; i < f; i++) {
-                let id = gid * f + vec3u(i, j, k);
-                if any(id >= grid.dims) {
+    let coarse = grid.cell * f32(f);
+    let lo = grid.min + vec3f(gid) * coarse;
+    let hi = lo + coarse;
+    var near = false;
+    for (var l = 0u; l < grid.light_count; l++) {
+        near = near || light_near(l, lo, hi);
+    }
+    let n = f * f * f;
+    if f <= 2u || near {
+        // Every fine cell, with the light's singularity integrated (source_mean).
+        for (var k = 0u; k < n; k++) {
+            let id = gid * f + vec3u(k % f, (k / f) % f, k / (f * f));
+            if any(id >= grid.dims) {
+                continue;
+            }
+            let sigma = textureLoad(ev, id).r;
+            if sigma <= 0.0 {
+                continue;
+            }
+            sigma_sum += sigma;
+            let c = cell_center(id);
+            for (var l = 0u; l < grid.light_count; l++) {
+                let light = lights[l];
+                if all(light.rgb == vec3f(0.0)) {
                     continue;
                 }
-                let sigma = textureLoad(ev, id).r;
-                if sigma <= 0.0 {
-                    continue;
-                }
-                sigma_sum += sigma;
-                let c = cell_center(id);
-                for (var l = 0u; l < grid.light_count; l++) {
-                    let light = lights[l];
-                    if all(light.rgb == vec3f(0.0)) {
-                        continue;
-                    }
-                    let e = 4.0 * PI * sigma * source_mean(c, l);
-                    if e <= 0.0 {
-                        continue;
-                    }
-                    var w = light.direction;
-                    if light.kind != LIGHT_DIRECTIONAL {
-                        let v = c - light.position;
-                        w = v / max(length(v), 1e-12);
-                    }
-                    rgb += light.rgb * e;
-                    flux += ((light.rgb.r + light.rgb.g + light.rgb.b) / 3.0 * e) * w;
-                }
+                let w = first_collision(c, sigma, l, source_mean(c, l));
+                rgb += light.rgb * w.w;
+                flux += ((light.rgb.r + light.rgb.g + light.rgb.b) / 3.0 * w.w) * w.xyz;
             }
         }
+        sigma_sum /= f32(n);
+        rgb /= f32(n);
+        flux /= f32(n);
+    } else {
+        // Far from point lights the light varies little over a coarse cell: 2³ points at the
+        // centres of its octants, σ_t trilinear there, stand for its f³ fine cells.
+        for (var k = 0u; k < 8u; k++) {
+            let y = lo + (vec3f(f32(k & 1u), f32((k >> 1u) & 1u), f32(k >> 2u)) + 0.5) * 0.5 * coarse;
+            if !inside_grid(y) {
+                continue;
+            }
+            let sigma = ev_at(trilinear_at(y));
+            if sigma <= 0.0 {
+                continue;
+            }
+            sigma_sum += sigma;
+            for (var l = 0u; l < grid.light_count; l++) {
+                let light = lights[l];
+                if all(light.rgb == vec3f(0.0)) {
+                    continue;
+                }
+                let w = first_collision(y, sigma, l, light_at(y, l));
+                rgb += light.rgb * w.w;
+                flux += ((light.rgb.r + light.rgb.g + light.rgb.b) / 3.0 * w.w) * w.xyz;
+            }
+        }
+        sigma_sum /= 8.0;
+        rgb /= 8.0;
+        flux /= 8.0;
     }
-    let n = f32(f * f * f);
-    let ss = params.albedo / n;
+    let ss = params.albedo;
     let out = gid.x + dims.x * (gid.y + dims.y * gid.z);
     first_source[2u * out] = vec4f(ss * rgb, ss * (rgb.r + rgb.g + rgb.b) / 3.0);
-    first_source[2u * out + 1u] = vec4f(ss * flux, sigma_sum / n);
+    first_source[2u * out + 1u] = vec4f(ss * flux, sigma_sum);
 }

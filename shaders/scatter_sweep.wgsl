@@ -25,9 +25,9 @@
 // a side of the box start there with no radiance (nothing scatters back in from outside the
 // grid). `gather`: the order's fluence φ = Σ w L̄ and flux E = Σ w L̄ ω from the chord means,
 // added to the totals, and the next order's source σ_s·φ with the lobe of E. `power`: the
-// order's total scattered power, for the tail. `finish`: the totals plus the geometric tail
-// of the orders not swept, φ_K·ρ/(1 − ρ) with ρ the ratio of the last two orders' powers,
-// times the strength, for the march and the bake.
+// order's total scattered power, and after the last one the tail factor (`tail_factor`).
+// `finish`: the totals plus the orders not swept, the last order's fluence times the tail
+// factor, times the strength, for the march and the bake.
 
 struct ScatterParams {
     dims: vec3u,
@@ -44,7 +44,11 @@ struct ScatterParams {
 
 const DIRECTIONS: u32 = 48u;
 const LOBE_CAP: f32 = 0.75;
+// Ratios of successive orders' powers are capped here (a medium that loses under 2 % of its
+// light per order is beyond what the tail can stand for).
 const RATIO_CAP: f32 = 0.98;
+// Where `power` leaves the tail factor in `powers`.
+const TAIL_SLOT: u32 = 79u;
 
 @group(0) @binding(1) var<uniform> sp: ScatterParams;
 // Per direction: (ω, weight).
@@ -98,29 +102,22 @@ fn write_source(i: u32, rgb: vec3f, power: f32, flux: vec3f) {
     source[2u * i + 1u] = vec4f(e, g);
 }
 
-// 1 − e^{−τ} over τ, accurate for tiny τ.
-fn exp_ratio(tau: f32) -> f32 {
-    if tau < 1e-3 {
-        return 1.0 - tau * (0.5 - tau / 6.0);
-    }
-    return (1.0 - exp(-tau)) / tau;
-}
-
-// Radiance through a piece of length h of constant σ and emission η per unit length, entering
+// Radiance along a piece of length h of constant σ and emission η per unit length, entering
 // with l0: the radiance at its end, and its integral over the piece (σ times it is what the
-// piece attenuates).
+// piece attenuates), exact, and accurate for tiny σ·h too.
 fn piece(l0: vec3f, sigma: f32, eta: vec3f, h: f32) -> array<vec3f, 2> {
     let tau = sigma * h;
-    let f = exp_ratio(tau);
-    return array<vec3f, 2>(l0 * exp(-tau) + eta * (h * f), l0 * (h * f) + eta * (h * h * mean_weight(tau)));
-}
-
-// (1 − (1 − e^{−τ})/τ)/τ: the weight of the emission in the mean radiance over a segment.
-fn mean_weight(tau: f32) -> f32 {
+    // f = (1 − e^{−τ})/τ and m = (1 − f)/τ.
+    var f: f32;
+    var m: f32;
     if tau < 1e-3 {
-        return 0.5 - tau * (1.0 / 6.0 - tau / 24.0);
+        f = 1.0 - tau * (0.5 - tau / 6.0);
+        m = 0.5 - tau * (1.0 / 6.0 - tau / 24.0);
+    } else {
+        f = (1.0 - exp(-tau)) / tau;
+        m = (1.0 - f) / tau;
     }
-    return (1.0 - exp_ratio(tau)) / tau;
+    return array<vec3f, 2>(l0 * (1.0 - tau * f) + eta * (h * f), l0 * (h * f) + eta * (h * h * m));
 }
 
 // Bilinear weights and corners on a layer of `n` cells per axis at fractional cell coordinate u.
@@ -193,10 +190,9 @@ fn sweep(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_index) lid
             let sigma_x = sigma[i];
             let lobe = source[2u * i + 1u];
             let eta = source[2u * i].rgb * hg(dot(omega, lobe.xyz), lobe.w);
-            let first = piece(entering, sigma_x, eta, s_in);
-            let second = piece(first[0], sigma_x, eta, half);
-            radiance[base + i] = vec4f(second[0], 0.0);
-            chord_mean[base + i] = vec4f((first[1] + second[1]) / (s_in + half), 0.0);
+            let chord = piece(entering, sigma_x, eta, s_in + half);
+            radiance[base + i] = vec4f(chord[0], 0.0);
+            chord_mean[base + i] = vec4f(chord[1] / (s_in + half), 0.0);
         }
         storageBarrier();
     }
@@ -254,7 +250,29 @@ fn power(@builtin(local_invocation_index) lid: u32) {
     }
     if lid == 0u {
         powers[sp.order] = partial[0];
+        if sp.order == sp.orders {
+            powers[TAIL_SLOT] = tail_factor();
+        }
     }
+}
+
+// The ratio of order k's power to order k − 1's, 0 without light.
+fn ratio(k: u32) -> f32 {
+    let before = powers[k - 1u];
+    if before <= 0.0 {
+        return 0.0;
+    }
+    return clamp(powers[k] / before, 0.0, RATIO_CAP);
+}
+
+// ρ/(1 − ρ) for the last two orders' ratio ρ: the orders after the last swept one in units of
+// its fluence, as a geometric series. The ratios still grow after the last order in thick,
+// bright fog (towards the slowest mode's), so this is short there; extrapolating their growth
+// was tried and overshoots, since the later orders sit deeper in the fog than the last one,
+// where the camera sees less of them.
+fn tail_factor() -> f32 {
+    let rho = ratio(sp.orders);
+    return rho / (1.0 - rho);
 }
 
 @compute @workgroup_size(SWEEP_WORKGROUP)
@@ -263,13 +281,7 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(num_workgroups) gr
     if i >= sp.count {
         return;
     }
-    let last = powers[sp.orders];
-    let before = powers[sp.orders - 1u];
-    var ratio = 0.0;
-    if before > 0.0 {
-        ratio = clamp(last / before, 0.0, RATIO_CAP);
-    }
-    let tail = ratio / (1.0 - ratio);
+    let tail = powers[TAIL_SLOT];
     let phi = totals[2u * i] + tail * order_moments[2u * i];
     let flux = totals[2u * i + 1u] + tail * order_moments[2u * i + 1u];
     moments[2u * i] = vec4f(sp.strength * phi.rgb, 0.0);

@@ -226,8 +226,9 @@ fn update_progress_is_monotone_and_cancellable() {
     let rank = |s: Stage| match s {
         Stage::Inject => 0,
         Stage::Propagate { .. } => 1,
-        Stage::March => 2,
-        Stage::Done => 3,
+        Stage::Scatter => 2,
+        Stage::March => 3,
+        Stage::Done => 4,
     };
     let mut seen: Vec<(u32, f64)> = Vec::new();
     let report = gpu
@@ -255,6 +256,39 @@ fn update_progress_is_monotone_and_cancellable() {
         })
         .unwrap_err();
     assert!(matches!(err, fogsmith::gpu::GpuError::Cancelled), "{err}");
+}
+
+/// Multiple scattering is a stage of its own, one step (the first scattering, an order, the
+/// moments) per item: under a zero budget it reports between its steps, after propagation and
+/// before the march, and ends with the image of an unbudgeted update. A moved camera reuses
+/// the solve (it reads no camera); a moved light solves again.
+#[test]
+fn multiple_scattering_steps_under_a_budget() {
+    let mut gpu = pipeline();
+    let mut p = small_scene(32, &[Vec3::new(0.9, 0.9, 0.9)]);
+    p.medium.multiple_scattering = Some(fogsmith::scene::MultipleScattering { orders: 4, ..Default::default() });
+    let request = FrameRequest::for_project(&p);
+    let mut stages = Vec::new();
+    let report = gpu
+        .update_with(&p, &FrameRequest { force: true, ..request }, Duration::ZERO, &mut |progress| {
+            stages.push(progress.stage);
+            true
+        })
+        .unwrap();
+    let steps = stages.iter().filter(|s| **s == Stage::Scatter).count();
+    assert!(steps >= 5, "6 steps report 5 times between them, got {steps}: {stages:?}");
+    let first = stages.iter().position(|s| *s == Stage::Scatter).unwrap();
+    let last = stages.iter().rposition(|s| *s == Stage::Scatter).unwrap();
+    assert!(stages[..first].iter().all(|s| !matches!(s, Stage::March)), "march before the solve: {stages:?}");
+    assert!(stages[last..].iter().all(|s| !matches!(s, Stage::Propagate { .. })), "{stages:?}");
+    assert!(report.timings_ms.scatter > 0.0);
+    assert_same_as_fresh(&gpu, &p, &request);
+    let mut moved = p.clone();
+    moved.camera.position += Vec3::new(0.2, 0.0, 0.0);
+    assert_eq!(gpu.update(&moved, &request).unwrap().timings_ms.scatter, 0.0, "a camera move solved again");
+    moved.lights[0].position += Vec3::new(0.0, 0.1, 0.0);
+    assert!(gpu.update(&moved, &request).unwrap().timings_ms.scatter > 0.0, "a moved light did not solve again");
+    assert_same_as_fresh(&gpu, &moved, &request);
 }
 
 /// The march reads per-light lookup volumes built from the OPVs, rebuilt only for the lights

@@ -31,6 +31,7 @@ mod interaction;
 mod plot;
 mod sampling;
 mod scale;
+mod scattering;
 mod shapes;
 mod suites;
 
@@ -160,6 +161,7 @@ fn run_suite(
         Suite::Kinds => suites::kinds(ctx, out, log),
         Suite::Animation => animation::run(ctx, out, log),
         Suite::Bake => bake::run(ctx, out, log),
+        Suite::Scattering => scattering::run(ctx, out, log),
         Suite::Scale => scale::run(ctx, out, log),
         Suite::Shapes => shapes::run(ctx, out, log),
         Suite::Interaction => {

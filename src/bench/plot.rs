@@ -103,7 +103,7 @@ pub fn plot_suite(suite: Suite, records: &[Value], dir: &Path) -> Result<(), Str
     match suite {
         Suite::Interaction => frame_times(&dir.join("interaction_frames.png"), records),
         // A table of four rows: the text output says it all.
-        Suite::Animation => Ok(()),
+        Suite::Animation | Suite::Scattering => Ok(()),
         // A few rows per light placement: the text output says it all.
         Suite::Shapes => Ok(()),
         // Two rows per demo: the text output says it all.

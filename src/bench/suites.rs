@@ -43,6 +43,10 @@ pub enum Suite {
     /// The light bake on each demo (fog only): time, error of its emission–absorption render
     /// against the lit render per phase mode, output sizes, texture quantisation error.
     Bake,
+    /// Multiple scattering on each demo: the solve's time against a full update's and its
+    /// error against its converged solution, per number of orders and coarse resolution (see
+    /// `scattering`).
+    Scattering,
 }
 
 /// The demo without its noise: the exact optical depth of noisy particles is an adaptive

@@ -179,7 +179,7 @@ pub struct BakeArgs {
     #[arg(long, value_name = "TOLERANCE")]
     pub image_tolerance: Option<f32>,
     /// Override medium.multiple_scattering: `on` uses the file's settings, or the defaults
-    /// (8 orders and the tail, strength 1, 32 coarse cells) where it has none; `off` renders
+    /// (8 orders and the tail, strength 1, 24 coarse cells) where it has none; `off` renders
     /// single scattering only.
     #[arg(long, value_name = "ON|OFF")]
     pub multiple_scattering: Option<Switch>,
@@ -659,8 +659,10 @@ fn render(args: &BakeArgs, output: &Path, json: bool) -> Result<(), Box<dyn std:
         println!("{}", serde_json::to_string(&v)?);
     } else {
         let t = report.timings_ms;
+        let scatter =
+            if t.scatter > 0.0 { format!(", multiple scattering {:.1} ms", t.scatter) } else { String::new() };
         eprintln!(
-            "rendered {} ({}×{}) on {adapter}: inject {:.1} ms, propagate {:.1} ms, march {:.1} ms",
+            "rendered {} ({}×{}) on {adapter}: inject {:.1} ms, propagate {:.1} ms{scatter}, march {:.1} ms",
             output.display(),
             request.width,
             request.height,

@@ -316,7 +316,8 @@ fn render_output(
     let result = pipeline.update_with(project, &request, std::time::Duration::from_millis(50), &mut |p| {
         let (start, share) = match p.stage {
             Stage::Inject => (0.0, 0.15),
-            Stage::Propagate { .. } => (0.15, 0.55),
+            Stage::Propagate { .. } => (0.15, 0.45),
+            Stage::Scatter => (0.6, 0.1),
             Stage::March => (0.7, 0.3),
             Stage::Done => (1.0, 0.0),
         };
@@ -359,7 +360,8 @@ fn bake_sequence(
         let baked = pipeline.update_with(&still, &request, std::time::Duration::from_millis(50), &mut |p| {
             let share = match p.stage {
                 Stage::Inject => 0.1 * p.stage_fraction as f32,
-                Stage::Propagate { .. } => 0.1 + 0.6 * p.stage_fraction as f32,
+                Stage::Propagate { .. } => 0.1 + 0.5 * p.stage_fraction as f32,
+                Stage::Scatter => 0.6 + 0.1 * p.stage_fraction as f32,
                 Stage::March => 0.7 + 0.1 * p.stage_fraction as f32,
                 Stage::Done => 0.8,
             };

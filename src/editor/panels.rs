@@ -535,7 +535,7 @@ fn multiple_scattering_inspector(state: &mut EditorState, ui: &mut Ui) {
         ui.label("resolution");
         let mut cells = ms.resolution;
         let r = ui.add(DragValue::new(&mut cells).range(4..=128).speed(0.5).suffix(" cells")).on_hover_text(
-            "Coarse cells on the grid's longest axis the solver works on: more is slower and resolves sharper light (default 32)",
+            "The solver's coarse grid holds at most this many cells cubed: more is slower and resolves sharper light (default 24)",
         );
         if r.changed() && cells != ms.resolution {
             set(state, r.id.value(), &|m| m.resolution = cells);
@@ -904,6 +904,7 @@ pub(crate) fn stats(state: &mut EditorState, ui: &mut Ui) {
         crate::gpu::Stage::Propagate { lights } => {
             format!("propagating {lights} light{}", if lights == 1 { "" } else { "s" })
         }
+        crate::gpu::Stage::Scatter => "solving multiple scattering".to_string(),
         crate::gpu::Stage::March => "marching at full resolution".to_string(),
         crate::gpu::Stage::Done => "converged".to_string(),
     };

@@ -221,7 +221,7 @@ pub(crate) fn shown_frames(before: ShownFrames, frame: Option<i32>, progress: &c
     use crate::gpu::Stage;
     let Some(frame) = frame else { return ShownFrames::default() };
     let mut now = before;
-    if matches!(progress.stage, Stage::March | Stage::Done) {
+    if matches!(progress.stage, Stage::Scatter | Stage::March | Stage::Done) {
         now.baked_shadows = Some(frame);
     }
     if progress.new_image {

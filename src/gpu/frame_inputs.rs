@@ -426,10 +426,10 @@ pub fn multiple_scattering_of(project: &Project) -> Option<MultipleScattering> {
     project.medium.multiple_scattering.filter(|m| m.strength > 0.0 && project.medium.albedo > 0.0)
 }
 
-/// Fine cells per coarse cell edge of the multiple-scattering grid: at most `resolution` coarse
-/// cells on the longest axis. 0 without multiple scattering.
+/// Fine cells per coarse cell edge of the multiple-scattering grid
+/// ([`MultipleScattering::factor`]); 0 without multiple scattering.
 fn scatter_factor(project: &Project) -> u32 {
-    multiple_scattering_of(project).map_or(0, |m| project.grid.resolution.max_element().div_ceil(m.resolution).max(1))
+    multiple_scattering_of(project).map_or(0, |m| m.factor(&project.grid))
 }
 
 #[cfg(test)]

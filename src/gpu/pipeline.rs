@@ -21,13 +21,14 @@ use super::frame_inputs::{FrameInputs, FrameRequest, Settings};
 use super::image_sampling::ImageSampling;
 use super::inject::{InjectJob, Injector};
 use super::inject_options::{HostCounts, InjectOptions};
-use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region};
+use super::keys::{Baked, BakedEv, ImageKey, Level, OpvKey, Region, ScatterKey};
 use super::limits::Capacity;
 use super::march::{MarchJob, BAND_ROWS};
 use super::opv_store::OpvLayout;
 use super::outputs::Image;
 use super::propagate::PropagationJob;
 use super::report::{Counters, FrameReport, Progress, Stage};
+use super::scattering::ScatterJob;
 use super::slice::{Plane, SliceSource};
 use super::stages::{Reallocated, Stages};
 use super::timer::{self, StageTimer};
@@ -42,6 +43,7 @@ struct Jobs {
     inject: Option<(InjectJob, Region)>,
     propagate: Option<(PropagationJob, Vec<(usize, OpvKey)>)>,
     march: Option<(MarchJob, ImageKey)>,
+    scatter: Option<(ScatterJob, ScatterKey)>,
 }
 
 /// A stage a call left unfinished when its budget ran out, and the fraction of it done.
@@ -298,7 +300,9 @@ impl FogPipeline {
         if let Some(unfinished) = self.propagate_stage(project, inputs, targets, clock, progress)? {
             return Ok(Some(unfinished));
         }
-        self.scatter_stage(inputs, progress)?;
+        if let Some(unfinished) = self.scatter_stage(inputs, clock, progress)? {
+            return Ok(Some(unfinished));
+        }
         self.march_stage(inputs, clock, progress)
     }
 
@@ -312,23 +316,44 @@ impl FogPipeline {
     }
 
     /// The multiple-scattering solve, once the OPVs it reads are up to date, when its inputs
-    /// changed. It runs whole: on the demos it costs a fraction of one march band.
-    fn scatter_stage(&mut self, inputs: &FrameInputs, progress: &mut Progress) -> Result<(), GpuError> {
+    /// changed: a step (the first scattering, one order, the moments) per item. The march reads
+    /// the last finished solve until the new one is done.
+    fn scatter_stage(
+        &mut self,
+        inputs: &FrameInputs,
+        clock: Clock,
+        progress: &mut Progress,
+    ) -> Result<Unfinished, GpuError> {
         let (Some(settings), Some(key)) =
             (inputs.multiple_scattering, inputs.scatter_key(self.baked.ev_generation, &self.baked.opvs))
         else {
-            return Ok(());
+            self.jobs.scatter = None;
+            return Ok(None);
         };
         if self.baked.scatter.as_ref().is_some_and(|(k, _)| *k == key) {
-            return Ok(());
+            return Ok(None);
         }
-        let t = Instant::now();
-        self.stages.scatter(&self.ctx, inputs, settings)?;
-        progress.report.timings_ms.scatter += ms(t);
-        progress.report.counters.dispatches += 3 + 3 * settings.orders;
-        self.baked.scatter_generation += 1;
-        self.baked.scatter = Some((key, self.baked.scatter_generation));
-        Ok(())
+        if self.jobs.scatter.as_ref().is_some_and(|(_, k)| *k != key) {
+            self.jobs.scatter = None;
+        }
+        if self.jobs.scatter.is_none() {
+            let job = self.stages.begin_scatter(&self.ctx, inputs, settings)?;
+            self.stages.note_memory();
+            self.jobs.scatter = Some((job, key));
+        }
+        while let Some((job, _)) = self.jobs.scatter.as_mut() {
+            let t = Instant::now();
+            self.stages.scatter_step(&self.ctx, job)?;
+            progress.report.timings_ms.scatter += ms(t);
+            progress.report.counters.dispatches += 3;
+            if let Some((_, key)) = self.jobs.scatter.take_if(|(job, _)| job.done()) {
+                self.baked.scatter_generation += 1;
+                self.baked.scatter = Some((key, self.baked.scatter_generation));
+            } else if let Some((job, _)) = self.jobs.scatter.as_ref().filter(|_| clock.spent()) {
+                return Ok(Some((Stage::Scatter, job.fraction())));
+            }
+        }
+        Ok(None)
     }
 
     /// Injection, by chunks of dirty bricks: every preview frame shows the current extinction

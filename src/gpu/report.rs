@@ -96,6 +96,8 @@ pub enum Stage {
     Propagate {
         lights: u32,
     },
+    /// The multiple-scattering solve.
+    Scatter,
     /// The full-resolution march.
     March,
     /// Nothing left: the shown image is full resolution with fresh optical depths.
@@ -109,6 +111,7 @@ impl Stage {
         match self {
             Stage::Inject => "inject".into(),
             Stage::Propagate { lights } => format!("propagate {lights} light{}", if lights == 1 { "" } else { "s" }),
+            Stage::Scatter => "multiple scattering".into(),
             Stage::March => "march".into(),
             Stage::Done => "done".into(),
         }

@@ -1,21 +1,24 @@
 //! [`Scatterer`]: multiple scattering, the light scattered two or more times inside the grid.
 //!
 //! The method is source iteration of the discrete-ordinates equations on a coarse copy of the
-//! grid (at most `resolution` cells on its longest axis), one scattering order per sweep:
+//! grid (at most `resolution`³ cells, see `MultipleScattering::factor`), one scattering order
+//! per sweep:
 //!
 //! 1. The first scattering's source per coarse cell (`shaders/scatter_source.wgsl`): the mean
-//!    over its fine cells of σ_s times the unscattered light of every light, from the same OPVs,
-//!    cell means and surface shadows as the light bake, so cones, shadows and the 1/d² peak
-//!    by a light are integrated, not point-sampled. Its angular shape is kept as one
-//!    Henyey–Greenstein lobe about the light's mean direction (exact in the first moment).
+//!    of σ_s times the unscattered light of every light, from the same OPVs, cone rules and
+//!    surface shadows as the light bake, over every fine cell near a point or spot light (the
+//!    1/d² peak integrated, not point-sampled) and from 2³ points elsewhere. Its angular shape
+//!    is kept as one Henyey–Greenstein lobe about the light's mean direction (exact in the first
+//!    moment).
 //! 2. Per order, a sweep of the scattered radiance in the 48 directions of the S6
 //!    level-symmetric quadrature, upwind layer by layer, each line crossing its cell with the
 //!    cell's σ_t and emission so that every cell attenuates exactly what enters it
 //!    (`shaders/scatter_sweep.wgsl`), then the order's fluence and flux, summed into the
 //!    totals, and the next order's source.
 //! 3. The orders not swept as a geometric tail, from the ratio of the last two orders'
-//!    scattered powers (in thick, bright fog each order keeps nearly all of the last one's
-//!    light, so a handful of sweeps and the tail stand for hundreds of orders).
+//!    scattered powers. It stands for the many orders of thick, bright fog at the cost of a
+//!    few sweeps; there the ratios still grow after the last order, so the tail is short by a
+//!    few per cent of the added light (README, "Multiple scattering").
 //!
 //! The march (`ms_inscatter` in `shaders/march.wgsl`) adds σ_s·φ·HG(ω·ê, g·|E|/φ) at every
 //! sample in the grid, trilinear from the coarse fluence φ and flux E; the bake adds the same at
@@ -136,6 +139,29 @@ impl Buffers {
     }
 }
 
+/// A solve in progress: its steps are the first scattering's source, one per order, then the
+/// moments (see [`Scatterer::step`]).
+pub(super) struct ScatterJob {
+    step: u32,
+    orders: u32,
+    dims: glam::UVec3,
+    groups: (u32, u32),
+    source_group: wgpu::BindGroup,
+    sweep_group: wgpu::BindGroup,
+    /// The source pass's uniform, which its bind group holds.
+    _params: wgpu::Buffer,
+}
+
+impl ScatterJob {
+    pub fn done(&self) -> bool {
+        self.step > self.orders + 1
+    }
+
+    pub fn fraction(&self) -> f64 {
+        (self.step as f64 / (self.orders + 2) as f64).min(1.0)
+    }
+}
+
 /// The sweep module's pipelines over one layout.
 struct Sweeps {
     layout: wgpu::BindGroupLayout,
@@ -204,16 +230,17 @@ impl Scatterer {
         self.buffers.as_ref().map_or(0, Buffers::bytes)
     }
 
-    /// Solves multiple scattering for `frame` on `grid` (EV and lookup volumes up to date) and
-    /// leaves the moments in [`moments`](Self::moments). Encodes and submits every pass.
-    pub fn solve(
+    /// Starts the solve of multiple scattering for `frame` on `grid` (EV and lookup volumes up
+    /// to date): uploads its parameters and binds its buffers. [`step`](Self::step) runs it; the
+    /// moments the march reads change only with its last step.
+    pub fn begin(
         &mut self,
         ctx: &GpuContext,
         layout: OpvLayout,
         grid: &GridResources,
         frame: &FrameInputs,
         settings: MultipleScattering,
-    ) -> Result<(), GpuError> {
+    ) -> Result<ScatterJob, GpuError> {
         let device = &ctx.device;
         let factor = frame.march.scatter_factor.max(1);
         let dims = coarse_dims(grid.spec.resolution, factor);
@@ -300,41 +327,65 @@ impl Scatterer {
 
         let groups = count.div_ceil(SWEEP_WORKGROUP);
         let x = groups.min(ctx.limits.max_compute_workgroups_per_dimension);
-        let (gx, gy) = (x, groups.div_ceil(x));
-        let mut encoder = device.create_command_encoder(&Default::default());
-        encoder.clear_buffer(&buffers.totals, 0, None);
-        encoder.clear_buffer(&buffers.powers, 0, None);
+        Ok(ScatterJob {
+            step: 0,
+            orders,
+            dims,
+            groups: (x, groups.div_ceil(x)),
+            source_group,
+            sweep_group,
+            _params: params_buf,
+        })
+    }
+
+    /// Runs the next step of `job`, and waits for it: the first scattering's source, then one
+    /// order per step, then the moments.
+    pub fn step(&self, ctx: &GpuContext, job: &mut ScatterJob) -> Result<(), GpuError> {
+        let (Some(source), Some(sweeps), Some(buffers)) = (&self.source, &self.sweeps, &self.buffers) else {
+            return Err(GpuError::Invalid("multiple scattering stepped before it began".into()));
+        };
+        let (gx, gy) = job.groups;
+        let offset = |k: u32| (k as u64 * PARAMS_SLOT) as u32;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        if job.step == 0 {
+            encoder.clear_buffer(&buffers.totals, 0, None);
+            encoder.clear_buffer(&buffers.powers, 0, None);
+        }
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("multiple scattering"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&source.pipeline);
-            pass.set_bind_group(0, &source_group, &[]);
-            pass.dispatch_workgroups(
-                dims.x.div_ceil(WORKGROUP_3D),
-                dims.y.div_ceil(WORKGROUP_3D),
-                dims.z.div_ceil(WORKGROUP_3D),
-            );
-            let offset = |k: u32| (k as u64 * PARAMS_SLOT) as u32;
-            pass.set_bind_group(0, &sweep_group, &[offset(0)]);
-            pass.set_pipeline(&sweeps.seed);
-            pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&sweeps.power);
-            pass.dispatch_workgroups(1, 1, 1);
-            for k in 1..=orders {
-                pass.set_bind_group(0, &sweep_group, &[offset(k)]);
+            if job.step == 0 {
+                let dims = job.dims;
+                pass.set_pipeline(&source.pipeline);
+                pass.set_bind_group(0, &job.source_group, &[]);
+                pass.dispatch_workgroups(
+                    dims.x.div_ceil(WORKGROUP_3D),
+                    dims.y.div_ceil(WORKGROUP_3D),
+                    dims.z.div_ceil(WORKGROUP_3D),
+                );
+                pass.set_bind_group(0, &job.sweep_group, &[offset(0)]);
+                pass.set_pipeline(&sweeps.seed);
+                pass.dispatch_workgroups(gx, gy, 1);
+                pass.set_pipeline(&sweeps.power);
+                pass.dispatch_workgroups(1, 1, 1);
+            } else if job.step <= job.orders {
+                pass.set_bind_group(0, &job.sweep_group, &[offset(job.step)]);
                 pass.set_pipeline(&sweeps.sweep);
                 pass.dispatch_workgroups(48, 1, 1);
                 pass.set_pipeline(&sweeps.gather);
                 pass.dispatch_workgroups(gx, gy, 1);
                 pass.set_pipeline(&sweeps.power);
                 pass.dispatch_workgroups(1, 1, 1);
+            } else {
+                pass.set_bind_group(0, &job.sweep_group, &[offset(job.orders)]);
+                pass.set_pipeline(&sweeps.finish);
+                pass.dispatch_workgroups(gx, gy, 1);
             }
-            pass.set_pipeline(&sweeps.finish);
-            pass.dispatch_workgroups(gx, gy, 1);
         }
         ctx.queue.submit([encoder.finish()]);
+        job.step += 1;
         ctx.wait()
     }
 

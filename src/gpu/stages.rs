@@ -23,7 +23,7 @@ use super::outputs::{self, Image};
 use super::propagate::{PropagationInputs, PropagationJob, Propagator};
 use super::report::Counters;
 use super::resources::GridResources;
-use super::scattering::Scatterer;
+use super::scattering::{ScatterJob, Scatterer};
 use super::slice::{Plane, SliceSource, Slicer};
 use super::tuning::Tuning;
 use super::{GpuContext, GpuError};
@@ -417,16 +417,21 @@ impl Stages {
         self.baking.bake_and_render(ctx, self.layout, g, frame, phase, self.scatterer.moments())
     }
 
-    /// Solves multiple scattering for `frame` with `settings` (see [`Scatterer::solve`]).
-    pub fn scatter(
+    /// Starts a multiple-scattering solve for `frame` with `settings` (see [`Scatterer::begin`]).
+    pub fn begin_scatter(
         &mut self,
         ctx: &GpuContext,
         frame: &FrameInputs,
         settings: crate::scene::MultipleScattering,
-    ) -> Result<(), GpuError> {
+    ) -> Result<ScatterJob, GpuError> {
         self.refresh_lookup(ctx);
         let g = self.grid.as_ref().ok_or_else(nothing_baked)?;
-        self.scatterer.solve(ctx, self.layout, g, frame, settings)
+        self.scatterer.begin(ctx, self.layout, g, frame, settings)
+    }
+
+    /// Runs the next step of a solve.
+    pub fn scatter_step(&self, ctx: &GpuContext, job: &mut ScatterJob) -> Result<(), GpuError> {
+        self.scatterer.step(ctx, job)
     }
 
     /// The scattered power per order of the last multiple-scattering solve.

@@ -253,14 +253,33 @@ pub struct MultipleScattering {
     /// Factor on the multiply scattered light: 1 is physical; artists may dim or boost it.
     /// 0..=10, default 1.
     pub strength: f32,
-    /// Coarse cells on the longest axis of the grid the solver works on; more is slower and
-    /// resolves sharper light. 4..=128, default 32.
+    /// Coarse cells per axis of a cube of the solver's cell count: its grid, coarser than the
+    /// project's by one factor on every axis, holds at most `resolution`³ cells. More is
+    /// slower and resolves sharper light. 4..=128, default 24.
     pub resolution: u32,
+}
+
+impl MultipleScattering {
+    /// Fine cells per coarse cell edge of the solver's grid on `grid`: the smallest factor,
+    /// the same on every axis, that leaves at most `resolution`³ coarse cells (so a thin grid
+    /// keeps as many coarse cells as a cube, not as few as its longest axis would give).
+    pub fn factor(&self, grid: &GridSpec) -> u32 {
+        let budget = (self.resolution.max(1) as u64).pow(3);
+        let cells = |f: u32| grid.resolution.map(|n| n.div_ceil(f)).as_u64vec3().element_product();
+        let mut f = ((grid.cell_count() as f64 / budget as f64).cbrt().ceil() as u32).max(1);
+        while f > 1 && cells(f - 1) <= budget {
+            f -= 1;
+        }
+        while cells(f) > budget {
+            f += 1;
+        }
+        f
+    }
 }
 
 impl Default for MultipleScattering {
     fn default() -> Self {
-        Self { orders: 8, strength: 1.0, resolution: 32 }
+        Self { orders: 8, strength: 1.0, resolution: 24 }
     }
 }
 
