@@ -86,13 +86,13 @@ fn coarse_index(c: vec3u) -> u32 {
 
 // The source entries of a cell whose scattered light has colour `rgb` (σ_s·φ), mean-channel
 // power `power` and mean-channel flux `flux` (σ_s·E).
-fn write_source(i: u32, rgb: vec3f, power: f32, flux: vec3f) {
+fn write_source(i: u32, rgb: vec3f, power: f32, flux: vec3f, anisotropy: f32) {
     let f = length(flux);
     var e = vec3f(0.0, 1.0, 0.0);
     var g = 0.0;
     if power > 0.0 && f > 0.0 {
         e = flux / f;
-        g = clamp(sp.anisotropy * min(f / power, 1.0), -LOBE_CAP, LOBE_CAP);
+        g = clamp(anisotropy * min(f / power, 1.0), -LOBE_CAP, LOBE_CAP);
     }
     var norm = 0.0;
     for (var d = 0u; d < DIRECTIONS; d++) {
@@ -118,6 +118,17 @@ fn piece(l0: vec3f, sigma: f32, eta: vec3f, h: f32) -> array<vec3f, 2> {
         m = (1.0 - f) / tau;
     }
     return array<vec3f, 2>(l0 * (1.0 - tau * f) + eta * (h * f), l0 * (h * f) + eta * (h * h * m));
+}
+
+// δ-M scaling for forward scattering: the fraction f = g² of each scattering that goes
+// straight on is treated as not scattered, so the sweeps see σ_t − f·σ_s, scatter (1 − f)·σ_s
+// and a lobe of g/(1 + g), which keeps the transport mean free path and the first moment while
+// the 48 directions need not resolve a sharp forward peak (which they would spread sideways,
+// letting the light out of thick fog too early). The first scattering's source keeps g: its
+// straight-on part is the light's own direction. None for backward scattering.
+fn forward_peak() -> f32 {
+    let g = max(sp.anisotropy, 0.0);
+    return g * g;
 }
 
 // Bilinear weights and corners on a layer of `n` cells per axis at fractional cell coordinate u.
@@ -217,8 +228,9 @@ fn gather(@builtin(global_invocation_id) gid: vec3u, @builtin(num_workgroups) gr
     order_moments[2u * i + 1u] = vec4f(flux, 0.0);
     totals[2u * i] += vec4f(phi, mean);
     totals[2u * i + 1u] += vec4f(flux, 0.0);
-    let ss = sp.albedo * sigma[i];
-    write_source(i, ss * phi, ss * mean, ss * flux);
+    let peak = forward_peak();
+    let ss = sp.albedo * (1.0 - peak) / (1.0 - peak * sp.albedo) * sigma[i];
+    write_source(i, ss * phi, ss * mean, ss * flux, sp.anisotropy / (1.0 + sqrt(peak)));
 }
 
 // The first-scattering source with its lobe, and σ_t, from the source pass.
@@ -230,8 +242,8 @@ fn seed(@builtin(global_invocation_id) gid: vec3u, @builtin(num_workgroups) grou
     }
     let a = first_source[2u * i];
     let b = first_source[2u * i + 1u];
-    sigma[i] = b.w;
-    write_source(i, a.rgb, a.w, b.xyz);
+    sigma[i] = b.w * (1.0 - forward_peak() * sp.albedo);
+    write_source(i, a.rgb, a.w, b.xyz, sp.anisotropy);
 }
 
 @compute @workgroup_size(SWEEP_WORKGROUP)

@@ -174,7 +174,7 @@ fn camera_bake_renders_like_the_lit_scene_for_any_g() {
 /// With multiple scattering on, the bake holds every order as the lit render does: both add
 /// the same coarse solution (the bake at cell centres, with the bake's phase rule), so their
 /// means agree within `MEAN_BOUND` and pixel by pixel within the bake's usual interpolation
-/// error (measured 1–3 %, bounded by 5 %), while a bake without the other orders is far off
+/// error (measured 0.6–0.7 %, bounded by 5 %), while a bake without the other orders is far off
 /// (asserted), so that the test can tell.
 #[test]
 fn the_bake_carries_multiple_scattering() {

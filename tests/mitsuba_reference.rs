@@ -141,7 +141,7 @@ fn single_scattering_matches_mitsuba() {
 /// the reference, if larger), and the robust relative RMSE within 10 %: after a 3×3 box filter
 /// (which takes the reference's Monte Carlo noise down threefold) and without the 1 % largest
 /// differences (a light inside the fog). Single scattering alone is 30–50 % short on these
-/// scenes.
+/// scenes. (Thicker, forward-scattering fog misses these bounds: see docs/bench/scattering.)
 #[test]
 fn all_orders_match_mitsuba() {
     let dir = temp_dir();
