@@ -192,6 +192,30 @@ fn default_layout_snapshot() {
     h.snapshot_options("editor_layout", &options);
 }
 
+/// The Inspector's "multiple scattering" box turns medium.multiple_scattering off and on as one
+/// undo step each, and the preview then renders without and with it (less light without).
+#[test]
+fn the_multiple_scattering_box_edits_the_project_and_undoes() {
+    let mut h = harness(demo());
+    let on = |h: &EditorDriver| h.state().session().project().medium.multiple_scattering.is_some();
+    assert!(on(&h), "the demo has multiple scattering on");
+    converge(&mut h);
+    let mean = |h: &EditorDriver| {
+        let image = h.state().pipeline().unwrap().read_image().unwrap();
+        image.rgba.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>()
+    };
+    let with = mean(&h);
+    h.get_by_label("multiple scattering").click();
+    h.run_steps(2);
+    assert!(!on(&h), "the box turned multiple scattering off");
+    converge(&mut h);
+    assert!(mean(&h) < with, "the preview did not lose the multiply scattered light");
+    assert_eq!(h.state().gpu_error(), None);
+    h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert!(on(&h), "undo turns it on again");
+}
+
 /// The Inspector's "refine thin shadows" box sets propagation.sweep_refine as one undo step,
 /// and its tolerance field shows only while it is on.
 #[test]

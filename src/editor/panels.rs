@@ -323,7 +323,6 @@ fn inspector_rows(state: &mut EditorState, ui: &mut Ui) {
             ui.end_row();
         });
         noise_inspector(state, ui);
-        multiple_scattering_inspector(state, ui);
     });
     egui::CollapsingHeader::new("Grid").default_open(true).show(ui, |ui| {
         let g = state.session.project().grid;
@@ -491,25 +490,28 @@ fn inspector_rows(state: &mut EditorState, ui: &mut Ui) {
             }
         }
     });
+    egui::CollapsingHeader::new("Multiple scattering")
+        .default_open(true)
+        .show(ui, |ui| multiple_scattering_inspector(state, ui));
 }
 
 /// The medium's noise: on/off (remembering the last settings), its four numbers, the
 /// note on octaves the grid drops, and the brush's noise toggle.
-/// Multiple scattering on or off, and its settings when on.
+/// Multiple scattering on or off, and its settings when on, on one (wrapping) row.
 fn multiple_scattering_inspector(state: &mut EditorState, ui: &mut Ui) {
     use crate::scene::MultipleScattering;
     let current = state.session.project().medium.multiple_scattering;
-    let mut on = current.is_some();
-    let toggle = ui.checkbox(&mut on, "multiple scattering").on_hover_text(
-        "Light scattered more than once inside the grid, solved on a coarse grid: bright, high-albedo fog gets \
-         about twice the light of single scattering. Off: single scattering only (files without the setting).",
-    );
-    if toggle.changed() {
-        let value = on.then(MultipleScattering::default);
-        state.session.edit_medium(super::session::NEW_STEP, |m| m.multiple_scattering = value);
-    }
-    let Some(ms) = current else { return };
-    egui::Grid::new("multiple-scattering").num_columns(2).show(ui, |ui| {
+    ui.horizontal_wrapped(|ui| {
+        let mut on = current.is_some();
+        let toggle = ui.checkbox(&mut on, "multiple scattering").on_hover_text(
+            "Light scattered more than once inside the grid, solved on a coarse grid: bright, high-albedo fog gets \
+             about twice the light of single scattering. Off: single scattering only (files without the setting).",
+        );
+        if toggle.changed() {
+            let value = on.then(MultipleScattering::default);
+            state.session.edit_medium(super::session::NEW_STEP, |m| m.multiple_scattering = value);
+        }
+        let Some(ms) = current else { return };
         let set = |state: &mut EditorState, tag: u64, f: &dyn Fn(&mut MultipleScattering)| {
             state.session.edit_medium(tag, |m| {
                 if let Some(ms) = m.multiple_scattering.as_mut() {
@@ -517,30 +519,28 @@ fn multiple_scattering_inspector(state: &mut EditorState, ui: &mut Ui) {
                 }
             })
         };
-        ui.label("strength");
-        let tip = "Factor on the multiply scattered light: 1 is physical (default 1)";
-        if let Some((v, t)) = drag(ui, ms.strength, 0.01, 0.0..=10.0, "", tip) {
-            set(state, t, &|m| m.strength = v);
-        }
-        ui.end_row();
-        ui.label("orders");
         let mut orders = ms.orders;
-        let r = ui
-            .add(DragValue::new(&mut orders).range(1..=64).speed(0.2))
-            .on_hover_text("Scattering orders solved one by one; the rest is the geometric tail of the last two (default 8)");
+        let r = ui.add(DragValue::new(&mut orders).range(1..=64).speed(0.2).prefix("orders ")).on_hover_text(
+            "Scattering orders solved one by one; the rest is the geometric tail of the last two (default 8)",
+        );
         if r.changed() && orders != ms.orders {
             set(state, r.id.value(), &|m| m.orders = orders);
         }
-        ui.end_row();
-        ui.label("resolution");
         let mut cells = ms.resolution;
-        let r = ui.add(DragValue::new(&mut cells).range(4..=128).speed(0.5).suffix(" cells")).on_hover_text(
+        let r = ui.add(DragValue::new(&mut cells).range(4..=128).speed(0.5).prefix("cells ")).on_hover_text(
             "The solver's coarse grid holds at most this many cells cubed: more is slower and resolves sharper light (default 24)",
         );
         if r.changed() && cells != ms.resolution {
             set(state, r.id.value(), &|m| m.resolution = cells);
         }
-        ui.end_row();
+        let tip = "Strength: a factor on the multiply scattered light, 1 is physical (default 1)";
+        let mut strength = ms.strength;
+        let r = ui
+            .add(DragValue::new(&mut strength).range(0.0..=10.0).speed(0.01).prefix("× ").max_decimals(3))
+            .on_hover_text(tip);
+        if r.changed() && strength != ms.strength {
+            set(state, r.id.value(), &|m| m.strength = strength);
+        }
     });
 }
 

@@ -10,7 +10,8 @@
 //!                             fogsmith:baseExtinction (1/m) as custom attributes
 //!     /density, /optical_depth_<i>, ...   OpenVDBAsset fields → the exported .vdb
 //!     /emission               with a light bake: the vec3s emission (fieldDataType float3)
-//!   /Light_<i>                SphereLight, treatAsPoint, normalize, radius 0
+//!   /Light_<i>                SphereLight, treatAsPoint, normalize, radius 0 (a sun:
+//!                             DistantLight)
 //!   /Camera                   Camera (transform, focal length and apertures)
 //!   /Ground, /Box_<n>         Mesh with a UsdPreviewSurface material (diffuse albedo)
 //!   /Looks/...                the materials
@@ -30,6 +31,8 @@
 //!
 //! A Fogsmith light of radiant intensity I (W/sr) and colour c is a `SphereLight` with
 //! `inputs:intensity = 4·I`, `inputs:color = c`, `inputs:normalize = 1`, `treatAsPoint = 1`.
+//! A sun of irradiance E (W/m²) is a `DistantLight` with `inputs:intensity = E` shining along
+//! its direction. A spot light is written as a point light (no cone yet).
 //! With `normalize`, UsdLux makes the emitted power π·intensity; an isotropic point source of
 //! power P has I = P / (4π), so intensity = 4·I gives back I. Hidden lights are left out.
 //!
@@ -299,6 +302,10 @@ fn encode(path: &Path, frames: &[StageFrame], fps: Option<f32>, opts: &UsdOption
             continue;
         }
         out!("");
+        if let crate::scene::LightKind::Directional { .. } = project.lights[i].kind {
+            distant_light(w, i, frames, animated, frame);
+            continue;
+        }
         out!("    def SphereLight \"Light_{i}\"");
         out!("    {{");
         attr(w, "        ", "color3f inputs:color", frames, animated, false, |f| color(light(f).color));
@@ -417,6 +424,37 @@ fn encode(path: &Path, frames: &[StageFrame], fps: Option<f32>, opts: &UsdOption
     }
     out!("}}");
     Ok(u)
+}
+
+/// Light `i`, a sun, as a `DistantLight`: it shines down its local −Z, so its transform's Z
+/// axis is the reverse of the direction the light travels; `inputs:intensity` is the
+/// irradiance per unit of colour (W/m², Fogsmith's intensity for a sun), `inputs:angle` 0.
+fn distant_light(w: &mut String, i: usize, frames: &[StageFrame], animated: bool, frame: Frame) {
+    let light = |f: &StageFrame| f.project.lights[i].clone();
+    let _ = writeln!(w, "    def DistantLight \"Light_{i}\"");
+    let _ = writeln!(w, "    {{");
+    let _ = writeln!(w, "        float inputs:angle = 0");
+    attr(w, "        ", "color3f inputs:color", frames, animated, false, |f| color(light(f).color));
+    attr(w, "        ", "float inputs:intensity", frames, animated, false, |f| num(light(f).intensity as f64));
+    if frames.iter().any(|f| light(f).hidden) {
+        attr(w, "        ", "token visibility", frames, animated, false, |f| {
+            if light(f).hidden { "\"invisible\"" } else { "\"inherited\"" }.to_string()
+        });
+    }
+    let row = |a: [f64; 3]| format!("({}, {}, {}, 0)", num(a[0]), num(a[1]), num(a[2]));
+    attr(w, "        ", "matrix4d xformOp:transform", frames, animated, false, |f| {
+        let travel = match light(f).kind {
+            crate::scene::LightKind::Directional { direction } => direction.normalize_or(glam::Vec3::NEG_Y),
+            _ => glam::Vec3::NEG_Y,
+        };
+        let z = -travel;
+        let x = z.any_orthonormal_vector();
+        let y = z.cross(x);
+        let v = |d: glam::Vec3| frame.vector(d.to_array().map(f64::from));
+        format!("( {}, {}, {}, (0, 0, 0, 1) )", row(v(x)), row(v(y)), row(v(z)))
+    });
+    let _ = writeln!(w, "        uniform token[] xformOpOrder = [\"xformOp:transform\"]");
+    let _ = writeln!(w, "    }}");
 }
 
 fn bounds(points: impl Iterator<Item = [f64; 3]>) -> ([f64; 3], [f64; 3]) {
