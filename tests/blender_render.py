@@ -27,7 +27,7 @@ pv = vol.data.materials[0].node_tree.nodes["Principled Volume"]
 albedo = pv.inputs["Color"].default_value[0]
 anisotropy = pv.inputs["Anisotropy"].default_value
 for o in scene.objects:
-    if o.type == "LIGHT":
+    if o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"}:
         assert not o.data.use_soft_falloff, f"{o.name} keeps Blender's soft falloff"
 assert scene.camera is not None, "the add-on set no camera"
 

@@ -222,3 +222,56 @@ fn cycles_renders_the_exported_scene_like_fogsmith() {
         );
     }
 }
+
+/// Every order on a bundled demo: the cloud demo (albedo 1, a sun and a point light, no
+/// surfaces) exported as a USD stage, imported by the add-on and rendered by Cycles with 64
+/// volume bounces, against `fogsmith render` with the demo's multiple scattering. The means
+/// agree within 5 % (Cycles / Fogsmith measured 0.975 at 128 spp; with 1024 bounces Cycles is
+/// 4.8 % above Fogsmith, whose tail is short in such bright, thick fog), and the single-
+/// scattering renders within 3 % (measured 1.016), which checks the sun's placement and
+/// strength on the way.
+#[test]
+fn cycles_all_orders_match_on_the_cloud_demo() {
+    let dir = common::files::temp_dir();
+    let dir = dir.path();
+    let py = venv_python("bpy");
+    let bin = env!("CARGO_BIN_EXE_fogsmith");
+    let (w, h) = (96usize, 54usize);
+    let (ws, hs) = (w.to_string(), h.to_string());
+    let ron = root().join("projects/cloud.ron");
+    let usd = dir.join("cloud.usda");
+    run_ok(
+        Command::new(bin)
+            .arg("export")
+            .arg(&ron)
+            .args(["--preset", "blender", "--usd"])
+            .arg(&usd)
+            .args(["--width", &ws, "--height", &hs]),
+        "fogsmith export",
+    );
+    let mean = |img: &[[f32; 3]]| img.iter().flatten().map(|&v| v as f64).sum::<f64>() / (w * h * 3) as f64;
+    for (switch, bounces, bound) in [("off", None, 0.03), ("on", Some("64"), 0.05)] {
+        let exr = dir.join(format!("fog-{switch}.exr"));
+        run_ok(
+            Command::new(bin).arg("render").arg(&ron).arg("-o").arg(&exr).args([
+                "--width",
+                &ws,
+                "--height",
+                &hs,
+                "--multiple-scattering",
+                switch,
+            ]),
+            "fogsmith render",
+        );
+        let out = dir.join(format!("cycles-{switch}.f32"));
+        let mut args = vec![usd.display().to_string(), out.display().to_string(), ws.clone(), hs.clone()];
+        args.extend(["128".to_string(), "1".to_string()]);
+        args.extend(bounces.map(str::to_string));
+        let log = run_ok(Command::new(&py).arg(root().join("tests/blender_render.py")).args(&args), "Cycles render");
+        eprintln!("multiple scattering {switch}: {}", log.lines().last().unwrap_or(""));
+        let (fog, cycles) = (read_exr_rgb(&exr, w, h), read_f32_rgb(&out, w, h));
+        let ratio = mean(&cycles) / mean(&fog);
+        println!("multiple scattering {switch}: Cycles / Fogsmith mean {ratio:.4}");
+        assert!((ratio - 1.0).abs() < bound, "multiple scattering {switch}: Cycles / Fogsmith {ratio:.4}");
+    }
+}

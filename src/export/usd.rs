@@ -436,6 +436,17 @@ fn distant_light(w: &mut String, i: usize, frames: &[StageFrame], animated: bool
     let _ = writeln!(w, "        float inputs:angle = 0");
     attr(w, "        ", "color3f inputs:color", frames, animated, false, |f| color(light(f).color));
     attr(w, "        ", "float inputs:intensity", frames, animated, false, |f| num(light(f).intensity as f64));
+    // Blender 4.5's USD importer makes a DistantLight of intensity E a sun of strength 4·E
+    // (measured); the add-on (integrations/blender) sets it from this instead.
+    attr(
+        w,
+        "        ",
+        "custom float fogsmith:irradiance",
+        frames,
+        animated,
+        false,
+        |f| num(light(f).intensity as f64),
+    );
     if frames.iter().any(|f| light(f).hidden) {
         attr(w, "        ", "token visibility", frames, animated, false, |f| {
             if light(f).hidden { "\"invisible\"" } else { "\"inherited\"" }.to_string()

@@ -71,7 +71,12 @@ def stage_medium(path):
     stage = Usd.Stage.Open(path)
     if stage is None:
         raise FogsmithImportError(f"{path}: not a USD stage Blender can open")
-    medium = {"albedo": None, "anisotropy": None, "fps": None}
+    medium = {"albedo": None, "anisotropy": None, "fps": None, "suns": {}}
+    for prim in stage.Traverse():
+        if prim.GetTypeName() == "DistantLight":
+            attr = prim.GetAttribute("fogsmith:irradiance")
+            if attr and attr.HasAuthoredValue():
+                medium["suns"][prim.GetName()] = float(attr.Get())
     for prim in stage.Traverse():
         if prim.GetTypeName() != "Volume":
             continue
@@ -93,10 +98,15 @@ def _usda_medium(text):
     fps = number(r"\bframesPerSecond")
     start, end = number(r"\bstartTimeCode"), number(r"\bendTimeCode")
     animated = fps is not None and start is not None and end is not None and end > start
+    suns = {
+        m.group(1): float(m.group(2))
+        for m in re.finditer(r'def DistantLight "(\w+)"[^}]*?fogsmith:irradiance\s*=\s*([-+0-9.eE]+)', text)
+    }
     return {
         "albedo": number(r"fogsmith:albedo"),
         "anisotropy": number(r"fogsmith:anisotropy"),
         "fps": fps if animated else None,
+        "suns": suns,
     }
 
 
@@ -229,9 +239,14 @@ def set_up(context, new_objects, medium, lighting, report):
         else:
             lit_material(vol, albedo, anisotropy)
         centre_voxels(vol)
+    suns = medium.get("suns") or {}
     for o in lights:
         if o.data.type in {"POINT", "SPOT"}:
             o.data.use_soft_falloff = False
+        if o.data.type == "SUN" and o.name in suns:
+            # Blender's USD importer makes a DistantLight of intensity E a sun of strength
+            # 4·E; a Fogsmith sun of irradiance E is a sun of strength E.
+            o.data.energy = suns[o.name]
         if baked_any:
             # The bake holds their light; rendering them too would light the fog twice.
             o.hide_render = True
