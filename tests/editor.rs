@@ -474,9 +474,9 @@ fn a_dragged_light_shows_every_frame_and_the_preview_converges_to_the_fresh_bake
 #[test]
 fn an_edit_that_changes_nothing_on_show_is_shown_at_once() {
     let mut h = progressive_harness();
-    // Single scattering: with the demo's multiple scattering on, the density edit's frame
-    // missed its image under the load of the parallel tests (not alone); see the README's
-    // "Multiple scattering".
+    // Single scattering: the density edit's frame has missed its image under load, with the
+    // demo's multiple scattering on (README, "Multiple scattering"); this keeps the case that
+    // passed before it existed.
     h.state_mut().session_mut().edit(fogsmith::editor::session::NEW_STEP).medium.multiple_scattering = None;
     h.step_until_converged(5000);
     let before = h.state().preview_status().expect("a preview");
