@@ -62,6 +62,12 @@ fn cone_factor(light: LightGpu, v: vec3f) -> f32 {
     return t * t * (3.0 - 2.0 * t);
 }
 
+// The Henyey–Greenstein phase function of asymmetry g at cos θ, per steradian.
+fn hg(cos_theta: f32, g: f32) -> f32 {
+    let denom = max(1.0 + g * g - 2.0 * g * cos_theta, 1e-6);
+    return (1.0 - g * g) / (4.0 * PI * denom * sqrt(denom));
+}
+
 fn cell_center(id: vec3u) -> vec3f {
     return grid.min + (vec3f(id) + 0.5) * grid.cell;
 }

@@ -234,8 +234,7 @@ fn phase(cos_theta: f32) -> f32 {
     if g == 0.0 {
         return 1.0 / (4.0 * PI);
     }
-    let denom = max(1.0 + g * g - 2.0 * g * cos_theta, 1e-6);
-    return (1.0 - g * g) / (4.0 * PI * denom * sqrt(denom));
+    return hg(cos_theta, g);
 }
 
 // 1 − e^{−τ}, accurate for tiny τ too (σ_s·S·(1 − e^{−σ_t Δ})/σ_t with σ_s = albedo·σ_t).
@@ -291,9 +290,7 @@ fn ms_inscatter(x: vec3f, w: vec3f) -> vec3f {
     if flux.w <= 0.0 || e <= 0.0 {
         return phi / (4.0 * PI);
     }
-    let g = params.anisotropy * min(e / flux.w, 1.0);
-    let denom = max(1.0 + g * g - 2.0 * g * dot(flux.xyz / e, w), 1e-6);
-    return phi * ((1.0 - g * g) / (4.0 * PI * denom * sqrt(denom)));
+    return phi * hg(dot(flux.xyz / e, w), params.anisotropy * min(e / flux.w, 1.0));
 }
 
 // One step of length `dt` centred at `x`.

@@ -75,11 +75,6 @@ const TAIL_SLOT: u32 = 79u;
 
 var<workgroup> partial: array<f32, SWEEP_WORKGROUP>;
 
-fn hg(cos_theta: f32, g: f32) -> f32 {
-    let denom = max(1.0 + g * g - 2.0 * g * cos_theta, 1e-6);
-    return (1.0 - g * g) / (4.0 * PI * denom * sqrt(denom));
-}
-
 fn coarse_index(c: vec3u) -> u32 {
     return c.x + sp.dims.x * (c.y + sp.dims.y * c.z);
 }
